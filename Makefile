@@ -49,7 +49,7 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             libcmocka-dev libopenblas-dev libhidapi-dev libusb-1.0-0-dev libgpiod-dev gpiod libsystemd-dev \
             gnuplot-nox clang libclang-rt-14-dev
 
-.PHONY: all deps demo check check-quick bench fuzz install clean help tests benches
+.PHONY: all deps demo check bench fuzz install clean help tests benches
 all: $(BINS)
 
 help:
@@ -115,6 +115,23 @@ install: all
 	-install -m 644 etc/scenes/*.json $(DESTDIR)$(PREFIX)/share/scicap/scenes/ 2>/dev/null
 	install -d $(DESTDIR)$(PREFIX)/share/man/man1
 	-install -m 644 docs/man/*.1 $(DESTDIR)$(PREFIX)/share/man/man1/ 2>/dev/null
+
+# Fuzzers: libFuzzer (clang) over the pure parsers; each tests/fuzz/fuzz_<x>.c is one target, built with the
+# base/ and drivers/ sources instrumented alongside it. FUZZ_SECONDS per target (default 60).
+FUZZ_SECONDS ?= 60
+FUZZ_SRC := $(wildcard tests/fuzz/fuzz_*.c)
+FUZZ_BIN := $(FUZZ_SRC:tests/fuzz/%.c=$(BUILD)/fuzz/%)
+FUZZ_LIBSRC := $(wildcard base/*.c drivers/*.c)
+$(BUILD)/fuzz/%: tests/fuzz/%.c $(FUZZ_LIBSRC)
+	@mkdir -p $(dir $@)
+	clang -std=c11 -D_GNU_SOURCE -g -O1 -fsanitize=fuzzer,address,undefined -I. $(PKG_CFLAGS) \
+	  -DSCICAP_GPIOD_MAJOR=$(or $(GPIOD_MAJOR),0) -o $@ $< $(FUZZ_LIBSRC) $(PKG_LIBS) -lm -lpthread
+fuzz: deps
+	@$(MAKE) --no-print-directory $(FUZZ_BIN)
+	@set -e; for f in $(FUZZ_BIN); do n=$$(basename $$f); mkdir -p $(BUILD)/fuzz/corpus-$$n; \
+	  seeds=tests/fuzz/corpus/$${n#fuzz_}; [ -d $$seeds ] || seeds=; \
+	  echo "fuzz: $$n for $(FUZZ_SECONDS) s"; \
+	  $$f -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 $(BUILD)/fuzz/corpus-$$n $$seeds 2>&1 | tail -n 12; done
 
 clean:
 	rm -rf $(BUILD)

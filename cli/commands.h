@@ -1,0 +1,12 @@
+/* cli/commands.h — the subcommands of `scicap`, one file each (cli/<name>.c); cli/main.c dispatches.
+ * Each takes the arguments after the subcommand name (argv[0] is the subcommand) and returns the process exit
+ * status: 0 success, 1 runtime failure (message printed to stderr), 2 usage error. */
+#ifndef SCICAP_CLI_COMMANDS_H
+#define SCICAP_CLI_COMMANDS_H
+
+int cli_recon_main(int argc, char **argv);
+int cli_sim_main(int argc, char **argv);
+int cli_dmd_main(int argc, char **argv);
+int cli_bench_main(int argc, char **argv);
+
+#endif
