@@ -1,0 +1,64 @@
+/* io/image.h — image files and image stacks through OpenImageIO.
+ *
+ * OpenImageIO has no C API; io/oiio_shim.cpp wraps the few calls we need in extern "C" functions that catch
+ * every C++ exception, so none ever reaches C. This header is the C face of it.
+ *
+ * Single images hold one frame of a cube. A *stack* is N frames in one folder — <stem>_000.<ext>,
+ * <stem>_001.<ext>, ... — plus a JSON sidecar <stem>.json that records the shape, the pixel type, the scale
+ * applied before storing, and free-form provenance:
+ *     {"format": "scicap-stack", "version": 1, "w": 256, "h": 256, "n": 8, "type": "f32", "scale": 1.0,
+ *      "files": ["mask_000.exr", ...], "provenance": {...}}
+ * Stored value = cube value × scale (integer types rounded and clamped); reading divides by scale again, so a
+ * float stack round-trips bit for bit and a 16-bit stack round-trips to within half a count.
+ *
+ * Pixel types by use (DESIGN.md, Formats): raw snapshots 16-bit TIFF (counts, never rescaled), reconstructions
+ * float EXR, previews 8- or 16-bit PNG.
+ *
+ * Writes are atomic per file: written to "<path>.tmp-<pid>" and renamed, so a reader never sees half a file.
+ * Errors: -errno for I/O, SCI_EFORMAT for files OpenImageIO cannot read or that have the wrong channel count;
+ * the message names the file. Thread-safe (each call opens its own file handles).
+ */
+#ifndef SCICAP_IO_IMAGE_H
+#define SCICAP_IO_IMAGE_H
+
+#include <jansson.h>
+
+#include "base/cube.h"
+#include "base/error.h"
+
+typedef enum sci_pixel_type {
+    SCI_PIXEL_U8,   /* 8-bit unsigned */
+    SCI_PIXEL_U16,  /* 16-bit unsigned */
+    SCI_PIXEL_HALF, /* 16-bit float (EXR) */
+    SCI_PIXEL_F32,  /* 32-bit float */
+} sci_pixel_type;
+
+/* Name used in sidecars ("u8", "u16", "half", "f32"); NULL for an invalid type. */
+const char *sci_pixel_type_name(sci_pixel_type t);
+
+/* Read one image file as a 1-frame cube of its stored values (8-bit 0..255, 16-bit 0..65535, float as is).
+ * Colour images are converted to luminance (Rec. 709 weights). *bits (may be NULL) receives the stored bit
+ * depth (8, 16, 32; 16 for half). A multi-page TIFF gives one frame per page. */
+int sci_image_read(const char *path, sci_cube **out, int *bits, sci_error *err);
+
+/* Write frame `k` of `c` as a 1-channel image; the format follows the extension (.tif/.tiff, .exr, .png, ...).
+ * Stored value = value × scale, rounded and clamped to the type's range for integer types. `description` (may be
+ * NULL) goes into the file's ImageDescription (TIFF) or a string attribute (EXR). Atomic (see above). */
+int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type type, double scale,
+                    const char *description, sci_error *err);
+
+/* Write an animated GIF preview of all frames (8-bit, value × scale clamped), `delay_ms` per frame. */
+int sci_image_write_gif(const char *path, const sci_cube *c, double scale, int delay_ms, sci_error *err);
+
+/* Write cube `c` as a stack in folder `dir` (created if missing) with sidecar <dir>/<stem>.json. `ext` is the
+ * file extension without dot ("exr", "tif", "png"). `provenance` (may be NULL, borrowed) is copied into the
+ * sidecar. */
+int sci_stack_write(const char *dir, const char *stem, const char *ext, const sci_cube *c, sci_pixel_type type,
+                    double scale, const json_t *provenance, sci_error *err);
+
+/* Read a stack from its sidecar path (<dir>/<stem>.json): checks every frame's size against the sidecar and
+ * returns values divided by the sidecar's scale. *provenance (may be NULL) receives a new reference the caller
+ * must json_decref, or NULL if the sidecar has none. */
+int sci_stack_read(const char *sidecar_path, sci_cube **out, json_t **provenance, sci_error *err);
+
+#endif

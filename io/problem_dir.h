@@ -1,0 +1,36 @@
+/* io/problem_dir.h — a folder that holds SCI problems, the exchange format between `scicap sim`, the daemon's
+ * capture folders and `scicap recon`.
+ *
+ * Layout (docs/formats.md):
+ *     DIR/problem.json          manifest: {"format": "scicap-problem", "version": 1, "snapshots": k,
+ *                               "w", "h", "n", "peak", "meas": "meas.json", "mask": "mask.json",
+ *                               "truth": "truth.json" (optional), "camera": {...} (optional), "source": {...}}
+ *     DIR/meas_000.exr ...      k measurements (a stack, float32 EXR: lossless)
+ *     DIR/mask_000.exr ...      N masks shared by all snapshots (a stack)
+ *     DIR/truth_000.exr ...     k·N truth frames, snapshot-major (a stack), when known
+ * "camera" (static3d scenes): {"fx","fy","cx","cy","near","far","poses": [[12 numbers] × k·N]}, poses
+ * camera-to-world row-major 3×4, NeRF axes (recon/problem.h).
+ *
+ * Reading yields k problems that each own their cubes (the mask is copied per problem).
+ */
+#ifndef SCICAP_IO_PROBLEM_DIR_H
+#define SCICAP_IO_PROBLEM_DIR_H
+
+#include <jansson.h>
+
+#include "recon/problem.h"
+
+/* Write problems[0..k-1] (all the same w, h, n; same masks: problems[0]'s are written) to DIR, creating it.
+ * `source` (may be NULL, borrowed) is stored under "source" (e.g. the scene and effects that made it).
+ * Writes into DIR.tmp-<pid> and renames it to DIR at the end, so a reader never sees a half-written folder;
+ * an existing DIR is replaced only when `overwrite` is nonzero (else -EEXIST). */
+int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                          int overwrite, sci_error *err);
+
+/* Read DIR (or DIR/problem.json). On success *out is a malloc'd array of *k problem pointers, freed with
+ * sci_problem_array_free. */
+int sci_problem_dir_read(const char *dir, sci_problem ***out, int *k, sci_error *err);
+
+void sci_problem_array_free(sci_problem **p, int k);
+
+#endif
