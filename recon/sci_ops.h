@@ -1,0 +1,27 @@
+/* recon/sci_ops.h — the SCI forward operator and its friends (sci-reconstruction.md §1).
+ *
+ *   A(x)    = Σ_f M_f ⊙ x_f            (w×h×N → w×h×1)
+ *   Aᵀ(y)_f = M_f ⊙ y                  (no normalisation)
+ *   Φ_sum   = Σ_f M_f²                 (the diagonal of AAᵀ)
+ *
+ * Sums over frames are accumulated in double and rounded once to float, so the result does not depend on thread
+ * count and A of an integer-valued scene under 0/1 masks is exact. Threads: OpenMP over rows; call from one
+ * thread at a time per output. Shapes are the caller's contract (asserted, not checked at run time): mask and x
+ * w×h×N, y and phi w×h×1.
+ */
+#ifndef SCICAP_RECON_SCI_OPS_H
+#define SCICAP_RECON_SCI_OPS_H
+
+#include "base/cube.h"
+
+/* y = A(x). */
+void sci_op_forward(const sci_cube *mask, const sci_cube *x, sci_cube *y);
+/* x = Aᵀ(y). */
+void sci_op_adjoint(const sci_cube *mask, const sci_cube *y, sci_cube *x);
+/* phi = Σ_f M_f², with every 0 replaced by 1 (the zero guard: pixels no mask ever opens get no data update and
+ * take their value from the denoiser alone). Returns how many pixels were guarded. */
+long sci_op_phi_sum(const sci_cube *mask, sci_cube *phi);
+/* ‖y − A(x)‖ / ‖y‖ in double (‖y − A(x)‖ alone when ‖y‖ = 0). */
+double sci_op_residual(const sci_cube *mask, const sci_cube *x, const sci_cube *y);
+
+#endif
