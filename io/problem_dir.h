@@ -28,9 +28,7 @@ int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, 
                           int overwrite, sci_error *err);
 
 /* Read DIR (or DIR/problem.json). On success *out is a malloc'd array of *k problem pointers, freed with
- * sci_problem_array_free. */
+ * sci_problem_array_free (recon/problem.h). */
 int sci_problem_dir_read(const char *dir, sci_problem ***out, int *k, sci_error *err);
-
-void sci_problem_array_free(sci_problem **p, int k);
 
 #endif

@@ -46,6 +46,8 @@ typedef struct sci_problem {
  * Returns 0, or SCI_ESHAPE / SCI_ENONFINITE / -EINVAL with a message naming the problem and the part at fault. */
 int sci_problem_validate(const sci_problem *p, sci_error *err);
 void sci_problem_free(sci_problem *p);
+/* Free an array of k problems and the array itself (as returned by the io/ readers). NULL is harmless. */
+void sci_problem_array_free(sci_problem **p, int k);
 sci_camera *sci_camera_new(int n);
 void sci_camera_free(sci_camera *c);
 

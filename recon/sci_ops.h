@@ -21,6 +21,10 @@ void sci_op_adjoint(const sci_cube *mask, const sci_cube *y, sci_cube *x);
 /* phi = Σ_f M_f², with every 0 replaced by 1 (the zero guard: pixels no mask ever opens get no data update and
  * take their value from the denoiser alone). Returns how many pixels were guarded. */
 long sci_op_phi_sum(const sci_cube *mask, sci_cube *phi);
+/* yhat = A(x) (if yhat is not NULL) and the return value ‖y − A(x)‖ / ‖y‖, in one pass; rowbuf is scratch of
+ * 2·h doubles. Deterministic for any thread count. yhat must not alias y. */
+double sci_op_forward_residual(const sci_cube *mask, const sci_cube *x, const sci_cube *y, sci_cube *yhat,
+                               double *rowbuf);
 /* ‖y − A(x)‖ / ‖y‖ in double (‖y − A(x)‖ alone when ‖y‖ = 0). */
 double sci_op_residual(const sci_cube *mask, const sci_cube *x, const sci_cube *y);
 

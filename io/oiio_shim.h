@@ -1,0 +1,35 @@
+/* io/oiio_shim.h — the extern "C" face of OpenImageIO (C++), used only by io/image.c.
+ *
+ * Every function catches all C++ exceptions; none reaches C. Errors: a negative code (-EIO for I/O failures,
+ * -ENOMEM, SCI_EFORMAT for unreadable or unsupported files) and a message in errbuf naming the file.
+ */
+#ifndef SCICAP_IO_OIIO_SHIM_H
+#define SCICAP_IO_OIIO_SHIM_H
+
+#include <stddef.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Read every subimage (TIFF page) of `path` as grey float values as stored (no normalisation: 8-bit 0..255,
+ * 16-bit 0..65535). *data is malloc'd, frame-major w×h×nframes; the caller frees it. Colour is converted to
+ * Rec. 709 luminance. *bits: stored bits per sample. */
+int sci_oiio_read(const char *path, float **data, int *w, int *h, int *nframes, int *bits, char *errbuf,
+                  size_t errlen);
+
+/* Write one w×h grey image. `pixel_type` 0 = uint8, 1 = uint16, 2 = half, 3 = float; values must already be in
+ * the type's range (integer types: rounded by the caller). description may be NULL. Not atomic: io/image.c
+ * writes to a temporary name and renames. */
+int sci_oiio_write(const char *path, const float *data, int w, int h, int pixel_type, const char *description,
+                   char *errbuf, size_t errlen);
+
+/* Write an animated GIF of n 8-bit frames, delay_ms per frame. */
+int sci_oiio_write_gif(const char *path, const unsigned char *frames, int w, int h, int n, int delay_ms,
+                       char *errbuf, size_t errlen);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

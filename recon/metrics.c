@@ -1,0 +1,133 @@
+#include "recon/metrics.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+double sci_psnr_frame(const float *x, const float *ref, size_t n, double peak)
+{
+    double se = 0;
+    for (size_t i = 0; i < n; i++) {
+        double d = (double)x[i] - ref[i];
+        se += d * d;
+    }
+    double mse = se / (double)n;
+    if (mse == 0)
+        return INFINITY;
+    return 10.0 * log10(peak * peak / mse);
+}
+
+double sci_psnr(const sci_cube *x, const sci_cube *truth, sci_peak conv, double peak, double *per_frame)
+{
+    const size_t fs = sci_cube_frame_size(x);
+    double *v = per_frame ? per_frame : malloc((size_t)x->n * sizeof *v);
+    if (!v)
+        return NAN;
+#pragma omp parallel for schedule(static)
+    for (int k = 0; k < x->n; k++) {
+        const float *t = sci_cube_frame(truth, k);
+        double p = peak;
+        if (conv == SCI_PEAK_FRAME_MAX) {
+            float m = t[0];
+            for (size_t i = 1; i < fs; i++)
+                m = t[i] > m ? t[i] : m;
+            p = m;
+        }
+        v[k] = sci_psnr_frame(sci_cube_frame(x, k), t, fs, p);
+    }
+    double s = 0;
+    for (int k = 0; k < x->n; k++)
+        s += v[k];
+    if (!per_frame)
+        free(v);
+    return s / x->n;
+}
+
+#define SSIM_RADIUS 5 /* ceil(3 σ) for σ = 1.5: an 11×11 window */
+
+/* Separable Gaussian filter with replicate padding (MATLAB imgaussfilt, 'Padding','replicate'), in double. */
+static void gauss_filter(const double *in, double *out, double *tmp, int w, int h, const double *g)
+{
+    for (int r = 0; r < h; r++)
+        for (int c = 0; c < w; c++) {
+            double s = 0;
+            for (int k = -SSIM_RADIUS; k <= SSIM_RADIUS; k++) {
+                int cc = c + k < 0 ? 0 : (c + k >= w ? w - 1 : c + k);
+                s += g[k + SSIM_RADIUS] * in[(size_t)r * w + cc];
+            }
+            tmp[(size_t)r * w + c] = s;
+        }
+    for (int r = 0; r < h; r++)
+        for (int c = 0; c < w; c++) {
+            double s = 0;
+            for (int k = -SSIM_RADIUS; k <= SSIM_RADIUS; k++) {
+                int rr = r + k < 0 ? 0 : (r + k >= h ? h - 1 : r + k);
+                s += g[k + SSIM_RADIUS] * tmp[(size_t)rr * w + c];
+            }
+            out[(size_t)r * w + c] = s;
+        }
+}
+
+double sci_ssim_frame(const float *x, const float *ref, int w, int h, double range)
+{
+    const double sigma = 1.5, c1 = (0.01 * range) * (0.01 * range), c2 = (0.03 * range) * (0.03 * range);
+    double g[2 * SSIM_RADIUS + 1], gs = 0;
+    for (int k = -SSIM_RADIUS; k <= SSIM_RADIUS; k++)
+        gs += g[k + SSIM_RADIUS] = exp(-(double)(k * k) / (2 * sigma * sigma));
+    for (int k = 0; k < 2 * SSIM_RADIUS + 1; k++)
+        g[k] /= gs;
+    const size_t n = (size_t)w * h;
+    double *buf = calloc(8 * n, sizeof *buf); /* zeroed only to keep -Wmaybe-uninitialized quiet */
+    if (!buf)
+        return NAN;
+    double *a = buf, *b = buf + n, *tmp = buf + 2 * n, *mx = buf + 3 * n, *my = buf + 4 * n, *sxx = buf + 5 * n,
+           *syy = buf + 6 * n, *sq = buf + 7 * n;
+    for (size_t i = 0; i < n; i++) {
+        a[i] = x[i];
+        b[i] = ref[i];
+    }
+    gauss_filter(a, mx, tmp, w, h, g);
+    gauss_filter(b, my, tmp, w, h, g);
+    for (size_t i = 0; i < n; i++)
+        sq[i] = a[i] * a[i];
+    gauss_filter(sq, sxx, tmp, w, h, g);
+    for (size_t i = 0; i < n; i++)
+        sq[i] = b[i] * b[i];
+    gauss_filter(sq, syy, tmp, w, h, g);
+    for (size_t i = 0; i < n; i++)
+        sq[i] = a[i] * b[i];
+    gauss_filter(sq, b, tmp, w, h, g); /* b now holds the filtered product */
+    double s = 0;
+    for (size_t i = 0; i < n; i++) {
+        double mux = mx[i], muy = my[i];
+        double vx = sxx[i] - mux * mux, vy = syy[i] - muy * muy, cxy = b[i] - mux * muy;
+        s += ((2 * mux * muy + c1) * (2 * cxy + c2)) / ((mux * mux + muy * muy + c1) * (vx + vy + c2));
+    }
+    free(buf);
+    return s / (double)n;
+}
+
+double sci_ssim(const sci_cube *x, const sci_cube *truth, double range, double *per_frame)
+{
+    double *v = per_frame ? per_frame : malloc((size_t)x->n * sizeof *v);
+    if (!v)
+        return NAN;
+#pragma omp parallel for schedule(static)
+    for (int k = 0; k < x->n; k++)
+        v[k] = sci_ssim_frame(sci_cube_frame(x, k), sci_cube_frame(truth, k), x->w, x->h, range);
+    double s = 0;
+    for (int k = 0; k < x->n; k++)
+        s += v[k];
+    if (!per_frame)
+        free(v);
+    return s / x->n;
+}
+
+const char *sci_peak_name(sci_peak conv, double peak, char *buf, size_t n)
+{
+    if (conv == SCI_PEAK_FRAME_MAX)
+        snprintf(buf, n, "peak = per-frame max of truth");
+    else
+        snprintf(buf, n, "peak = %g", peak);
+    return buf;
+}

@@ -1,0 +1,26 @@
+/* tests/helpers/testdata.h — finding the shared benchmark data from tests.
+ *
+ * Data live in $SCICAP_DATA (default ../shared/data, relative to the checkout). A missing file is a test failure
+ * under CI (CI set in the environment); elsewhere the test is skipped *loudly*: it prints why, and the test
+ * runner counts and lists skips.
+ */
+#ifndef SCICAP_TESTS_TESTDATA_H
+#define SCICAP_TESTS_TESTDATA_H
+
+#include <stddef.h>
+
+/* Full path of data file `name` into buf. Returns 1 if the file is readable, 0 if not (after printing why). */
+int testdata_path(const char *name, char *buf, size_t n);
+/* For use inside a cmocka test: find `name` or fail (CI) / skip with a message (elsewhere). */
+#define TESTDATA_REQUIRE(name, buf)                                                                            \
+    do {                                                                                                       \
+        if (!testdata_path((name), (buf), sizeof(buf))) {                                                      \
+            if (testdata_is_ci())                                                                              \
+                fail_msg("test data %s missing under CI (set SCICAP_DATA)", (name));                           \
+            else                                                                                               \
+                skip();                                                                                        \
+        }                                                                                                      \
+    } while (0)
+int testdata_is_ci(void);
+
+#endif
