@@ -1,0 +1,82 @@
+/* recon/nerf/act.c — elementwise activations (see act.h). */
+#include "recon/nerf/act.h"
+
+#include <math.h>
+
+#include "recon/nerf/fastmath.h"
+
+#define INV_SQRT2 0.70710678118654752440f
+#define INV_SQRT2PI 0.39894228040143267794f
+
+void nerf_act_forward(nerf_act a, size_t n, const float *x, float *y)
+{
+    switch (a) {
+    case NERF_ACT_NONE:
+        if (y != x) memcpy(y, x, n * sizeof *y);
+        break;
+    case NERF_ACT_RELU:
+#pragma omp simd
+        for (size_t i = 0; i < n; i++) y[i] = x[i] > 0.0f ? x[i] : 0.0f;
+        break;
+    case NERF_ACT_GELU:
+#pragma omp simd
+        for (size_t i = 0; i < n; i++) y[i] = 0.5f * x[i] * (1.0f + nerf_erff(x[i] * INV_SQRT2));
+        break;
+    case NERF_ACT_SOFTPLUS:
+        for (size_t i = 0; i < n; i++) y[i] = x[i] > 20.0f ? x[i] : log1pf(expf(x[i]));
+        break;
+    case NERF_ACT_TRUNC_EXP:
+        for (size_t i = 0; i < n; i++) y[i] = expf(x[i] < 88.0f ? x[i] : 88.0f);
+        break;
+    case NERF_ACT_SIGMOID:
+        for (size_t i = 0; i < n; i++) y[i] = 1.0f / (1.0f + expf(-x[i]));
+        break;
+    }
+}
+
+void nerf_act_backward(nerf_act a, size_t n, const float *x, const float *y, const float *dy, float *dx)
+{
+    switch (a) {
+    case NERF_ACT_NONE:
+        if (dx != dy) memcpy(dx, dy, n * sizeof *dx);
+        break;
+    case NERF_ACT_RELU:
+#pragma omp simd
+        for (size_t i = 0; i < n; i++) dx[i] = x[i] > 0.0f ? dy[i] : 0.0f;
+        break;
+    case NERF_ACT_GELU:
+#pragma omp simd
+        for (size_t i = 0; i < n; i++) {
+            float cdf = 0.5f * (1.0f + nerf_erff(x[i] * INV_SQRT2));
+            float pdf = INV_SQRT2PI * nerf_expf(-0.5f * x[i] * x[i]);
+            dx[i] = dy[i] * (cdf + x[i] * pdf);
+        }
+        break;
+    case NERF_ACT_SOFTPLUS:
+        for (size_t i = 0; i < n; i++) dx[i] = dy[i] / (1.0f + expf(-x[i]));
+        break;
+    case NERF_ACT_TRUNC_EXP:
+        for (size_t i = 0; i < n; i++) {
+            float c = x[i] < -NERF_TRUNC_EXP_CLAMP ? -NERF_TRUNC_EXP_CLAMP
+                      : (x[i] > NERF_TRUNC_EXP_CLAMP ? NERF_TRUNC_EXP_CLAMP : x[i]);
+            dx[i] = dy[i] * expf(c);
+        }
+        break;
+    case NERF_ACT_SIGMOID:
+        for (size_t i = 0; i < n; i++) dx[i] = dy[i] * y[i] * (1.0f - y[i]);
+        break;
+    }
+}
+
+const char *nerf_act_name(nerf_act a)
+{
+    switch (a) {
+    case NERF_ACT_NONE: return "none";
+    case NERF_ACT_RELU: return "relu";
+    case NERF_ACT_GELU: return "gelu";
+    case NERF_ACT_SOFTPLUS: return "softplus";
+    case NERF_ACT_TRUNC_EXP: return "trunc_exp";
+    case NERF_ACT_SIGMOID: return "sigmoid";
+    }
+    return "?";
+}

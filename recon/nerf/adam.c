@@ -1,0 +1,85 @@
+/* recon/nerf/adam.c — Adam and learning-rate schedules (see adam.h). */
+#include "recon/nerf/adam.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct nerf_adam {
+    nerf_adam_config cfg;
+    size_t n;
+    float *m, *s;
+    uint32_t *t;
+};
+
+int nerf_adam_new(nerf_adam **out, size_t n_params, const nerf_adam_config *cfg, sci_error *err)
+{
+    *out = NULL;
+    if (!(cfg->beta1 >= 0.0 && cfg->beta1 < 1.0) || !(cfg->beta2 >= 0.0 && cfg->beta2 < 1.0))
+        return sci_error_set(err, SCI_ECONFIG, "adam: beta1 %g / beta2 %g outside [0, 1)", cfg->beta1, cfg->beta2);
+    if (!(cfg->eps > 0.0)) return sci_error_set(err, SCI_ECONFIG, "adam: eps %g must be > 0", cfg->eps);
+    if (!(cfg->weight_decay >= 0.0))
+        return sci_error_set(err, SCI_ECONFIG, "adam: weight_decay %g must be >= 0", cfg->weight_decay);
+    nerf_adam *a = calloc(1, sizeof *a);
+    if (!a) return sci_error_set(err, -ENOMEM, "adam: out of memory");
+    a->cfg = *cfg;
+    a->n = n_params;
+    a->m = calloc(n_params ? n_params : 1, sizeof *a->m);
+    a->s = calloc(n_params ? n_params : 1, sizeof *a->s);
+    a->t = calloc(n_params ? n_params : 1, sizeof *a->t);
+    if (!a->m || !a->s || !a->t) {
+        nerf_adam_free(a);
+        return sci_error_set(err, -ENOMEM, "adam: out of memory for %zu parameters", n_params);
+    }
+    *out = a;
+    return 0;
+}
+
+void nerf_adam_free(nerf_adam *a)
+{
+    if (!a) return;
+    free(a->m);
+    free(a->s);
+    free(a->t);
+    free(a);
+}
+
+void nerf_adam_reset(nerf_adam *a)
+{
+    memset(a->m, 0, a->n * sizeof *a->m);
+    memset(a->s, 0, a->n * sizeof *a->s);
+    memset(a->t, 0, a->n * sizeof *a->t);
+}
+
+uint32_t nerf_adam_steps_of(const nerf_adam *a, size_t j) { return a->t[j]; }
+
+void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin, size_t end, double lr, int lazy,
+                    int decay)
+{
+    const double b1 = a->cfg.beta1, b2 = a->cfg.beta2, eps = a->cfg.eps, wd = decay ? a->cfg.weight_decay : 0.0;
+    const double lb1 = log(b1), lb2 = log(b2);
+#pragma omp parallel for schedule(static)
+    for (size_t j = begin; j < end; j++) {
+        double g = grad[j];
+        if (lazy && g == 0.0) continue;
+        g += wd * params[j];
+        uint32_t t = ++a->t[j];
+        double m = b1 * a->m[j] + (1.0 - b1) * g;
+        double s = sqrt(b2 * (double)a->s[j] * a->s[j] + (1.0 - b2) * g * g);
+        a->m[j] = (float)m;
+        a->s[j] = (float)s;
+        /* 1 − β^t via expm1 keeps precision for large t and β near 1 */
+        double c1 = b1 > 0.0 ? -expm1(t * lb1) : 1.0, c2 = b2 > 0.0 ? -expm1(t * lb2) : 1.0;
+        params[j] = (float)(params[j] - lr * sqrt(c2) / c1 * m / (s + eps));
+    }
+}
+
+double nerf_lr_at(const nerf_lr_schedule *s, long step)
+{
+    double lr = s->lr0;
+    if (s->decay_steps > 0) lr *= pow(s->decay_rate, (double)step / (double)s->decay_steps);
+    if (s->warmup_steps > 0 && step < s->warmup_steps)
+        lr *= s->warmup_start + (1.0 - s->warmup_start) * (double)step / (double)s->warmup_steps;
+    return lr;
+}

@@ -1,0 +1,125 @@
+/* recon/nerf/block.c — I²R transformer block (see block.h). */
+#include "recon/nerf/block.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "recon/nerf/act.h"
+#include "recon/nerf/layernorm.h"
+#include "recon/nerf/linear.h"
+
+nerf_block_offsets nerf_block_layout(const nerf_block_shape *s)
+{
+    const size_t C = (size_t)s->att.C, Hf = (size_t)s->hidden;
+    nerf_block_offsets o;
+    size_t k = 0;
+    o.ln1_g = k; k += C;
+    o.ln1_b = k; k += C;
+    o.w_qkv = k; k += 3 * C * C;
+    o.b_qkv = k; k += 3 * C;
+    o.w_o = k; k += C * C;
+    o.b_o = k; k += C;
+    o.ln2_g = k; k += C;
+    o.ln2_b = k; k += C;
+    o.w_1 = k; k += Hf * C;
+    o.b_1 = k; k += Hf;
+    o.w_2 = k; k += C * Hf;
+    o.b_2 = k; k += C;
+    o.total = k;
+    return o;
+}
+
+size_t nerf_block_saved_floats(const nerf_block_shape *s)
+{
+    const size_t C = (size_t)s->att.C;
+    return C + 1 + 3 * C + 2 * (size_t)s->att.heads + C + C + 1 + (size_t)s->hidden;
+}
+
+void nerf_block_saved_bind(const nerf_block_shape *s, size_t rows, float *mem, nerf_block_saved *sv)
+{
+    const size_t C = (size_t)s->att.C;
+    sv->xhat1 = mem; mem += rows * C;
+    sv->rstd1 = mem; mem += rows;
+    sv->qkv = mem; mem += rows * 3 * C;
+    sv->lse = mem; mem += rows * 2 * (size_t)s->att.heads;
+    sv->att = mem; mem += rows * C;
+    sv->xhat2 = mem; mem += rows * C;
+    sv->rstd2 = mem; mem += rows;
+    sv->hpre = mem;
+}
+
+size_t nerf_block_scratch_floats(const nerf_block_shape *s, size_t rows)
+{
+    const size_t C = (size_t)s->att.C, Hf = (size_t)s->hidden;
+    return rows * (C + 2 * Hf + C + 3 * C + C) + nerf_i2r_scratch_floats(&s->att);
+}
+
+void nerf_block_init(const nerf_block_shape *s, float *params, int depth, sci_rng *rng)
+{
+    const int C = s->att.C, Hf = s->hidden;
+    nerf_block_offsets o = nerf_block_layout(s);
+    for (int c = 0; c < C; c++) {
+        params[o.ln1_g + c] = params[o.ln2_g + c] = 1.0f;
+        params[o.ln1_b + c] = params[o.ln2_b + c] = 0.0f;
+    }
+    double res = 1.0 / sqrt(2.0 * (depth > 0 ? depth : 1));
+    nerf_linear_init(C, 3 * C, params + o.w_qkv, params + o.b_qkv, 1.0, rng);
+    nerf_linear_init(C, C, params + o.w_o, params + o.b_o, res, rng);
+    nerf_linear_init(C, Hf, params + o.w_1, params + o.b_1, sqrt(2.0), rng);
+    nerf_linear_init(Hf, C, params + o.w_2, params + o.b_2, res, rng);
+}
+
+void nerf_block_forward(const nerf_block_shape *s, const float *P, int n_patches, size_t row0, const float *x,
+                        float *out, const nerf_block_saved *sv, float *scratch)
+{
+    const int C = s->att.C, Hf = s->hidden, H = s->att.heads;
+    const int n = n_patches * s->att.R * s->att.L;
+    nerf_block_offsets o = nerf_block_layout(s);
+    float *y = scratch, *h = y + (size_t)n * C, *att_scr = h + (size_t)n * Hf;
+    const float *xr = x + row0 * C;
+    float *outr = out + row0 * C;
+    float *xhat1 = sv->xhat1 + row0 * C, *rstd1 = sv->rstd1 + row0, *qkv = sv->qkv + row0 * 3 * C;
+    float *lse = sv->lse + row0 * 2 * H, *att = sv->att + row0 * C, *xhat2 = sv->xhat2 + row0 * C;
+    float *rstd2 = sv->rstd2 + row0, *hpre = sv->hpre + row0 * Hf;
+
+    nerf_layernorm_forward(n, C, P + o.ln1_g, P + o.ln1_b, xr, C, y, C, xhat1, rstd1);
+    nerf_linear_forward(n, C, 3 * C, P + o.w_qkv, P + o.b_qkv, y, C, qkv, 3 * C);
+    nerf_i2r_forward(&s->att, n_patches, qkv, 3 * C, att, C, lse, att_scr);
+    memcpy(outr, xr, (size_t)n * C * sizeof *outr);
+    nerf_linear_forward_add(n, C, C, P + o.w_o, P + o.b_o, att, C, outr, C);
+    nerf_layernorm_forward(n, C, P + o.ln2_g, P + o.ln2_b, outr, C, y, C, xhat2, rstd2);
+    nerf_linear_forward(n, C, Hf, P + o.w_1, P + o.b_1, y, C, hpre, Hf);
+    nerf_act_forward(NERF_ACT_GELU, (size_t)n * Hf, hpre, h);
+    nerf_linear_forward_add(n, Hf, C, P + o.w_2, P + o.b_2, h, Hf, outr, C);
+}
+
+void nerf_block_backward(const nerf_block_shape *s, const float *P, int n_patches, size_t row0,
+                         const nerf_block_saved *sv, const float *d_out, float *d_in, float *G, float *scratch)
+{
+    const int C = s->att.C, Hf = s->hidden, H = s->att.heads;
+    const int n = n_patches * s->att.R * s->att.L;
+    nerf_block_offsets o = nerf_block_layout(s);
+    float *y = scratch, *h = y + (size_t)n * C, *dh = h + (size_t)n * Hf, *dy = dh + (size_t)n * Hf;
+    float *dqkv = dy + (size_t)n * C, *dx1 = dqkv + (size_t)n * 3 * C, *att_scr = dx1 + (size_t)n * C;
+    const float *g = d_out + row0 * C;
+    float *din = d_in + row0 * C;
+    const float *xhat1 = sv->xhat1 + row0 * C, *rstd1 = sv->rstd1 + row0, *qkv = sv->qkv + row0 * 3 * C;
+    const float *lse = sv->lse + row0 * 2 * H, *att = sv->att + row0 * C, *xhat2 = sv->xhat2 + row0 * C;
+    const float *rstd2 = sv->rstd2 + row0, *hpre = sv->hpre + row0 * Hf;
+
+    /* feed-forward branch */
+    memcpy(dx1, g, (size_t)n * C * sizeof *dx1);
+    nerf_layernorm_apply(n, C, P + o.ln2_g, P + o.ln2_b, xhat2, y, C);
+    nerf_act_forward(NERF_ACT_GELU, (size_t)n * Hf, hpre, h);
+    nerf_linear_backward(n, Hf, C, P + o.w_2, h, Hf, g, C, dh, Hf, 0, G + o.w_2, G + o.b_2);
+    nerf_act_backward(NERF_ACT_GELU, (size_t)n * Hf, hpre, NULL, dh, dh);
+    nerf_linear_backward(n, C, Hf, P + o.w_1, y, C, dh, Hf, dy, C, 0, G + o.w_1, G + o.b_1);
+    nerf_layernorm_backward(n, C, P + o.ln2_g, xhat2, rstd2, dy, C, dx1, C, 1, G + o.ln2_g, G + o.ln2_b);
+    /* attention branch */
+    nerf_linear_backward(n, C, C, P + o.w_o, att, C, dx1, C, dy, C, 0, G + o.w_o, G + o.b_o);
+    nerf_i2r_backward(&s->att, n_patches, qkv, 3 * C, att, C, lse, dy, C, dqkv, 3 * C, att_scr);
+    nerf_layernorm_apply(n, C, P + o.ln1_g, P + o.ln1_b, xhat1, y, C);
+    nerf_linear_backward(n, C, 3 * C, P + o.w_qkv, y, C, dqkv, 3 * C, dy, C, 0, G + o.w_qkv, G + o.b_qkv);
+    nerf_layernorm_backward(n, C, P + o.ln1_g, xhat1, rstd1, dy, C, dx1, C, 1, G + o.ln1_g, G + o.ln1_b);
+    memcpy(din, dx1, (size_t)n * C * sizeof *din);
+}

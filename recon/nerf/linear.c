@@ -1,0 +1,58 @@
+/* recon/nerf/linear.c — dense layer through cblas_sgemm (see linear.h). */
+#include "recon/nerf/linear.h"
+
+#include <cblas.h>
+#include <math.h>
+#include <string.h>
+
+#include "base/rng.h"
+
+void nerf_linear_forward(int n, int in, int out, const float *W, const float *b, const float *x, int ldx,
+                         float *y, int ldy)
+{
+    if (n <= 0) return;
+    float beta = 0.0f;
+    if (b) {
+        for (int i = 0; i < n; i++) memcpy(y + (size_t)i * ldy, b, (size_t)out * sizeof *y);
+        beta = 1.0f;
+    }
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, n, out, in, 1.0f, x, ldx, W, in, beta, y, ldy);
+}
+
+void nerf_linear_forward_add(int n, int in, int out, const float *W, const float *b, const float *x, int ldx,
+                             float *y, int ldy)
+{
+    if (n <= 0) return;
+    if (b)
+        for (int i = 0; i < n; i++)
+            for (int o = 0; o < out; o++) y[(size_t)i * ldy + o] += b[o];
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, n, out, in, 1.0f, x, ldx, W, in, 1.0f, y, ldy);
+}
+
+void nerf_linear_backward(int n, int in, int out, const float *W, const float *x, int ldx, const float *dy,
+                          int ldy, float *dx, int lddx, int accumulate_dx, float *dW, float *db)
+{
+    if (n <= 0) return;
+    if (dx)
+        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, n, in, out, 1.0f, dy, ldy, W, in,
+                    accumulate_dx ? 1.0f : 0.0f, dx, lddx);
+    if (dW)
+        cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, out, in, n, 1.0f, dy, ldy, x, ldx, 1.0f, dW, in);
+    if (db) {
+        for (int o = 0; o < out; o++) {
+            double s = 0.0;
+            for (int i = 0; i < n; i++) s += dy[(size_t)i * ldy + o];
+            db[o] += (float)s;
+        }
+    }
+}
+
+void nerf_linear_init(int in, int out, float *W, float *b, double gain, struct sci_rng *rng)
+{
+    double a = gain * sqrt(3.0 / in);
+    for (size_t i = 0; i < (size_t)in * out; i++) W[i] = (float)((2.0 * sci_rng_uniform(rng) - 1.0) * a);
+    if (b) memset(b, 0, (size_t)out * sizeof *b);
+}
+
+void nerf_blas_single_thread(void) { openblas_set_num_threads(1); }
+void nerf_blas_set_threads(int n) { openblas_set_num_threads(n); }
