@@ -154,7 +154,9 @@ extern "C" int sci_oiio_write_gif(const char *path, const unsigned char *frames,
         auto out = ImageOutput::create(path);
         if (!out || !out->supports("multiimage"))
             return fail(errbuf, errlen, SCI_EFORMAT, std::string(path) + ": no animated GIF writer");
-        std::vector<ImageSpec> specs(n, ImageSpec(w, h, 1, TypeDesc::UINT8));
+        /* GIF wants RGB: replicate the grey channel. */
+        std::vector<ImageSpec> specs(n, ImageSpec(w, h, 3, TypeDesc::UINT8));
+        std::vector<unsigned char> rgb((size_t)w * h * 3);
         for (auto &s : specs) {
             s.attribute("FramesPerSecond", TypeRational, std::vector<int>{1000, delay_ms > 0 ? delay_ms : 100}.data());
             s.attribute("oiio:LoopCount", 0);
@@ -165,7 +167,10 @@ extern "C" int sci_oiio_write_gif(const char *path, const unsigned char *frames,
         for (int k = 0; k < n; k++) {
             if (k > 0 && !out->open(path, specs[k], ImageOutput::AppendSubimage))
                 return fail(errbuf, errlen, -EIO, std::string(path) + ": " + out->geterror());
-            if (!out->write_image(TypeDesc::UINT8, frames + (size_t)k * w * h))
+            const unsigned char *g = frames + (size_t)k * w * h;
+            for (size_t i = 0; i < (size_t)w * h; i++)
+                rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = g[i];
+            if (!out->write_image(TypeDesc::UINT8, rgb.data()))
                 return fail(errbuf, errlen, -EIO, std::string(path) + ": " + out->geterror());
         }
         if (!out->close())

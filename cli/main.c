@@ -1,0 +1,46 @@
+/* scicap — the command line: offline tools and (later) the daemon's client. One file per subcommand. */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli/commands.h"
+
+typedef struct command {
+    const char *name;
+    int (*main)(int argc, char **argv);
+    const char *summary;
+} command;
+
+static const command commands[] = {
+    {"recon", cli_recon_main, "reconstruct the frames of SCI snapshots (GAP-TV, ADMM-TV)"},
+};
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: scicap [--version] [--help] COMMAND [ARGS...]\n\n"
+               "Video snapshot compressive imaging: simulate, capture and reconstruct.\n\ncommands:\n");
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        fprintf(f, "  %-10s %s\n", commands[i].name, commands[i].summary);
+    fprintf(f, "\n'scicap COMMAND --help' documents each command.\n");
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 || strcmp(argv[1], "help") == 0) {
+        usage(stdout);
+        return 0;
+    }
+    if (strcmp(argv[1], "--version") == 0) {
+        printf("scicap %s\n", SCICAP_VERSION);
+        return 0;
+    }
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        if (strcmp(argv[1], commands[i].name) == 0)
+            return commands[i].main(argc - 1, argv + 1);
+    fprintf(stderr, "scicap: unknown command '%s'\n\n", argv[1]);
+    usage(stderr);
+    return 2;
+}

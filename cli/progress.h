@@ -1,0 +1,24 @@
+/* cli/progress.h — progress of a long solver run on a terminal: iteration, PSNR, ETA.
+ * On a TTY a single line is redrawn; otherwise a line is printed about every 10% of the run. */
+#ifndef SCICAP_CLI_PROGRESS_H
+#define SCICAP_CLI_PROGRESS_H
+
+#include <stdint.h>
+
+#include "recon/problem.h"
+
+typedef struct cli_progress {
+    int fd;         /* -1: silent */
+    int tty;
+    int total;      /* expected iterations */
+    int last_pct;   /* last percentage printed (non-TTY) */
+    int64_t t0_ns, last_ns;
+    double last_psnr;
+} cli_progress;
+
+void cli_progress_init(cli_progress *p, int fd, int total);
+/* A sci_progress_fn: never cancels. */
+int cli_progress_update(const sci_trace_entry *e, void *user);
+void cli_progress_done(cli_progress *p);
+
+#endif

@@ -1,0 +1,255 @@
+#include "io/image.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "io/oiio_shim.h"
+
+const char *sci_pixel_type_name(sci_pixel_type t)
+{
+    switch (t) {
+    case SCI_PIXEL_U8: return "u8";
+    case SCI_PIXEL_U16: return "u16";
+    case SCI_PIXEL_HALF: return "half";
+    case SCI_PIXEL_F32: return "f32";
+    }
+    return NULL;
+}
+
+static int pixel_type_parse(const char *s, sci_pixel_type *t)
+{
+    for (int i = SCI_PIXEL_U8; i <= SCI_PIXEL_F32; i++)
+        if (strcmp(s, sci_pixel_type_name((sci_pixel_type)i)) == 0) {
+            *t = (sci_pixel_type)i;
+            return 0;
+        }
+    return -EINVAL;
+}
+
+int sci_image_read(const char *path, sci_cube **out, int *bits, sci_error *err)
+{
+    *out = NULL;
+    if (access(path, R_OK) != 0)
+        return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
+    float *data = NULL;
+    int w, h, n, b;
+    char msg[SCI_ERROR_MSG_MAX];
+    int rc = sci_oiio_read(path, &data, &w, &h, &n, &b, msg, sizeof msg);
+    if (rc < 0)
+        return sci_error_set(err, rc, "%s", msg);
+    sci_cube *c;
+    rc = sci_cube_new(&c, w, h, n, err);
+    if (rc == 0) {
+        memcpy(c->data, data, sci_cube_count(c) * sizeof(float));
+        *out = c;
+        if (bits)
+            *bits = b;
+    }
+    free(data);
+    return rc;
+}
+
+static int tmp_name(char *buf, size_t n, const char *path)
+{
+    /* Keep the extension last: OpenImageIO picks the writer by it. */
+    const char *slash = strrchr(path, '/'), *dot = strrchr(path, '.');
+    if (!dot || (slash && dot < slash))
+        return snprintf(buf, n, "%s.tmp-%d", path, (int)getpid());
+    return snprintf(buf, n, "%.*s.tmp-%d%s", (int)(dot - path), path, (int)getpid(), dot);
+}
+
+int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type type, double scale,
+                    const char *description, sci_error *err)
+{
+    if (k < 0 || k >= c->n)
+        return sci_error_set(err, -EINVAL, "%s: frame %d out of range (cube has %d)", path, k, c->n);
+    if (!sci_pixel_type_name(type))
+        return sci_error_set(err, -EINVAL, "%s: invalid pixel type", path);
+    const size_t fs = sci_cube_frame_size(c);
+    const float *src = sci_cube_frame(c, k);
+    float *buf = malloc(fs * sizeof *buf);
+    if (!buf)
+        return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
+    const double hi = type == SCI_PIXEL_U8 ? 255 : 65535;
+    for (size_t i = 0; i < fs; i++) {
+        double v = (double)src[i] * scale;
+        if (type == SCI_PIXEL_U8 || type == SCI_PIXEL_U16) {
+            v = isnan(v) ? 0 : nearbyint(v);
+            v = v < 0 ? 0 : (v > hi ? hi : v);
+        }
+        buf[i] = (float)v;
+    }
+    char tmp[4096], msg[SCI_ERROR_MSG_MAX];
+    tmp_name(tmp, sizeof tmp, path);
+    int rc = sci_oiio_write(tmp, buf, c->w, c->h, (int)type, description, msg, sizeof msg);
+    free(buf);
+    if (rc < 0) {
+        unlink(tmp);
+        return sci_error_set(err, rc, "%s", msg);
+    }
+    if (rename(tmp, path) != 0) {
+        rc = -errno;
+        unlink(tmp);
+        return sci_error_set(err, rc, "%s: %s", path, strerror(-rc));
+    }
+    return 0;
+}
+
+int sci_image_write_gif(const char *path, const sci_cube *c, double scale, int delay_ms, sci_error *err)
+{
+    const size_t count = sci_cube_count(c);
+    unsigned char *buf = malloc(count);
+    if (!buf)
+        return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
+    for (size_t i = 0; i < count; i++) {
+        double v = (double)c->data[i] * scale;
+        v = isnan(v) ? 0 : nearbyint(v);
+        buf[i] = (unsigned char)(v < 0 ? 0 : (v > 255 ? 255 : v));
+    }
+    char tmp[4096], msg[SCI_ERROR_MSG_MAX];
+    tmp_name(tmp, sizeof tmp, path);
+    int rc = sci_oiio_write_gif(tmp, buf, c->w, c->h, c->n, delay_ms, msg, sizeof msg);
+    free(buf);
+    if (rc < 0) {
+        unlink(tmp);
+        return sci_error_set(err, rc, "%s", msg);
+    }
+    if (rename(tmp, path) != 0) {
+        rc = -errno;
+        unlink(tmp);
+        return sci_error_set(err, rc, "%s: %s", path, strerror(-rc));
+    }
+    return 0;
+}
+
+static int mkdir_p(const char *dir, sci_error *err)
+{
+    char buf[4096];
+    snprintf(buf, sizeof buf, "%s", dir);
+    for (char *p = buf + 1; *p; p++) {
+        if (*p != '/')
+            continue;
+        *p = 0;
+        if (mkdir(buf, 0755) != 0 && errno != EEXIST)
+            return sci_error_set(err, -errno, "%s: %s", buf, strerror(errno));
+        *p = '/';
+    }
+    if (mkdir(buf, 0755) != 0 && errno != EEXIST)
+        return sci_error_set(err, -errno, "%s: %s", buf, strerror(errno));
+    return 0;
+}
+
+int sci_stack_write(const char *dir, const char *stem, const char *ext, const sci_cube *c, sci_pixel_type type,
+                    double scale, const json_t *provenance, sci_error *err)
+{
+    int rc = mkdir_p(dir, err);
+    if (rc < 0)
+        return rc;
+    json_t *files = json_array();
+    char name[512], path[4096];
+    for (int k = 0; k < c->n && rc == 0; k++) {
+        snprintf(name, sizeof name, "%s_%03d.%s", stem, k, ext);
+        snprintf(path, sizeof path, "%s/%s", dir, name);
+        rc = sci_image_write(path, c, k, type, scale, NULL, err);
+        json_array_append_new(files, json_string(name));
+    }
+    if (rc < 0) {
+        json_decref(files);
+        return rc;
+    }
+    json_t *side = json_pack("{s:s, s:i, s:i, s:i, s:i, s:s, s:f, s:o}", "format", "scicap-stack", "version", 1, "w",
+                             c->w, "h", c->h, "n", c->n, "type", sci_pixel_type_name(type), "scale", scale, "files",
+                             files);
+    if (!side)
+        return sci_error_set(err, -ENOMEM, "%s: out of memory", dir);
+    if (provenance)
+        json_object_set_new(side, "provenance", json_deep_copy(provenance));
+    char tmp[4096];
+    snprintf(path, sizeof path, "%s/%s.json", dir, stem);
+    snprintf(tmp, sizeof tmp, "%s.tmp-%d", path, (int)getpid());
+    if (json_dump_file(side, tmp, JSON_INDENT(2) | JSON_SORT_KEYS) != 0) {
+        rc = sci_error_set(err, -EIO, "%s: cannot write", tmp);
+        unlink(tmp);
+    } else if (rename(tmp, path) != 0) {
+        rc = sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
+        unlink(tmp);
+    }
+    json_decref(side);
+    return rc;
+}
+
+int sci_stack_read(const char *sidecar_path, sci_cube **out, json_t **provenance, sci_error *err)
+{
+    *out = NULL;
+    if (provenance)
+        *provenance = NULL;
+    json_error_t je;
+    json_t *side = json_load_file(sidecar_path, 0, &je);
+    if (!side) {
+        if (access(sidecar_path, R_OK) != 0)
+            return sci_error_set(err, -errno, "%s: %s", sidecar_path, strerror(errno));
+        return sci_error_set(err, SCI_EFORMAT, "%s:%d:%d: %s", sidecar_path, je.line, je.column, je.text);
+    }
+    int rc = 0;
+    json_int_t w = 0, h = 0, n = 0;
+    const char *type = NULL, *format = NULL;
+    double scale = 1;
+    json_t *files = NULL;
+    if (json_unpack_ex(side, &je, 0, "{s:s, s:I, s:I, s:I, s:s, s:F, s:o}", "format", &format, "w", &w, "h", &h, "n",
+                       &n, "type", &type, "scale", &scale, "files", &files) != 0) {
+        rc = sci_error_set(err, SCI_EFORMAT, "%s: not a scicap stack sidecar (%s)", sidecar_path, je.text);
+        goto out;
+    }
+    sci_pixel_type t;
+    if (strcmp(format, "scicap-stack") != 0 || pixel_type_parse(type, &t) < 0 || !json_is_array(files) ||
+        (json_int_t)json_array_size(files) != n || !(scale > 0) || !isfinite(scale)) {
+        rc = sci_error_set(err, SCI_EFORMAT, "%s: inconsistent stack sidecar (format, type, scale or file list)",
+                           sidecar_path);
+        goto out;
+    }
+    if ((rc = sci_cube_new(out, (int)w, (int)h, (int)n, err)) < 0)
+        goto out;
+    char dir[4096];
+    snprintf(dir, sizeof dir, "%s", sidecar_path);
+    char *slash = strrchr(dir, '/');
+    if (slash)
+        slash[1] = 0;
+    else
+        dir[0] = 0;
+    for (json_int_t k = 0; k < n && rc == 0; k++) {
+        const char *name = json_string_value(json_array_get(files, (size_t)k));
+        char path[8192];
+        if (!name || strchr(name, '/')) {
+            rc = sci_error_set(err, SCI_EFORMAT, "%s: file entry %lld is not a plain file name", sidecar_path,
+                               (long long)k);
+            break;
+        }
+        snprintf(path, sizeof path, "%s%s", dir, name);
+        sci_cube *img = NULL;
+        if ((rc = sci_image_read(path, &img, NULL, err)) < 0)
+            break;
+        if (img->w != w || img->h != h || img->n != 1)
+            rc = sci_error_set(err, SCI_ESHAPE, "%s: is %dx%dx%d but the sidecar %s says %lldx%lld", path, img->w,
+                               img->h, img->n, sidecar_path, (long long)w, (long long)h);
+        else
+            for (size_t i = 0; i < sci_cube_frame_size(img); i++)
+                sci_cube_frame(*out, (int)k)[i] = (float)(img->data[i] / scale);
+        sci_cube_free(img);
+    }
+    if (rc == 0 && provenance) {
+        json_t *p = json_object_get(side, "provenance");
+        *provenance = p ? json_incref(p) : NULL;
+    }
+out:
+    if (rc < 0) {
+        sci_cube_free(*out);
+        *out = NULL;
+    }
+    json_decref(side);
+    return rc;
+}

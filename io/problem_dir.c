@@ -1,0 +1,234 @@
+#include "io/problem_dir.h"
+
+#include <dirent.h>
+#include <errno.h>
+#include <ftw.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "io/image.h"
+
+static int rm_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw)
+{
+    return remove(path);
+}
+
+/* Remove a folder tree we created ourselves (a temporary or a replaced problem folder). */
+static int rm_tree(const char *dir) { return nftw(dir, rm_entry, 16, FTW_DEPTH | FTW_PHYS); }
+
+static json_t *camera_to_json(const sci_camera *c, sci_problem *const *problems, int k)
+{
+    json_t *poses = json_array();
+    for (int j = 0; j < k; j++) {
+        const sci_camera *cj = problems[j]->camera;
+        for (int f = 0; f < cj->n; f++) {
+            json_t *p = json_array();
+            for (int e = 0; e < 12; e++)
+                json_array_append_new(p, json_real(cj->pose[f][e]));
+            json_array_append_new(poses, p);
+        }
+    }
+    return json_pack("{s:f, s:f, s:f, s:f, s:f, s:f, s:o}", "fx", c->fx, "fy", c->fy, "cx", c->cx, "cy", c->cy,
+                     "near", c->near_m, "far", c->far_m, "poses", poses);
+}
+
+int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                          int overwrite, sci_error *err)
+{
+    if (k < 1)
+        return sci_error_set(err, -EINVAL, "%s: no problems to write", dir);
+    const sci_problem *p0 = problems[0];
+    int have_truth = 1, have_camera = 1;
+    for (int j = 0; j < k; j++) {
+        const sci_problem *p = problems[j];
+        if (p->mask->w != p0->mask->w || p->mask->h != p0->mask->h || p->mask->n != p0->mask->n)
+            return sci_error_set(err, SCI_ESHAPE, "%s: problems of different sizes cannot share a folder", dir);
+        have_truth &= p->truth != NULL;
+        have_camera &= p->camera != NULL;
+    }
+    struct stat st;
+    if (stat(dir, &st) == 0 && !overwrite)
+        return sci_error_set(err, -EEXIST, "%s: already exists (use --force to replace it)", dir);
+
+    char tmp[4096];
+    snprintf(tmp, sizeof tmp, "%s.tmp-%d", dir, (int)getpid());
+    rm_tree(tmp);
+    const int w = p0->mask->w, h = p0->mask->h, n = p0->mask->n;
+    sci_cube *meas = NULL, *truth = NULL;
+    int rc = sci_cube_new(&meas, w, h, k, err);
+    if (rc == 0 && have_truth)
+        rc = sci_cube_new(&truth, w, h, n * k, err);
+    if (rc < 0)
+        goto out;
+    const size_t fs = sci_cube_frame_size(meas);
+    for (int j = 0; j < k; j++) {
+        memcpy(sci_cube_frame(meas, j), problems[j]->meas->data, fs * sizeof(float));
+        if (truth)
+            memcpy(sci_cube_frame(truth, j * n), problems[j]->truth->data, fs * n * sizeof(float));
+    }
+    if ((rc = sci_stack_write(tmp, "meas", "exr", meas, SCI_PIXEL_F32, 1.0, NULL, err)) < 0 ||
+        (rc = sci_stack_write(tmp, "mask", "exr", p0->mask, SCI_PIXEL_F32, 1.0, NULL, err)) < 0 ||
+        (truth && (rc = sci_stack_write(tmp, "truth", "exr", truth, SCI_PIXEL_F32, 1.0, NULL, err)) < 0))
+        goto out;
+    json_t *man = json_pack("{s:s, s:i, s:i, s:i, s:i, s:i, s:f, s:s, s:s}", "format", "scicap-problem", "version", 1,
+                            "snapshots", k, "w", w, "h", h, "n", n, "peak", p0->peak, "meas", "meas.json", "mask",
+                            "mask.json");
+    if (truth)
+        json_object_set_new(man, "truth", json_string("truth.json"));
+    if (have_camera)
+        json_object_set_new(man, "camera", camera_to_json(p0->camera, problems, k));
+    if (source)
+        json_object_set_new(man, "source", json_deep_copy(source));
+    json_object_set_new(man, "name", json_string(p0->name));
+    char path[4200];
+    snprintf(path, sizeof path, "%s/problem.json", tmp);
+    if (json_dump_file(man, path, JSON_INDENT(2)) != 0)
+        rc = sci_error_set(err, -EIO, "%s: cannot write", path);
+    json_decref(man);
+    if (rc < 0)
+        goto out;
+    if (stat(dir, &st) == 0 && overwrite) {
+        char old[4200];
+        snprintf(old, sizeof old, "%s.old-%d", dir, (int)getpid());
+        if (rename(dir, old) != 0) {
+            rc = sci_error_set(err, -errno, "%s: cannot replace: %s", dir, strerror(errno));
+            goto out;
+        }
+        rm_tree(old);
+    }
+    if (rename(tmp, dir) != 0)
+        rc = sci_error_set(err, -errno, "%s: %s", dir, strerror(errno));
+out:
+    if (rc < 0)
+        rm_tree(tmp);
+    sci_cube_free(meas);
+    sci_cube_free(truth);
+    return rc;
+}
+
+static int camera_from_json(const json_t *cam, int frame0, int n, const char *path, sci_camera **out,
+                            sci_error *err)
+{
+    sci_camera *c = sci_camera_new(n);
+    if (!c)
+        return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
+    json_t *poses = NULL;
+    json_error_t je;
+    if (json_unpack_ex((json_t *)cam, &je, 0, "{s:F, s:F, s:F, s:F, s:F, s:F, s:o}", "fx", &c->fx, "fy", &c->fy, "cx",
+                       &c->cx, "cy", &c->cy, "near", &c->near_m, "far", &c->far_m, "poses", &poses) != 0) {
+        sci_camera_free(c);
+        return sci_error_set(err, SCI_EFORMAT, "%s: camera: %s", path, je.text);
+    }
+    for (int f = 0; f < n; f++) {
+        json_t *p = json_array_get(poses, (size_t)(frame0 + f));
+        if (!json_is_array(p) || json_array_size(p) != 12) {
+            sci_camera_free(c);
+            return sci_error_set(err, SCI_EFORMAT, "%s: camera.poses[%d] must be 12 numbers", path, frame0 + f);
+        }
+        for (int e = 0; e < 12; e++) {
+            json_t *v = json_array_get(p, (size_t)e);
+            if (!json_is_number(v)) {
+                sci_camera_free(c);
+                return sci_error_set(err, SCI_EFORMAT, "%s: camera.poses[%d][%d] is not a number", path, frame0 + f, e);
+            }
+            c->pose[f][e] = json_number_value(v);
+        }
+    }
+    *out = c;
+    return 0;
+}
+
+int sci_problem_dir_read(const char *dir, sci_problem ***out, int *k, sci_error *err)
+{
+    *out = NULL;
+    *k = 0;
+    char base[4096], path[4200];
+    snprintf(base, sizeof base, "%s", dir);
+    size_t bl = strlen(base);
+    if (bl > 13 && strcmp(base + bl - 13, "/problem.json") == 0)
+        base[bl - 13] = 0;
+    snprintf(path, sizeof path, "%s/problem.json", base);
+    json_error_t je;
+    json_t *man = json_load_file(path, 0, &je);
+    if (!man) {
+        if (access(path, R_OK) != 0)
+            return sci_error_set(err, -errno, "%s: %s (not a scicap problem folder?)", path, strerror(errno));
+        return sci_error_set(err, SCI_EFORMAT, "%s:%d:%d: %s", path, je.line, je.column, je.text);
+    }
+    int rc = 0, nsnap = 0;
+    sci_cube *meas = NULL, *mask = NULL, *truth = NULL;
+    sci_problem **probs = NULL;
+    const char *format = "", *meas_f = NULL, *mask_f = NULL;
+    json_int_t snaps = 0;
+    double peak = 1;
+    if (json_unpack_ex(man, &je, 0, "{s:s, s:I, s:F, s:s, s:s}", "format", &format, "snapshots", &snaps, "peak",
+                       &peak, "meas", &meas_f, "mask", &mask_f) != 0 ||
+        strcmp(format, "scicap-problem") != 0) {
+        rc = sci_error_set(err, SCI_EFORMAT, "%s: not a scicap problem manifest (%s)", path, je.text);
+        goto out;
+    }
+    char sub[4400];
+    snprintf(sub, sizeof sub, "%s/%s", base, meas_f);
+    if ((rc = sci_stack_read(sub, &meas, NULL, err)) < 0)
+        goto out;
+    snprintf(sub, sizeof sub, "%s/%s", base, mask_f);
+    if ((rc = sci_stack_read(sub, &mask, NULL, err)) < 0)
+        goto out;
+    const char *truth_f = json_string_value(json_object_get(man, "truth"));
+    if (truth_f) {
+        snprintf(sub, sizeof sub, "%s/%s", base, truth_f);
+        if ((rc = sci_stack_read(sub, &truth, NULL, err)) < 0)
+            goto out;
+    }
+    const int n = mask->n;
+    if (meas->w != mask->w || meas->h != mask->h || meas->n != snaps ||
+        (truth && (truth->w != mask->w || truth->h != mask->h || truth->n != n * snaps))) {
+        rc = sci_error_set(err, SCI_ESHAPE, "%s: stacks disagree with each other or with snapshots = %lld", path,
+                           (long long)snaps);
+        goto out;
+    }
+    probs = calloc((size_t)snaps, sizeof *probs);
+    if (!probs) {
+        rc = sci_error_set(err, -ENOMEM, "%s: out of memory", path);
+        goto out;
+    }
+    const json_t *cam = json_object_get(man, "camera");
+    const char *name = json_string_value(json_object_get(man, "name"));
+    const size_t fs = sci_cube_frame_size(mask);
+    for (int j = 0; j < snaps; j++) {
+        sci_problem *p = calloc(1, sizeof *p);
+        if (!p) {
+            rc = sci_error_set(err, -ENOMEM, "%s: out of memory", path);
+            goto out;
+        }
+        probs[nsnap++] = p;
+        p->peak = peak;
+        snprintf(p->name, sizeof p->name, "%s#%d", name ? name : base, j + 1);
+        if ((rc = sci_cube_new(&p->meas, mask->w, mask->h, 1, err)) < 0 || (rc = sci_cube_clone(&p->mask, mask, err)) < 0)
+            goto out;
+        memcpy(p->meas->data, sci_cube_frame(meas, j), fs * sizeof(float));
+        if (truth) {
+            if ((rc = sci_cube_new(&p->truth, mask->w, mask->h, n, err)) < 0)
+                goto out;
+            memcpy(p->truth->data, sci_cube_frame(truth, j * n), fs * n * sizeof(float));
+        }
+        if (cam && (rc = camera_from_json(cam, j * n, n, path, &p->camera, err)) < 0)
+            goto out;
+        if ((rc = sci_problem_validate(p, err)) < 0)
+            goto out;
+    }
+    *out = probs;
+    *k = nsnap;
+    probs = NULL;
+out:
+    sci_problem_array_free(probs, nsnap);
+    sci_cube_free(meas);
+    sci_cube_free(mask);
+    sci_cube_free(truth);
+    json_decref(man);
+    return rc;
+}

@@ -1,0 +1,112 @@
+#include "io/recon_store.h"
+
+#include <errno.h>
+#include <ftw.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "io/image.h"
+#include "recon/metrics.h"
+
+static int rm_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw) { return remove(path); }
+
+static json_t *num_or_null(double v) { return isfinite(v) ? json_real(v) : json_null(); }
+
+json_t *sci_recon_summary(const sci_problem *p, const sci_result *r, const json_t *params)
+{
+    json_t *s = json_object();
+    json_object_set_new(s, "method", json_string(r->method));
+    json_object_set_new(s, "problem", json_string(p->name));
+    json_object_set_new(s, "iterations", json_integer(r->iters_done));
+    json_object_set_new(s, "status", json_string(r->stopped == 0 ? "complete"
+                                                 : r->stopped == SCI_ECANCELED ? "canceled"
+                                                 : r->stopped == SCI_EDIVERGED ? "diverged"
+                                                                               : "error"));
+    if (r->error.msg[0])
+        json_object_set_new(s, "message", json_string(r->error.msg));
+    if (r->trace.len) {
+        const sci_trace_entry *e = &r->trace.e[r->trace.len - 1];
+        json_object_set_new(s, "wall_s", json_real(e->wall_s));
+        json_object_set_new(s, "cpu_s", json_real(e->cpu_s));
+        json_object_set_new(s, "residual", num_or_null(e->residual));
+    }
+    if (p->truth && r->frames) {
+        const int n = r->frames->n;
+        double *pf = malloc(3 * (size_t)n * sizeof *pf);
+        if (pf) {
+            double m0 = sci_psnr(r->frames, p->truth, SCI_PEAK_FRAME_MAX, 0, pf);
+            double m1 = sci_psnr(r->frames, p->truth, SCI_PEAK_FIXED, p->peak, pf + n);
+            double ms = sci_ssim(r->frames, p->truth, p->peak, pf + 2 * n);
+            json_t *a0 = json_array(), *a1 = json_array(), *as = json_array();
+            for (int k = 0; k < n; k++) {
+                json_array_append_new(a0, num_or_null(pf[k]));
+                json_array_append_new(a1, num_or_null(pf[n + k]));
+                json_array_append_new(as, num_or_null(pf[2 * n + k]));
+            }
+            json_object_set_new(s, "psnr_frame_max_db",
+                                json_pack("{s:o, s:o, s:s}", "mean", num_or_null(m0), "frames", a0, "peak",
+                                          "per-frame max of truth"));
+            json_object_set_new(s, "psnr_peak1_db", json_pack("{s:o, s:o, s:f}", "mean", num_or_null(m1), "frames",
+                                                             a1, "peak", p->peak));
+            json_object_set_new(s, "ssim", json_pack("{s:o, s:o, s:s}", "mean", num_or_null(ms), "frames", as,
+                                                     "window", "gaussian 11x11 sigma 1.5"));
+            free(pf);
+        }
+    }
+    if (params)
+        json_object_set_new(s, "params", json_deep_copy(params));
+    return s;
+}
+
+int sci_recon_store_write(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
+                          int overwrite, sci_error *err)
+{
+    struct stat st;
+    if (!r->frames)
+        return sci_error_set(err, -EINVAL, "%s: no frames to write (%s)", dir,
+                             r->error.msg[0] ? r->error.msg : "solver produced none");
+    if (stat(dir, &st) == 0 && !overwrite)
+        return sci_error_set(err, -EEXIST, "%s: already exists (use --force to replace it)", dir);
+    char tmp[4096], path[4300];
+    snprintf(tmp, sizeof tmp, "%s.tmp-%d", dir, (int)getpid());
+    nftw(tmp, rm_entry, 16, FTW_DEPTH | FTW_PHYS);
+    json_t *prov = json_pack("{s:s, s:s}", "method", r->method, "problem", p->name);
+    int rc = sci_stack_write(tmp, "frame", "exr", r->frames, SCI_PIXEL_F32, 1.0, prov, err);
+    json_decref(prov);
+    for (int k = 0; k < r->frames->n && rc == 0; k++) {
+        snprintf(path, sizeof path, "%s/preview_%03d.png", tmp, k);
+        rc = sci_image_write(path, r->frames, k, SCI_PIXEL_U8, 255.0 / p->peak, NULL, err);
+    }
+    if (rc == 0) {
+        snprintf(path, sizeof path, "%s/preview.gif", tmp);
+        rc = sci_image_write_gif(path, r->frames, 255.0 / p->peak, 125, err);
+    }
+    if (rc == 0) {
+        snprintf(path, sizeof path, "%s/trace.csv", tmp);
+        rc = sci_trace_write_csv(&r->trace, path, err);
+    }
+    if (rc == 0) {
+        json_t *s = sci_recon_summary(p, r, params);
+        snprintf(path, sizeof path, "%s/result.json", tmp);
+        if (json_dump_file(s, path, JSON_INDENT(2)) != 0)
+            rc = sci_error_set(err, -EIO, "%s: cannot write", path);
+        json_decref(s);
+    }
+    if (rc == 0 && stat(dir, &st) == 0) {
+        char old[4300];
+        snprintf(old, sizeof old, "%s.old-%d", dir, (int)getpid());
+        if (rename(dir, old) != 0)
+            rc = sci_error_set(err, -errno, "%s: cannot replace: %s", dir, strerror(errno));
+        else
+            nftw(old, rm_entry, 16, FTW_DEPTH | FTW_PHYS);
+    }
+    if (rc == 0 && rename(tmp, dir) != 0)
+        rc = sci_error_set(err, -errno, "%s: %s", dir, strerror(errno));
+    if (rc < 0)
+        nftw(tmp, rm_entry, 16, FTW_DEPTH | FTW_PHYS);
+    return rc;
+}
