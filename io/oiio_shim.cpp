@@ -132,7 +132,27 @@ extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h,
             spec.attribute("ImageDescription", description);
         if (!out->open(path, spec))
             return fail(errbuf, errlen, -EIO, p + ": " + out->geterror());
-        if (!out->write_image(TypeDesc::FLOAT, data)) {
+        /* Hand integer files their native type: OpenImageIO would otherwise map float [0, 1] to the full integer
+         * range, and our values are already counts. */
+        std::vector<uint8_t> u8;
+        std::vector<uint16_t> u16;
+        const void *pixels = data;
+        TypeDesc given = TypeDesc::FLOAT;
+        const size_t count = (size_t)w * h;
+        if (pixel_type == 0) {
+            u8.resize(count);
+            for (size_t i = 0; i < count; i++)
+                u8[i] = (uint8_t)data[i];
+            pixels = u8.data();
+            given = TypeDesc::UINT8;
+        } else if (pixel_type == 1) {
+            u16.resize(count);
+            for (size_t i = 0; i < count; i++)
+                u16[i] = (uint16_t)data[i];
+            pixels = u16.data();
+            given = TypeDesc::UINT16;
+        }
+        if (!out->write_image(given, pixels)) {
             std::string e = out->geterror();
             out->close();
             return fail(errbuf, errlen, -EIO, p + ": " + e);
