@@ -1,0 +1,258 @@
+/* io/: image round trips through OpenImageIO, stacks, problem folders, .mat round trip, and bad input that must
+ * be refused with a message naming the file and the fault. */
+#include <errno.h>
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "io/image.h"
+#include "io/matfile.h"
+#include "io/problem_dir.h"
+#include "io/source.h"
+#include "tests/helpers/testdata.h"
+
+static char tmpdir[256];
+
+static int setup(void **state)
+{
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/scicap-test-io-XXXXXX");
+    return mkdtemp(tmpdir) ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+static sci_cube *ramp(int w, int h, int n, float scale)
+{
+    sci_cube *c;
+    assert_int_equal(sci_cube_new(&c, w, h, n, NULL), 0);
+    for (size_t i = 0; i < sci_cube_count(c); i++)
+        c->data[i] = (float)(i % 977) * scale;
+    return c;
+}
+
+static void test_image_roundtrip(void **state)
+{
+    const struct { const char *ext; sci_pixel_type t; float scale; } cases[] = {
+        {"tif", SCI_PIXEL_U16, 1.0f}, {"png", SCI_PIXEL_U8, 0.25f}, {"png", SCI_PIXEL_U16, 1.0f},
+        {"exr", SCI_PIXEL_F32, 0.001f}, {"tif", SCI_PIXEL_F32, 0.37f},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        sci_cube *c = ramp(37, 21, 2, cases[i].scale), *back = NULL;
+        char path[512];
+        snprintf(path, sizeof path, "%s/img%zu.%s", tmpdir, i, cases[i].ext);
+        sci_error err = {0};
+        if (sci_image_write(path, c, 1, cases[i].t, 1.0, "test", &err) < 0)
+            fail_msg("%s", err.msg);
+        int bits = 0;
+        if (sci_image_read(path, &back, &bits, &err) < 0)
+            fail_msg("%s", err.msg);
+        assert_int_equal(back->w, 37);
+        assert_int_equal(back->h, 21);
+        assert_int_equal(back->n, 1);
+        for (size_t k = 0; k < sci_cube_frame_size(c); k++) {
+            float want = sci_cube_frame(c, 1)[k];
+            if (cases[i].t == SCI_PIXEL_U8)
+                want = fminf(255.0f, nearbyintf(want));
+            else if (cases[i].t == SCI_PIXEL_U16)
+                want = nearbyintf(want);
+            if (back->data[k] != want)
+                fail_msg("%s: pixel %zu is %g, wrote %g", path, k, (double)back->data[k], (double)want);
+        }
+        sci_cube_free(c);
+        sci_cube_free(back);
+    }
+}
+
+static void test_stack_roundtrip_exact(void **state)
+{
+    sci_cube *c = ramp(16, 9, 5, 1.0f / 3.0f), *back = NULL;
+    char dir[512], side[600];
+    snprintf(dir, sizeof dir, "%s/stack", tmpdir);
+    sci_error err = {0};
+    json_t *prov = json_pack("{s:s}", "by", "test");
+    assert_int_equal(sci_stack_write(dir, "frame", "exr", c, SCI_PIXEL_F32, 1.0, prov, &err), 0);
+    json_decref(prov);
+    snprintf(side, sizeof side, "%s/frame.json", dir);
+    json_t *p2 = NULL;
+    if (sci_stack_read(side, &back, &p2, &err) < 0)
+        fail_msg("%s", err.msg);
+    assert_memory_equal(back->data, c->data, sci_cube_count(c) * sizeof(float));
+    assert_string_equal(json_string_value(json_object_get(p2, "by")), "test");
+    json_decref(p2);
+    sci_cube_free(back);
+    /* A frame of the wrong size must be refused, naming the file. */
+    sci_cube *small = ramp(4, 4, 1, 1);
+    char bad[600];
+    snprintf(bad, sizeof bad, "%s/frame_002.exr", dir);
+    assert_int_equal(sci_image_write(bad, small, 0, SCI_PIXEL_F32, 1.0, NULL, &err), 0);
+    assert_int_equal(sci_stack_read(side, &back, NULL, &err), SCI_ESHAPE);
+    assert_non_null(strstr(err.msg, "frame_002.exr"));
+    assert_null(back);
+    sci_cube_free(small);
+    sci_cube_free(c);
+}
+
+static sci_problem *make_problem(int w, int h, int n, int with_truth)
+{
+    sci_problem *p = calloc(1, sizeof *p);
+    p->mask = ramp(w, h, n, 0);
+    for (size_t i = 0; i < sci_cube_count(p->mask); i++)
+        p->mask->data[i] = (float)((i * 7 + i / 3) % 2);
+    p->meas = ramp(w, h, 1, 0.01f);
+    if (with_truth)
+        p->truth = ramp(w, h, n, 0.001f);
+    p->peak = 1;
+    snprintf(p->name, sizeof p->name, "synthetic");
+    return p;
+}
+
+static void test_problem_dir_roundtrip(void **state)
+{
+    sci_problem *ps[2] = {make_problem(12, 10, 4, 1), make_problem(12, 10, 4, 1)};
+    ps[1]->meas->data[5] = 42;
+    ps[0]->camera = sci_camera_new(4);
+    ps[1]->camera = sci_camera_new(4);
+    for (int j = 0; j < 2; j++) {
+        ps[j]->camera->fx = ps[j]->camera->fy = 100;
+        ps[j]->camera->cx = 6;
+        ps[j]->camera->cy = 5;
+        ps[j]->camera->near_m = 0.1;
+        ps[j]->camera->far_m = 10;
+        for (int f = 0; f < 4; f++)
+            ps[j]->camera->pose[f][3] = j * 10 + f;
+    }
+    char dir[512];
+    snprintf(dir, sizeof dir, "%s/prob", tmpdir);
+    sci_error err = {0};
+    if (sci_problem_dir_write(dir, ps, 2, NULL, 0, &err) < 0)
+        fail_msg("%s", err.msg);
+    assert_int_equal(sci_problem_dir_write(dir, ps, 2, NULL, 0, &err), -EEXIST);
+    sci_problem **back;
+    int k;
+    if (sci_source_read(dir, &back, &k, &err) < 0)
+        fail_msg("%s", err.msg);
+    assert_int_equal(k, 2);
+    for (int j = 0; j < 2; j++) {
+        assert_memory_equal(back[j]->meas->data, ps[j]->meas->data, 12 * 10 * sizeof(float));
+        assert_memory_equal(back[j]->mask->data, ps[0]->mask->data, 12 * 10 * 4 * sizeof(float));
+        assert_memory_equal(back[j]->truth->data, ps[j]->truth->data, 12 * 10 * 4 * sizeof(float));
+        assert_true(back[j]->camera->pose[3][3] == j * 10 + 3);
+    }
+    sci_problem_array_free(back, k);
+    sci_problem_free(ps[0]);
+    sci_problem_free(ps[1]);
+    /* No temporary folder is left behind. */
+    char tmp[600];
+    snprintf(tmp, sizeof tmp, "%s.tmp-%d", dir, (int)getpid());
+    assert_int_not_equal(access(tmp, F_OK), 0);
+}
+
+static void test_mat_roundtrip_and_faults(void **state)
+{
+    sci_problem *ps[2] = {make_problem(9, 7, 3, 1), make_problem(9, 7, 3, 1)};
+    char path[512];
+    snprintf(path, sizeof path, "%s/p.mat", tmpdir);
+    sci_error err = {0};
+    if (sci_mat_write(path, ps, 2, 1.0, &err) < 0)
+        fail_msg("%s", err.msg);
+    sci_problem **back;
+    int k;
+    if (sci_mat_read(path, 1.0, &back, &k, &err) < 0)
+        fail_msg("%s", err.msg);
+    assert_int_equal(k, 2);
+    assert_memory_equal(back[1]->truth->data, ps[1]->truth->data, 9 * 7 * 3 * sizeof(float));
+    assert_memory_equal(back[0]->mask->data, ps[0]->mask->data, 9 * 7 * 3 * sizeof(float));
+    sci_problem_array_free(back, k);
+
+    /* Truncated file. */
+    FILE *f = fopen(path, "rb");
+    char buf[4096];
+    size_t got = fread(buf, 1, sizeof buf, f);
+    fclose(f);
+    char trunc[512];
+    snprintf(trunc, sizeof trunc, "%s/trunc.mat", tmpdir);
+    f = fopen(trunc, "wb");
+    fwrite(buf, 1, got / 2, f);
+    fclose(f);
+    int rc = sci_mat_read(trunc, 1.0, &back, &k, &err);
+    assert_true(rc == SCI_EFORMAT);
+    assert_non_null(strstr(err.msg, "trunc.mat"));
+    printf("truncated: %s\n", err.msg);
+
+    /* Not a MAT file at all. */
+    snprintf(trunc, sizeof trunc, "%s/text.mat", tmpdir);
+    f = fopen(trunc, "w");
+    fputs("hello, this is not MATLAB\n", f);
+    fclose(f);
+    assert_int_equal(sci_mat_read(trunc, 1.0, &back, &k, &err), SCI_EFORMAT);
+    printf("not a mat: %s\n", err.msg);
+
+    /* Missing file; unknown format. */
+    assert_int_equal(sci_source_read("/nonexistent/x.mat", &back, &k, &err), -ENOENT);
+    assert_non_null(strstr(err.msg, "/nonexistent/x.mat"));
+    snprintf(trunc, sizeof trunc, "%s/x.xyz", tmpdir);
+    f = fopen(trunc, "w");
+    fclose(f);
+    assert_int_equal(sci_source_read(trunc, &back, &k, &err), SCI_EFORMAT);
+    printf("unknown: %s\n", err.msg);
+
+    /* Sizes that disagree: a mask of another size. */
+    sci_problem *odd = make_problem(9, 7, 3, 0);
+    sci_cube_free(odd->mask);
+    odd->mask = ramp(8, 7, 3, 0);
+    snprintf(trunc, sizeof trunc, "%s/shape.mat", tmpdir);
+    assert_int_equal(sci_mat_write(trunc, &odd, 1, 1.0, &err), 0);
+    assert_int_equal(sci_mat_read(trunc, 1.0, &back, &k, &err), SCI_ESHAPE);
+    printf("shape: %s\n", err.msg);
+
+    /* NaN in the measurement. */
+    sci_cube_free(odd->mask);
+    odd->mask = ramp(9, 7, 3, 0);
+    odd->meas->data[3] = NAN;
+    assert_int_equal(sci_mat_write(trunc, &odd, 1, 1.0, &err), 0);
+    assert_int_equal(sci_mat_read(trunc, 1.0, &back, &k, &err), SCI_ENONFINITE);
+    assert_non_null(strstr(err.msg, "meas"));
+    printf("nan: %s\n", err.msg);
+    sci_problem_free(odd);
+    sci_problem_free(ps[0]);
+    sci_problem_free(ps[1]);
+}
+
+static void test_drop40_shape(void **state)
+{
+    char path[4096];
+    TESTDATA_REQUIRE("drop40_cacti.mat", path);
+    sci_problem **p;
+    int k;
+    sci_error err = {0};
+    if (sci_mat_read(path, 0, &p, &k, &err) < 0)
+        fail_msg("%s", err.msg);
+    assert_int_equal(k, 5);
+    float lo, hi;
+    sci_cube_minmax(p[0]->truth, &lo, &hi);
+    assert_true(lo >= 0 && hi <= 1.0f && hi > 0.9f);
+    assert_true(p[0]->peak == 1.0);
+    sci_problem_array_free(p, k);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_image_roundtrip), cmocka_unit_test(test_stack_roundtrip_exact),
+        cmocka_unit_test(test_problem_dir_roundtrip), cmocka_unit_test(test_mat_roundtrip_and_faults),
+        cmocka_unit_test(test_drop40_shape),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
