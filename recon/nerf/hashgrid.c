@@ -62,6 +62,7 @@ int nerf_hashgrid_new(nerf_hashgrid **out, const nerf_hashgrid_config *cfg, sci_
 
 void nerf_hashgrid_free(nerf_hashgrid *g) { free(g); }
 size_t nerf_hashgrid_param_count(const nerf_hashgrid *g) { return g->n_params; }
+const nerf_hashgrid_config *nerf_hashgrid_config_of(const nerf_hashgrid *g) { return &g->cfg; }
 int nerf_hashgrid_out_dim(const nerf_hashgrid *g) { return g->cfg.n_levels * g->cfg.n_features; }
 
 void nerf_hashgrid_level(const nerf_hashgrid *g, int l, double *scale, uint64_t *res, size_t *entries, int *dense)

@@ -41,6 +41,7 @@ int nerf_hashgrid_new(nerf_hashgrid **out, const nerf_hashgrid_config *cfg, sci_
 void nerf_hashgrid_free(nerf_hashgrid *g);
 
 size_t nerf_hashgrid_param_count(const nerf_hashgrid *g); /* floats in the table */
+const nerf_hashgrid_config *nerf_hashgrid_config_of(const nerf_hashgrid *g);
 int nerf_hashgrid_out_dim(const nerf_hashgrid *g);        /* L·F */
 /* Per-level facts for printouts and tests: scale s_l, vertices per side, entries, dense or hashed. */
 void nerf_hashgrid_level(const nerf_hashgrid *g, int l, double *scale, uint64_t *res, size_t *entries, int *dense);

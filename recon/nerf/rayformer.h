@@ -1,0 +1,92 @@
+/* recon/nerf/rayformer.h — the RayFormer network (rayformer.tex): hash grid + SH directions + I²R transformer
+ * blocks → density and geometry features → colour head on [geometry, SH(dir)].
+ *
+ *   u   = (x − aabb_min)/(aabb_max − aabb_min)           x: sample position (world units), clamped to [0, 1]³
+ *   h₀  = hashgrid(u)                                    L·F = width channels
+ *   h_b = block_b(h_{b−1}),  b = 1 … n_blocks            I²R-MSA + FFN, pre-norm (block.h)
+ *   [s, geo] = W_h·LN_f(h_B) + b_h                       1 + geo_dim outputs
+ *   σ   = trunc_exp(s + density_bias)                    (act.h: backward clamped at ±15)
+ *   rgb = sigmoid(MLP([geo, SH₄(d)]))                    ReLU hidden layer of color_hidden (0: a single FC layer)
+ *
+ * Batches are whole patches: patch p, ray r = y·patch_w + x, sample s at point (p·R + r)·L + s, R = patch_w·
+ * patch_h, L = samples; one direction per ray (unit vector, world frame). Poses of one snapshot are just more
+ * patches.
+ *
+ * Usage (issue 6 trainer):
+ *     nerf_rayformer *net;  nerf_rayformer_ws *ws;
+ *     nerf_rayformer_new(&net, &cfg, &err);
+ *     float *params = malloc(nerf_rayformer_param_count(net) * 4), *grad = ...same size...;
+ *     nerf_rayformer_init(net, params, seed);
+ *     nerf_rayformer_ws_new(&ws, net, max_patches, n_threads, &err);
+ *     nerf_rayformer_forward(net, params, ws, n_patches, pos, dir, sigma, rgb);
+ *     ... render, loss, render backward → d_sigma, d_rgb ...
+ *     nerf_rayformer_backward(net, params, ws, d_sigma, d_rgb, grad, d_pos, d_dir);
+ *     adam step: [0, hash_params) lazy without decay, the rest with (nerf_rayformer_hash_param_count).
+ *
+ * Parameters: one float array; the hash table first, then the blocks, the final LN, the head and the colour MLP.
+ * Workspace: activations for max_patches (nerf_rayformer_ws_bytes) and one gradient buffer per extra thread.
+ * Threads: forward/backward run an OpenMP team of n_threads over patch ranges (static, contiguous), each thread
+ * into its own gradient buffer, summed in thread order: bitwise identical results for the same seed, inputs and
+ * thread count. Both set OpenBLAS to one thread (its pthread pool would oversubscribe inside the team).
+ * The network object is immutable after _new (thread-safe); a workspace serves one call at a time.
+ * Errors: -EINVAL for n_patches outside 1 … max_patches; nothing else fails after _new.
+ */
+#ifndef SCICAP_RECON_NERF_RAYFORMER_H
+#define SCICAP_RECON_NERF_RAYFORMER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "base/error.h"
+#include "recon/nerf/hashgrid.h"
+
+typedef struct nerf_rayformer_config {
+    nerf_hashgrid_config grid; /* n_levels·n_features must equal width */
+    int width;                 /* C, 32 */
+    int n_blocks;              /* 2 */
+    int heads;                 /* per attention path, 2 (C/2 divisible by heads) */
+    int ffn_hidden;            /* 64 */
+    int geo_dim;               /* 15 */
+    int sh_degree;             /* 1 … 4 (4: 16 outputs) */
+    int color_hidden;          /* 32; 0: colour is one FC layer */
+    int patch_w, patch_h;      /* 8 × 8 rays per patch */
+    int samples;               /* L, samples per ray, 32 */
+    float aabb_min[3], aabb_max[3];
+    float density_bias;        /* added before trunc_exp */
+} nerf_rayformer_config;
+
+/* The defaults named above; the grid: 16 levels × 2 features, 2^16 entries, resolution 16 … 1024; aabb [−1, 1]³. */
+nerf_rayformer_config nerf_rayformer_config_default(void);
+
+typedef struct nerf_rayformer nerf_rayformer;
+typedef struct nerf_rayformer_ws nerf_rayformer_ws;
+
+int nerf_rayformer_new(nerf_rayformer **out, const nerf_rayformer_config *cfg, sci_error *err);
+void nerf_rayformer_free(nerf_rayformer *net);
+const nerf_rayformer_config *nerf_rayformer_config_of(const nerf_rayformer *net);
+size_t nerf_rayformer_param_count(const nerf_rayformer *net);
+size_t nerf_rayformer_hash_param_count(const nerf_rayformer *net); /* the first this many params are the table */
+const nerf_hashgrid *nerf_rayformer_grid(const nerf_rayformer *net);
+/* Where each part sits in the parameter array (floats). wc1/bc1 are unused when color_hidden = 0. */
+typedef struct nerf_rayformer_layout {
+    size_t hash, block[8], lnf_g, lnf_b, wh, bh, wc1, bc1, wc2, bc2, total;
+} nerf_rayformer_layout;
+nerf_rayformer_layout nerf_rayformer_layout_of(const nerf_rayformer *net);
+/* Seeded initialisation (hash U(±1e-4), linear Kaiming-uniform, LN identity, zero biases). */
+void nerf_rayformer_init(const nerf_rayformer *net, float *params, uint64_t seed);
+
+int nerf_rayformer_ws_new(nerf_rayformer_ws **out, const nerf_rayformer *net, int max_patches, int n_threads,
+                          sci_error *err);
+void nerf_rayformer_ws_free(nerf_rayformer_ws *ws);
+size_t nerf_rayformer_ws_bytes(const nerf_rayformer_ws *ws);
+
+/* pos: N×3 (N = n_patches·R·L), dir: n_patches·R × 3. Writes sigma (N) and rgb (N×3); saves what the backward
+ * needs in ws. */
+int nerf_rayformer_forward(const nerf_rayformer *net, const float *params, nerf_rayformer_ws *ws, int n_patches,
+                           const float *pos, const float *dir, float *sigma, float *rgb);
+/* After a forward on the same ws: d_sigma (N), d_rgb (N×3) → grad (param_count, overwritten), d_pos (N×3) and
+ * d_dir (n_patches·R × 3), each NULL to skip. */
+int nerf_rayformer_backward(const nerf_rayformer *net, const float *params, nerf_rayformer_ws *ws,
+                            const float *d_sigma, const float *d_rgb, float *grad, float *d_pos, float *d_dir);
+
+#endif
