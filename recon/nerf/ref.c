@@ -26,7 +26,7 @@ void nerf_ref_hashgrid_forward(const nerf_hashgrid *g, const double *table, int 
             for (int d = 0; d < 3; d++) {
                 double xd = x[3 * i + d];
                 xd = xd < 0 ? 0 : (xd > 1 ? 1 : xd);
-                double p = scale * (double)(float)xd + 0.5, fl = floor(p);
+                double p = scale * xd + 0.5, fl = floor(p);
                 cell[d] = (uint32_t)fl;
                 fr[d] = p - fl;
             }
@@ -142,7 +142,7 @@ void nerf_ref_rayformer_forward(const nerf_rayformer *net, const double *P, int 
     double *c1 = malloc(n * (Hc ? Hc : 1) * sizeof *c1), *rp = malloc(n * 3 * sizeof *rp);
     for (size_t i = 0; i < n; i++)
         for (int d = 0; d < 3; d++)
-            u[3 * i + d] = (double)(float)((pos[3 * i + d] - cf->aabb_min[d]) / (cf->aabb_max[d] - cf->aabb_min[d]));
+            u[3 * i + d] = (pos[3 * i + d] - cf->aabb_min[d]) / ((double)cf->aabb_max[d] - cf->aabb_min[d]);
     nerf_ref_hashgrid_forward(nerf_rayformer_grid(net), P, (int)n, u, a);
     for (int k = 0; k < cf->n_blocks; k++) {
         nerf_ref_block_forward(&bs, P + lo.block[k], n_patches, a, b);
@@ -154,9 +154,8 @@ void nerf_ref_rayformer_forward(const nerf_rayformer *net, const double *P, int 
         double s = ho[i * (G + 1)] + cf->density_bias;
         sigma[i] = exp(s < 88 ? s : 88);
         for (int g = 0; g < G; g++) ci[i * Ci + g] = ho[i * (G + 1) + 1 + g];
-        float df[3] = {(float)dir[3 * (i / L)], (float)dir[3 * (i / L) + 1], (float)dir[3 * (i / L) + 2]};
-        float sh[16];
-        nerf_sh_forward(1, cf->sh_degree, df, sh, S); /* SH has no learnable part: float evaluation is exact enough */
+        double sh[16], shg[16][3];
+        nerf_sh_eval(dir[3 * (i / L)], dir[3 * (i / L) + 1], dir[3 * (i / L) + 2], sh, shg);
         for (int k = 0; k < S; k++) ci[i * Ci + G + k] = sh[k];
     }
     if (Hc) {

@@ -4,7 +4,7 @@
 #include <stddef.h>
 
 /* Value and gradient of the 16 basis functions at (x, y, z). */
-static void sh_eval(double x, double y, double z, double v[16], double g[16][3])
+void nerf_sh_eval(double x, double y, double z, double v[16], double g[16][3])
 {
     double xx = x * x, yy = y * y, zz = z * z;
     v[0] = 0.28209479177387814;
@@ -47,7 +47,7 @@ void nerf_sh_forward(int n, int degree, const float *d, float *y, int ldy)
     int m = degree * degree;
     for (int i = 0; i < n; i++) {
         double v[16], g[16][3];
-        sh_eval(d[3 * i], d[3 * i + 1], d[3 * i + 2], v, g);
+        nerf_sh_eval(d[3 * i], d[3 * i + 1], d[3 * i + 2], v, g);
         for (int k = 0; k < m; k++) y[(size_t)i * ldy + k] = (float)v[k];
     }
 }
@@ -57,7 +57,7 @@ void nerf_sh_backward(int n, int degree, const float *d, const float *dy, int ld
     int m = degree * degree;
     for (int i = 0; i < n; i++) {
         double v[16], g[16][3], s[3] = {0, 0, 0};
-        sh_eval(d[3 * i], d[3 * i + 1], d[3 * i + 2], v, g);
+        nerf_sh_eval(d[3 * i], d[3 * i + 1], d[3 * i + 2], v, g);
         for (int k = 0; k < m; k++)
             for (int a = 0; a < 3; a++) s[a] += g[k][a] * dy[(size_t)i * lddy + k];
         for (int a = 0; a < 3; a++) dd[3 * i + a] = accumulate ? dd[3 * i + a] + (float)s[a] : (float)s[a];

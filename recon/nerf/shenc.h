@@ -13,6 +13,8 @@
 
 static inline int nerf_sh_dim(int degree) { return degree * degree; }
 
+/* The 16 basis values and their gradients at (x, y, z), in double (also the tests' reference). */
+void nerf_sh_eval(double x, double y, double z, double v[16], double g[16][3]);
 /* d: n×3 unit directions; y: n×degree² (stride ldy). */
 void nerf_sh_forward(int n, int degree, const float *d, float *y, int ldy);
 /* dy: n×degree² (stride lddy); dd: n×3 overwritten (or += when accumulate). */
