@@ -32,9 +32,9 @@ void sci_tv_denoise(sci_tv *tv, sci_cube *x, float weight, int iters);
 void sci_tv_denoise_with(sci_tv *tv, sci_cube *x, float weight, int iters,
                          void (*pre)(float *frame, int k, void *ctx), void *ctx);
 
-/* The same on one frame: u = TV(f), with caller-provided duals zh (h×(w−1)) and zv ((h−1)×w), which are
- * overwritten. f and u may alias. Exposed for tests and for solvers that fuse the frame loop. */
-void sci_tv_denoise_frame(const float *f, float *u, int w, int h, float weight, int iters, float *zh, float *zv,
-                          float *rowbuf);
+/* The same on one frame: u = TV(f), with caller-provided scratch of sci_tv_frame_work_floats(w, h) floats
+ * (overwritten). f and u may alias. */
+void sci_tv_denoise_frame(const float *f, float *u, int w, int h, float weight, int iters, float *work);
+size_t sci_tv_frame_work_floats(int w, int h);
 
 #endif
