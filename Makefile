@@ -102,7 +102,7 @@ check: deps
 
 demo: deps
 	@$(MAKE) --no-print-directory all
-	@BUILD=$(BUILD) tests/../cli/demo.sh
+	@BUILD=$(BUILD) cli/demo.sh
 
 bench: deps
 	@$(MAKE) --no-print-directory benches
