@@ -260,9 +260,9 @@ int camera_config_from_json(const json_t *obj, const char *where, camera_config 
         if (!known)
             return sci_error_set(err, SCI_ECONFIG, "%s.%s: unknown key", where, k);
     }
-    long long x;
+    long long x = 0;
     int rc;
-    const char *s;
+    const char *s = NULL;
     if ((rc = cfg_str(obj, where, "device", &out->device, err)) < 0 ||
         (rc = cfg_str(obj, where, "card", &out->card, err)) < 0 ||
         (rc = cfg_str(obj, where, "bus_info", &out->bus_info, err)) < 0)

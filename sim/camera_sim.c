@@ -140,8 +140,8 @@ static int sim_set_format(void *state, const camera_config *want, camera_format 
         return rc;
     uint32_t w = s->fmt.width, h = s->fmt.height;
     if (want->width || want->height) {
-        v4l2_util_framesize range = {.min_w = 16, .max_w = s->opt.max_width, .step_w = 1,
-                                     .min_h = 16, .max_h = s->opt.max_height, .step_h = 1};
+        v4l2_util_framesize range = {.min_w = 1, .max_w = s->opt.max_width, .step_w = 1,
+                                     .min_h = 1, .max_h = s->opt.max_height, .step_h = 1};
         if ((rc = v4l2_util_choose_size(&range, 1, want->width, want->height, s->path, &w, &h, err)) < 0)
             return rc;
     }
@@ -272,7 +272,7 @@ static void sim_produce(camera_sim *s, int64_t now)
         return;
     }
     if (s->opt.unpaced) {
-        if (s->rn == 0) {
+        while (s->rn == 0) { /* dropped frames (a fault) are numbered and skipped; each pass consumes one */
             camera_sim_exposure e = {.exposure_us = s->exposure_us, .gain = s->gain,
                                      .start_ns = now - (int64_t)s->exposure_us * 1000, .end_ns = now};
             if (s->opt.strobe)
