@@ -87,7 +87,8 @@ static int recv_reply(dlpc900_ctl *c, const dlpc900_msg *m, uint8_t seq, dlpc900
 /* After a NACK: fetch code and text and build the one message the user sees. */
 static int device_refused(dlpc900_ctl *c, const dlpc900_msg *m, sci_error *err)
 {
-    if (m->cmd == DLPC900_CMD_ERROR_CODE || m->cmd == DLPC900_CMD_ERROR_TEXT)
+    /* A refused read of the error registers would recurse: report it as is. */
+    if ((m->flags & DLPC900_FLAG_READ) && (m->cmd == DLPC900_CMD_ERROR_CODE || m->cmd == DLPC900_CMD_ERROR_TEXT))
         return sci_error_set(err, SCI_EDEVICE, "%s: %s (0x%04X) refused", c->name, dlpc900_cmd_name(m->cmd), m->cmd);
     int code = -1;
     char text[64] = "";
@@ -168,6 +169,14 @@ static int check_error_code(dlpc900_ctl *c, const char *step, sci_error *err)
         return sci_error_set(err, SCI_EDEVICE, "%s: %s failed: error %d (%s)%s%s", c->name, step, code,
                              dlpc900_errcode_text(code), text[0] ? ": " : "", text);
     return 0;
+}
+
+/* Read and drop an error code left by earlier commands, so the checks below see only this sequence's errors.
+ * (Whether the firmware clears the code on read is UNCONFIRMED; the emulator does.) */
+static int clear_error_code(dlpc900_ctl *c, sci_error *err)
+{
+    uint8_t code;
+    return dlpc900_ctl_read(c, DLPC900_CMD_ERROR_CODE, &code, 1, 1, NULL, err);
 }
 
 int dlpc900_ctl_status(dlpc900_ctl *c, dlpc900_status *st, sci_error *err)
@@ -326,7 +335,7 @@ int dlpc900_ctl_program(dlpc900_ctl *c, const uint32_t *const *images, int w, in
     if (rc < 0)
         return rc;
     int nimg = (s->count + DLPC900_MASKS_PER_IMAGE - 1) / DLPC900_MASKS_PER_IMAGE;
-    if ((rc = enter_otf(c, err)) < 0 || (rc = define_lut(c, s, err)) < 0)
+    if ((rc = enter_otf(c, err)) < 0 || (rc = clear_error_code(c, err)) < 0 || (rc = define_lut(c, s, err)) < 0)
         goto fail;
     for (int i = nimg - 1; i >= 0; i--) /* reverse index order (DLPU018) */
         if ((rc = upload_image(c, i, images[i], w, h, err)) < 0)
@@ -349,7 +358,7 @@ int dlpc900_ctl_program_lut(dlpc900_ctl *c, const dlpc900_sequence *s, sci_error
         return rc;
     dlpc900_msg m;
     dlpc900_cmd_pattern_start(&m, DLPC900_STOP);
-    if ((rc = simple_write(c, &m, err)) < 0 || (rc = define_lut(c, s, err)) < 0 ||
+    if ((rc = simple_write(c, &m, err)) < 0 || (rc = clear_error_code(c, err)) < 0 || (rc = define_lut(c, s, err)) < 0 ||
         (rc = check_error_code(c, "LUT programming", err)) < 0) {
         if (rc != -ENODEV)
             stop_quietly(c);
@@ -365,6 +374,8 @@ int dlpc900_ctl_start(dlpc900_ctl *c, sci_error *err)
     uint8_t st;
     dlpc900_cmd_pattern_start(&m, DLPC900_STOP);
     if ((rc = simple_write(c, &m, err)) < 0)
+        goto fail;
+    if ((rc = clear_error_code(c, err)) < 0)
         goto fail;
     dlpc900_cmd_pattern_start(&m, DLPC900_START);
     if ((rc = simple_write(c, &m, err)) < 0 ||
