@@ -88,6 +88,7 @@ static void free_run_timing_and_drops(void **state)
     cfg.interval_num = 1;
     cfg.interval_den = 500; /* 2 ms period */
     cfg.exposure_us = 1000;
+    cfg.buffer_count = CAMERA_MAX_BUFFERS; /* 64 ms of slack: a loaded test machine must not overflow the ring */
     camera *cam = open_sim(&cfg, &opt);
     camera_sim *cs = camera_sim_from(cam);
     assert_non_null(cs);
@@ -169,7 +170,8 @@ static void ring_overflow_counts_losses(void **state)
     camera_sim_counters c;
     camera_sim_counters_get(camera_sim_from(cam), &c);
     assert_true(c.dropped >= 20);
-    assert_int_equal(fr.lost_before, c.dropped); /* the third frame comes after the gap */
+    /* the third frame comes after the gap (later frames may have overflowed again since, on a loaded machine) */
+    assert_true(fr.lost_before >= 20 && fr.lost_before <= c.dropped);
     camera_frame_release(&fr);
     camera_close(cam);
 }
