@@ -22,7 +22,7 @@ size_t nerf_i2r_scratch_floats(const nerf_i2r_shape *s)
 }
 
 /* One group of n tokens (row_of(j) = base + j·stride), one head at channel offset c0, width d. */
-static inline void group_forward(int n, int d, size_t base, size_t stride, int c0, int C, const float *qkv, int ldq,
+static inline __attribute__((always_inline)) void group_forward(int n, int d, size_t base, size_t stride, int c0, int C, const float *qkv, int ldq,
                                  float *o, int ldo, float *lse, int lse_ld, int lse_col, float *scr)
 {
     float *Kt = scr, *Vt = Kt + (size_t)d * n, *p = Vt + (size_t)d * n;
@@ -46,6 +46,7 @@ static inline void group_forward(int n, int d, size_t base, size_t stride, int c
             for (int j = 0; j < n; j++) p[j] += qc * k[j];
         }
         float m = p[0];
+#pragma omp simd reduction(max : m)
         for (int j = 1; j < n; j++) m = p[j] > m ? p[j] : m;
         float sum = 0.0f;
 #pragma omp simd reduction(+ : sum)
@@ -66,7 +67,7 @@ static inline void group_forward(int n, int d, size_t base, size_t stride, int c
     }
 }
 
-static inline void group_backward(int n, int d, size_t base, size_t stride, int c0, int C, const float *qkv,
+static inline __attribute__((always_inline)) void group_backward(int n, int d, size_t base, size_t stride, int c0, int C, const float *qkv,
                                   int ldq, const float *o, int ldo, const float *lse, int lse_ld, int lse_col,
                                   const float *dout, int lddo, float *dqkv, int ldd, float *scr)
 {

@@ -97,7 +97,7 @@ static inline void level_corners(const level *v, uint64_t T, const float *x, cor
         xd = xd < 0.0f ? 0.0f : (xd > 1.0f ? 1.0f : xd);
         if (xd != xd) xd = 0.0f, c->inside[d] = 0; /* NaN: a safe index; the caller validated inputs */
         double p = v->scale * (double)xd + 0.5;
-        double fl = floor(p);
+        double fl = (double)(uint32_t)p; /* p >= 0.5: truncation is floor, without a libm call */
         cell[d] = (uint32_t)fl;
         c->frac[d] = (float)(p - fl);
     }
