@@ -139,12 +139,20 @@ static int check_geometry(enum pixfmt f, size_t len, size_t stride, uint32_t w, 
     return 0;
 }
 
-/* Little-endian 16-bit containers are assembled byte by byte: correct on any host, and GCC turns the loop
- * into plain vector loads on little-endian machines. */
+/* Little-endian 16-bit containers. On little-endian hosts a plain 16-bit load (through memcpy, so alignment does
+ * not matter) vectorises; assembling bytes does not, and costs 10x on a 1920x1080 frame (bench_camera). */
 static void unpack_le16(const uint8_t *s, uint32_t w, uint16_t mask, uint16_t *d)
 {
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+    for (uint32_t x = 0; x < w; x++) {
+        uint16_t v;
+        memcpy(&v, s + 2 * (size_t)x, 2);
+        d[x] = v & mask;
+    }
+#else
     for (uint32_t x = 0; x < w; x++)
         d[x] = (uint16_t)((s[2 * x] | (s[2 * x + 1] << 8)) & mask);
+#endif
 }
 
 static void unpack_y10p_row(const uint8_t *s, uint32_t w, uint16_t *d)
@@ -181,7 +189,13 @@ int pixfmt_unpack(enum pixfmt f, const uint8_t *src, size_t len, size_t stride, 
             break;
         case PIXFMT_Y10: unpack_le16(s, w, 0x03ff, d); break;
         case PIXFMT_Y12: unpack_le16(s, w, 0x0fff, d); break;
-        case PIXFMT_Y16: unpack_le16(s, w, 0xffff, d); break;
+        case PIXFMT_Y16:
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+            memcpy(d, s, (size_t)w * 2); /* already the host's layout */
+#else
+            unpack_le16(s, w, 0xffff, d);
+#endif
+            break;
         case PIXFMT_Y10P: unpack_y10p_row(s, w, d); break;
         default: break; /* excluded by check_geometry */
         }
