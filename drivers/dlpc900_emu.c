@@ -189,8 +189,9 @@ static int do_lut_define(dlpc900_emu *e, const dlpc900_msg *m)
                       le.image_index, EMU_IMAGES_MAX - 1);
     int minexp = min_exposure_us(e, le.bit_depth);
     if ((int)le.exposure_us < minexp)
-        return refuse(e, DLPC900_ERR_EXPOSURE_RANGE, "LUT entry %u: exposure %u µs below the %d µs minimum for %u-bit "
-                      "patterns with %d blocks", le.index, le.exposure_us, minexp, le.bit_depth, e->block_count);
+        /* Kept under the 59 characters one reply report carries. */
+        return refuse(e, DLPC900_ERR_EXPOSURE_RANGE, "entry %u: exposure %u us < min %d us (%u-bit, %d blocks)",
+                      le.index, le.exposure_us, minexp, le.bit_depth, e->block_count);
     e->lut[le.index] = le;
     e->lut_defined[le.index] = 1;
     e->lut_configured = 0; /* a definition takes effect at the next LUT configuration (DLPU018) */

@@ -183,7 +183,7 @@ static void test_exposure_too_short(void **state)
     f->exposure[3] = 50;
     assert_int_equal(dlpc900_ctl_program(f->ctl, f->images, W, H, &f->seq, &err), SCI_EDEVICE);
     assert_contains(err.msg, "error 14 (pattern exposure time out of range)");
-    assert_contains(err.msg, "50 µs below the 105 µs minimum");
+    assert_contains(err.msg, "entry 3: exposure 50 us < min 105 us (1-bit, 15 blocks)");
     assert_int_equal(dlpc900_emu_running(f->emu), 0);
 }
 
