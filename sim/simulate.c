@@ -54,7 +54,7 @@ int sim_run(const sim_scene *sc, sci_problem ***out, int *kout, sim_stats *stats
         }
         p[s] = q;
         q->peak = 1;
-        snprintf(q->name, sizeof q->name, "%s#%d", sc->name, s + 1);
+        snprintf(q->name, sizeof q->name, "%s", sc->name); /* readers append "#snapshot" */
         if ((rc = sci_cube_new(&q->truth, sc->w, sc->h, sc->n, err)) < 0 ||
             (rc = sci_cube_new(&q->meas, sc->w, sc->h, 1, err)) < 0 ||
             (rc = sci_cube_clone(&q->mask, mask, err)) < 0)
