@@ -1,6 +1,7 @@
 #include "drivers/dlpc900_ctl.h"
 
 #include <errno.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -217,6 +218,24 @@ int dlpc900_ctl_identify(dlpc900_ctl *c, dlpc900_identity *id, sci_error *err)
     return 0;
 }
 
+/* Insert context after the leading "<name>: " of a message: "<name>: <context>: <rest>". */
+__attribute__((format(printf, 3, 4))) static void add_context(dlpc900_ctl *c, sci_error *err, const char *fmt, ...)
+{
+    if (!err)
+        return;
+    char ctx[128], rest[SCI_ERROR_MSG_MAX];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(ctx, sizeof ctx, fmt, ap);
+    va_end(ap);
+    size_t nl = strlen(c->name);
+    const char *tail = err->msg;
+    if (strncmp(tail, c->name, nl) == 0 && tail[nl] == ':' && tail[nl + 1] == ' ')
+        tail += nl + 2;
+    snprintf(rest, sizeof rest, "%s", tail);
+    snprintf(err->msg, sizeof err->msg, "%s: %s: %s", c->name, ctx, rest);
+}
+
 static int simple_write(dlpc900_ctl *c, dlpc900_msg *m, sci_error *err) { return dlpc900_ctl_write(c, m, err); }
 
 int dlpc900_ctl_stop(dlpc900_ctl *c, sci_error *err)
@@ -269,8 +288,10 @@ static int define_lut(dlpc900_ctl *c, const dlpc900_sequence *s, sci_error *err)
             .bit_position = (uint8_t)(j % DLPC900_MASKS_PER_IMAGE),
         };
         dlpc900_cmd_lut_define(&m, &e);
-        if ((rc = simple_write(c, &m, err)) < 0)
-            return sci_error_prefix(err, "pattern %d: ", j);
+        if ((rc = simple_write(c, &m, err)) < 0) {
+            add_context(c, err, "pattern %d", j);
+            return rc;
+        }
     }
     dlpc900_cmd_lut_config(&m, (uint16_t)s->count, s->patterns);
     return simple_write(c, &m, err);
@@ -316,7 +337,7 @@ static int upload_image(dlpc900_ctl *c, int index, const uint32_t *px, int w, in
         size_t n = len - off < DLPC900_CHUNK_MAX ? len - off : DLPC900_CHUNK_MAX;
         dlpc900_cmd_image_data(&m, file + off, n);
         if ((rc = simple_write(c, &m, err)) < 0) {
-            sci_error_prefix(err, "image %d, byte %zu of %zu: ", index, off, len);
+            add_context(c, err, "image %d, byte %zu of %zu", index, off, len);
             goto out_free;
         }
     }
