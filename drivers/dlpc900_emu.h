@@ -4,7 +4,7 @@
  * configuration, images decoded from their ERLE/RLE/raw files, trigger settings, block load, running/paused),
  * answers reads with reply reports, sets the error bit (0x20) on bad commands and records the DLPU018 error code
  * and text (read back with 0x0100/0x0101), and enforces the documented limits: mask count (400 1-bit patterns,
- * 400 LUT entries, image index 0…16), minimum exposure for the active DMD blocks, dark time 24-bit, TRIG_IN_1
+ * 400 LUT entries, image index 0…17), minimum exposure for the active DMD blocks, dark time 24-bit, TRIG_IN_1
  * delay ≥ minimum block-load time, TRIG_OUT delays −20…20000 µs, messages ≤ 512 bytes, chunks ≤ 504 bytes,
  * image data matching what image load init declared, no mode change or upload while running, start only with a
  * configured LUT whose images are all loaded. Choices where the hardware's behaviour is UNCONFIRMED are listed
