@@ -88,7 +88,12 @@ int trigger_read_events(trigger *t, int64_t timeout_ns, trigger_event *ev, int m
     return 0;
 }
 
-int trigger_flush(trigger *t, sci_error *err) { return t->ops->flush(t->state, err); }
+int trigger_flush(trigger *t, sci_error *err)
+{
+    /* flushed edges are numbered by the kernel but never seen here: restart the gap tracking */
+    memset(t->seen, 0, sizeof t->seen);
+    return t->ops->flush(t->state, err);
+}
 
 json_t *trigger_identity_json(const trigger_identity *id)
 {

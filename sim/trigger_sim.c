@@ -17,7 +17,8 @@ struct trigger_sim {
     int input_offset[TRIGGER_ROLE_COUNT];
     trigger_event *q; /* ascending timestamps */
     int qn, qcap;
-    uint32_t seqno[TRIGGER_ROLE_COUNT];
+    uint32_t seqno[TRIGGER_ROLE_COUNT];        /* numbered on delivery, in time order, as the kernel would */
+    uint32_t lost_pending[TRIGGER_ROLE_COUNT]; /* overflowed edges not yet reflected in seqno */
     int miss_n;
     trigger_sim_counters counters;
 };
@@ -106,6 +107,12 @@ static int tsim_read(void *state, int64_t timeout_ns, trigger_event *ev, int max
             n++;
         if (n > 0) {
             memcpy(ev, s->q, (size_t)n * sizeof *ev);
+            for (int i = 0; i < n; i++) {
+                enum trigger_role r = ev[i].role;
+                s->seqno[r] += 1 + s->lost_pending[r];
+                s->lost_pending[r] = 0;
+                ev[i].line_seqno = s->seqno[r];
+            }
             memmove(s->q, s->q + n, (size_t)(s->qn - n) * sizeof *s->q);
             s->qn -= n;
             *count = n;
@@ -152,7 +159,7 @@ int trigger_sim_inject(trigger_sim *s, enum trigger_role role, int64_t t_ns, int
         return -ENOTCONN;
     if (s->qn == s->qcap) {
         s->counters.overflowed++;
-        s->seqno[role]++; /* the kernel numbers the lost edge too: the gap shows in line_seqno */
+        s->lost_pending[role]++; /* the kernel numbers the lost edge too: the gap shows in line_seqno */
         return -ENOSPC;
     }
     int i = s->qn;
@@ -160,7 +167,7 @@ int trigger_sim_inject(trigger_sim *s, enum trigger_role role, int64_t t_ns, int
         s->q[i] = s->q[i - 1];
         i--;
     }
-    s->q[i] = (trigger_event){.timestamp_ns = t_ns, .role = role, .rising = rising, .line_seqno = ++s->seqno[role]};
+    s->q[i] = (trigger_event){.timestamp_ns = t_ns, .role = role, .rising = rising};
     s->qn++;
     s->counters.injected++;
     return 0;
