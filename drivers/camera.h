@@ -153,6 +153,9 @@ typedef struct camera_ops {
 
 typedef struct camera camera;
 
+/* The template backend (drivers/camera_skeleton.c): open always fails with -ENOTSUP. */
+extern const camera_ops camera_skeleton_ops;
+
 /* Open through `ops`, then apply format, exposure, gain and trigger profile from cfg. On failure nothing is
  * left open. The camera is not streaming afterwards. */
 int camera_open(camera **out, const camera_ops *ops, const camera_config *cfg, sci_error *err);
