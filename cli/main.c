@@ -12,6 +12,7 @@ typedef struct command {
 
 static const command commands[] = {
     {"recon", cli_recon_main, "reconstruct the frames of SCI snapshots (GAP-TV, ADMM-TV)"},
+    {"dmd", cli_dmd_main, "TI DLPC900 DMD: list, status, upload masks, start, stop (--emulate: no hardware)"},
 };
 
 static void usage(FILE *f)
