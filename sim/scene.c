@@ -168,5 +168,11 @@ int sim_scene_set_snapshots(sim_scene *sc, int snapshots, sci_error *err)
 {
     if (snapshots < 1 || snapshots > 1024)
         return sci_error_set(err, -EINVAL, "snapshots must be in [1, 1024] (got %d)", snapshots);
+    const json_t *cam = json_object_get(sc->record, "camera");
+    if (snapshots != sc->snapshots && sc->kind == SIM_SCENE_STATIC3D && json_object_get(cam, "poses"))
+        return sci_error_set(err, -EINVAL,
+                             "%s lists %d explicit camera poses (frames × snapshots); the snapshot count cannot "
+                             "change without new poses (use start/end for a path that stretches)",
+                             sc->name, sc->static3d.npose);
     return reload_with(sc, "snapshots", json_integer(snapshots), err);
 }

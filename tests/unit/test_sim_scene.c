@@ -10,6 +10,7 @@
 #include <string.h>
 #include <cmocka.h>
 
+#include "io/image.h"
 #include "sim/default_scene.h"
 #include "sim/masks.h"
 #include "sim/simulate.h"
@@ -189,6 +190,57 @@ static void test_mask_kinds(void **state)
     sci_cube_free(m);
 }
 
+/* Masks from a stack file round-trip exactly; a PSF image is normalised, and one of even size is refused with its
+ * position. */
+static void test_files(void **state)
+{
+    char dir[] = "/tmp/scicap-test-sim-XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    const int w = 24, h = 16, n = 4;
+    sci_cube *m = masks_of("{\"type\": \"random\", \"density\": 0.5}", w, h, n);
+    sci_error err = {0};
+    if (sci_stack_write(dir, "mask", "exr", m, SCI_PIXEL_F32, 1.0, NULL, &err) < 0)
+        fail_msg("%s", err.msg);
+    char spec[512];
+    snprintf(spec, sizeof spec, "{\"type\": \"file\", \"path\": \"%s/mask.json\"}", dir);
+    sci_cube *back = masks_of(spec, w, h, n);
+    assert_memory_equal(back->data, m->data, sci_cube_count(m) * 4);
+    sci_cube_free(back);
+    sci_cube_free(m);
+
+    sci_cube *psf;
+    assert_int_equal(sci_cube_new(&psf, 3, 3, 1, NULL), 0);
+    for (int i = 0; i < 9; i++)
+        psf->data[i] = (float)(i % 2 + 1);
+    char path[600], text[1200];
+    snprintf(path, sizeof path, "%s/psf.exr", dir);
+    assert_int_equal(sci_image_write(path, psf, 0, SCI_PIXEL_F32, 1.0, NULL, &err), 0);
+    snprintf(text, sizeof text,
+             "{\"kind\": \"video2d\", \"width\": 16, \"height\": 16,\n"
+             " \"layers\": [{\"texture\": {\"type\": \"constant\"}}],\n"
+             " \"effects\": {\"blur\": {\"psf\": \"psf.exr\"}}}");
+    sim_scene *sc;
+    if (sim_scene_load_string(&sc, "p.json", text, dir, &err) < 0)
+        fail_msg("%s", err.msg);
+    double sum = 0;
+    for (int i = 0; i < 9; i++)
+        sum += sc->fx.psf->data[i];
+    assert_true(fabs(sum - 1) < 1e-6);
+    assert_true(sc->fx.psf->data[1] == 2 * sc->fx.psf->data[0]);
+    sim_scene_free(sc);
+    sci_cube_free(psf);
+    assert_int_equal(sci_cube_new(&psf, 4, 3, 1, NULL), 0);
+    psf->data[0] = 1;
+    assert_int_equal(sci_image_write(path, psf, 0, SCI_PIXEL_F32, 1.0, NULL, &err), 0);
+    assert_true(sim_scene_load_string(&sc, "p.json", text, dir, &err) < 0);
+    printf("even PSF: %s\n", err.msg);
+    assert_non_null(strstr(err.msg, "p.json:3:23: effects.blur.psf:"));
+    sci_cube_free(psf);
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -196,6 +248,7 @@ int main(void)
         cmocka_unit_test(test_positioned_errors),
         cmocka_unit_test(test_overrides),
         cmocka_unit_test(test_mask_kinds),
+        cmocka_unit_test(test_files),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
