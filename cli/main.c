@@ -11,6 +11,7 @@ typedef struct command {
 } command;
 
 static const command commands[] = {
+    {"sim", cli_sim_main, "simulate coded snapshots of a scene (video2d, static3d) with the effects it lists"},
     {"recon", cli_recon_main, "reconstruct the frames of SCI snapshots (GAP-TV, ADMM-TV)"},
     {"dmd", cli_dmd_main, "TI DLPC900 DMD: list, status, upload masks, start, stop (--emulate: no hardware)"},
 };

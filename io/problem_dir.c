@@ -74,6 +74,25 @@ int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, 
         (rc = sci_stack_write(tmp, "mask", "exr", p0->mask, SCI_PIXEL_F32, 1.0, NULL, err)) < 0 ||
         (truth && (rc = sci_stack_write(tmp, "truth", "exr", truth, SCI_PIXEL_F32, 1.0, NULL, err)) < 0))
         goto out;
+    /* Viewable 8-bit previews beside the lossless stacks: truth and masks on [0, peak], measurements scaled by
+     * their own maximum (they sum up to N frames). */
+    char pv[4200];
+    float lo, hi;
+    sci_cube_minmax(meas, &lo, &hi);
+    for (int j = 0; j < k && rc == 0; j++) {
+        snprintf(pv, sizeof pv, "%s/preview_meas_%03d.png", tmp, j);
+        rc = sci_image_write(pv, meas, j, SCI_PIXEL_U8, hi > 0 ? 255.0 / hi : 1.0, NULL, err);
+    }
+    for (int f = 0; f < n && rc == 0; f++) {
+        snprintf(pv, sizeof pv, "%s/preview_mask_%03d.png", tmp, f);
+        rc = sci_image_write(pv, p0->mask, f, SCI_PIXEL_U8, 255.0, NULL, err);
+    }
+    if (rc == 0 && truth) {
+        snprintf(pv, sizeof pv, "%s/preview_truth.gif", tmp);
+        rc = sci_image_write_gif(pv, truth, 255.0 / p0->peak, 125, err);
+    }
+    if (rc < 0)
+        goto out;
     json_t *man = json_pack("{s:s, s:i, s:i, s:i, s:i, s:i, s:f, s:s, s:s}", "format", "scicap-problem", "version", 1,
                             "snapshots", k, "w", w, "h", h, "n", n, "peak", p0->peak, "meas", "meas.json", "mask",
                             "mask.json");

@@ -8,6 +8,7 @@
  *     DIR/meas_000.exr ...      k measurements (a stack, float32 EXR: lossless)
  *     DIR/mask_000.exr ...      N masks shared by all snapshots (a stack)
  *     DIR/truth_000.exr ...     k·N truth frames, snapshot-major (a stack), when known
+ *     DIR/preview_*.png, preview_truth.gif   8-bit previews of measurements, masks and truth (not read back)
  * "camera" (static3d scenes): {"fx","fy","cx","cy","near","far","poses": [[12 numbers] × k·N]}, poses
  * camera-to-world row-major 3×4, NeRF axes (recon/problem.h).
  *
