@@ -1,133 +1,221 @@
 /* recon/nerf/attention.c — I²R-MSA core (see attention.h).
  *
- * Each (group, head) gathers its keys and values transposed ([channel][token]) into scratch so that the inner
- * loops run over tokens with unit stride and vectorise; the AVX2/AVX-512 clones differ only in vector width:
- * no FMA contraction under -std=c11 and reductions under `omp simd` have a fixed order per build, so results are
- * reproducible run to run.
+ * Layout of the work: one (group, head) at a time, VW = 16 tokens per vector (GCC vector extensions, lowered to
+ * one zmm, two ymm or four xmm by the target clone). The forward puts 16 *queries* in the lanes and walks the
+ * keys as scalars broadcast from their rows: the scores, the running max, the exponentials, the normaliser and
+ * the d output channels are all lane-wise, so no horizontal sum is ever taken and the d accumulators stay in
+ * registers (d = 8 for the default network is a compile-time constant in its own specialisation).
+ * The backward runs two such sweeps, both recomputing the probabilities from the saved lse:
+ *   query lanes: dq_i = scale·Σ_j ds_ij k_j,
+ *   key lanes:   dk_j = scale·Σ_i ds_ij q_i,  dv_j = Σ_i p_ij do_i,
+ * with ds_ij = p_ij (dp_ij − D_i), dp_ij = do_i·v_j, D_i = do_i·o_i. Both sweeps form the score as
+ * Σ_c (q_ic·scale)·k_jc in the same order as the forward, so p is bitwise the forward's.
+ * Cost per (query, key) pair and head: forward ≈ 2d + 20 lane-operations / 16, backward ≈ 2.5× that.
+ * No FMA contraction under -std=c11 and a fixed summation order: results do not depend on the clone that runs
+ * except for the vector width, which does not change any sum (all sums run over keys or queries in order).
  */
+/* Comparisons inside the vector exp must be if-converted; this changes no value (IEEE results are the same), it
+ * only lets gcc assume no FP trap is enabled (the project never enables one). */
+#pragma GCC optimize("no-trapping-math")
+
 #include "recon/nerf/attention.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
-#include "recon/nerf/fastmath.h"
-
 #define CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#define INLINE static inline __attribute__((always_inline))
+
+/* The vector helpers are always inlined, so the psABI note about passing 64-byte vectors never applies. */
+#pragma GCC diagnostic ignored "-Wpsabi"
+
+#define VW 16
+#define MAXD 128 /* d = C/(2·heads) <= 128 since C <= 256 */
+typedef float vf __attribute__((vector_size(4 * VW)));
+typedef int32_t vi __attribute__((vector_size(4 * VW)));
+
+INLINE vf vload(const float *p)
+{
+    vf v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+INLINE void vstore(float *p, vf v) { memcpy(p, &v, sizeof v); }
+INLINE vf vsplat(float x) { return (vf){0} + x; }
+INLINE vf vsel(vi m, vf a, vf b) { return (vf)(((vi)a & m) | ((vi)b & ~m)); }
+INLINE vf vmax(vf a, vf b) { return vsel(a > b, a, b); }
+
+/* Lane-wise nerf_expf (fastmath.h), the same operations in the same order. */
+INLINE vf vexp(vf x)
+{
+    const vf lo = vsplat(-87.3f), hi = vsplat(88.3f);
+    vf xc = vsel(x < lo, lo, x);
+    xc = vsel(xc > hi, hi, xc);
+    vf n = (xc * 1.44269504088896341f + 12582912.0f) - 12582912.0f;
+    vf r = xc - n * 0.693145751953125f;
+    r = r - n * 1.42860682030941723212e-6f;
+    vf p = vsplat(1.0f / 720.0f);
+    p = p * r + 1.0f / 120.0f;
+    p = p * r + 1.0f / 24.0f;
+    p = p * r + 1.0f / 6.0f;
+    p = p * r + 0.5f;
+    p = p * r + 1.0f;
+    p = p * r + 1.0f;
+    vi bits = (__builtin_convertvector(n, vi) + 127) << 23;
+    vf y = p * (vf)bits;
+    y = vsel(x < lo, vsplat(0.0f), y);
+    return vsel(x != x, x, y);
+}
+
+static inline int padded(int n) { return (n + VW - 1) / VW * VW; }
 
 size_t nerf_i2r_scratch_floats(const nerf_i2r_shape *s)
 {
-    int n = s->L > s->R ? s->L : s->R;
+    int n = s->L > s->R ? s->L : s->R, np = padded(n);
     int d = s->C / (2 * s->heads);
-    return (size_t)(6 * d + 4) * (size_t)n + 64;
+    return (size_t)(4 * d + 2) * np + (size_t)n * (d + VW) + 64;
 }
 
-/* One group of n tokens (row_of(j) = base + j·stride), one head at channel offset c0, width d. */
-static inline __attribute__((always_inline)) void group_forward(int n, int d, size_t base, size_t stride, int c0, int C, const float *qkv, int ldq,
-                                 float *o, int ldo, float *lse, int lse_ld, int lse_col, float *scr)
+/* A group: n tokens, token j at row base + j·stride; one head at channel offset c0, width d. */
+typedef struct grp {
+    int n, d, C, c0;
+    size_t base, stride;
+} grp;
+
+INLINE size_t row_of(const grp *g, int j) { return g->base + (size_t)j * g->stride; }
+
+/* Transposed copy of channels [off, off + d) of the group's rows: dst[c·np + j] = scale·src[row_j·ld + off + c],
+ * lanes j >= n zero. */
+INLINE void gather_t(const grp *g, int d, int np, const float *src, int ld, int off, float scale, float *dst)
 {
-    float *Kt = scr, *Vt = Kt + (size_t)d * n, *p = Vt + (size_t)d * n;
-    const float scale = 1.0f / sqrtf((float)d);
-    for (int j = 0; j < n; j++) {
-        const float *row = qkv + (base + (size_t)j * stride) * ldq;
-        for (int c = 0; c < d; c++) {
-            Kt[(size_t)c * n + j] = row[C + c0 + c];
-            Vt[(size_t)c * n + j] = row[2 * C + c0 + c];
-        }
+    for (int j = 0; j < g->n; j++) {
+        const float *r = src + row_of(g, j) * ld + off;
+        for (int c = 0; c < d; c++) dst[(size_t)c * np + j] = r[c] * scale;
     }
-    for (int i = 0; i < n; i++) {
-        size_t ri = base + (size_t)i * stride;
-        const float *q = qkv + ri * ldq + c0;
-#pragma omp simd
-        for (int j = 0; j < n; j++) p[j] = 0.0f;
-        for (int c = 0; c < d; c++) {
-            float qc = q[c] * scale;
-            const float *k = Kt + (size_t)c * n;
-#pragma omp simd
-            for (int j = 0; j < n; j++) p[j] += qc * k[j];
-        }
-        float m = p[0];
-#pragma omp simd reduction(max : m)
-        for (int j = 1; j < n; j++) m = p[j] > m ? p[j] : m;
-        float sum = 0.0f;
-#pragma omp simd reduction(+ : sum)
+    for (int c = 0; c < d; c++)
+        for (int j = g->n; j < np; j++) dst[(size_t)c * np + j] = 0.0f;
+}
+
+INLINE void group_forward(const grp *g, const int d, const float *qkv, int ldq, float *o, int ldo, float *lse,
+                          int lse_ld, int lse_col, float *scr)
+{
+    const int n = g->n, np = padded(n), C = g->C, c0 = g->c0;
+    const float scale = 1.0f / sqrtf((float)d);
+    float *Qt = scr, *St = Qt + (size_t)d * np;
+    gather_t(g, d, np, qkv, ldq, c0, scale, Qt);
+    for (int b = 0; b < np; b += VW) {
+        vf q[MAXD], acc[MAXD];
+        for (int c = 0; c < d; c++) q[c] = vload(Qt + (size_t)c * np + b), acc[c] = vsplat(0.0f);
+        vf m = vsplat(0.0f);
         for (int j = 0; j < n; j++) {
-            p[j] = nerf_expf(p[j] - m);
-            sum += p[j];
+            const float *k = qkv + row_of(g, j) * ldq + C + c0;
+            vf s = q[0] * k[0];
+            for (int c = 1; c < d; c++) s += q[c] * k[c];
+            vstore(St + (size_t)j * VW, s);
+            m = j ? vmax(m, s) : s;
         }
-        float inv = 1.0f / sum;
-        float *oi = o + ri * ldo + c0;
-        for (int c = 0; c < d; c++) {
-            const float *v = Vt + (size_t)c * n;
-            float acc = 0.0f;
-#pragma omp simd reduction(+ : acc)
-            for (int j = 0; j < n; j++) acc += p[j] * v[j];
-            oi[c] = acc * inv;
+        vf l = vsplat(0.0f);
+        for (int j = 0; j < n; j++) {
+            const float *v = qkv + row_of(g, j) * ldq + 2 * C + c0;
+            vf p = vexp(vload(St + (size_t)j * VW) - m);
+            l += p;
+            for (int c = 0; c < d; c++) acc[c] += p * v[c];
         }
-        lse[ri * lse_ld + lse_col] = m + logf(sum);
+        vf inv = 1.0f / l;
+        float ob[MAXD][VW], mb[VW], lb[VW];
+        for (int c = 0; c < d; c++) vstore(ob[c], acc[c] * inv);
+        vstore(mb, m);
+        vstore(lb, l);
+        int nt = n - b < VW ? n - b : VW;
+        for (int t = 0; t < nt; t++) {
+            size_t ri = row_of(g, b + t);
+            float *oi = o + ri * ldo + c0;
+            for (int c = 0; c < d; c++) oi[c] = ob[c][t];
+            lse[ri * lse_ld + lse_col] = mb[t] + logf(lb[t]);
+        }
     }
 }
 
-static inline __attribute__((always_inline)) void group_backward(int n, int d, size_t base, size_t stride, int c0, int C, const float *qkv,
-                                  int ldq, const float *o, int ldo, const float *lse, int lse_ld, int lse_col,
-                                  const float *dout, int lddo, float *dqkv, int ldd, float *scr)
+INLINE void group_backward(const grp *g, const int d, const float *qkv, int ldq, const float *o, int ldo,
+                           const float *lse, int lse_ld, int lse_col, const float *dout, int lddo, float *dqkv,
+                           int ldd, float *scr)
 {
-    float *Kt = scr, *Vt = Kt + (size_t)d * n, *dKt = Vt + (size_t)d * n, *dVt = dKt + (size_t)d * n;
-    float *p = dVt + (size_t)d * n, *dp = p + n;
+    const int n = g->n, np = padded(n), C = g->C, c0 = g->c0;
     const float scale = 1.0f / sqrtf((float)d);
-    for (int j = 0; j < n; j++) {
-        const float *row = qkv + (base + (size_t)j * stride) * ldq;
-        for (int c = 0; c < d; c++) {
-            Kt[(size_t)c * n + j] = row[C + c0 + c];
-            Vt[(size_t)c * n + j] = row[2 * C + c0 + c];
-        }
-    }
-    memset(dKt, 0, 2 * (size_t)d * n * sizeof *dKt);
+    float *Qt = scr, *Kt = Qt + (size_t)d * np, *Vt = Kt + (size_t)d * np, *Gt = Vt + (size_t)d * np;
+    float *Dq = Gt + (size_t)d * np, *Lq = Dq + np, *Qs = Lq + np;
+    gather_t(g, d, np, qkv, ldq, c0, scale, Qt);
+    gather_t(g, d, np, qkv, ldq, C + c0, 1.0f, Kt);
+    gather_t(g, d, np, qkv, ldq, 2 * C + c0, 1.0f, Vt);
+    gather_t(g, d, np, dout, lddo, c0, 1.0f, Gt);
+    for (int i = 0; i < np; i++) Dq[i] = 0.0f, Lq[i] = 0.0f;
     for (int i = 0; i < n; i++) {
-        size_t ri = base + (size_t)i * stride;
-        const float *q = qkv + ri * ldq + c0, *oi = o + ri * ldo + c0, *gi = dout + ri * lddo + c0;
-        float Di = 0.0f;
-        for (int c = 0; c < d; c++) Di += gi[c] * oi[c];
-        float l0 = lse[ri * lse_ld + lse_col];
-#pragma omp simd
-        for (int j = 0; j < n; j++) p[j] = 0.0f, dp[j] = 0.0f;
-        for (int c = 0; c < d; c++) {
-            float qc = q[c] * scale, gc = gi[c];
-            const float *k = Kt + (size_t)c * n, *v = Vt + (size_t)c * n;
-#pragma omp simd
-            for (int j = 0; j < n; j++) {
-                p[j] += qc * k[j];
-                dp[j] += gc * v[j];
-            }
-        }
-#pragma omp simd
+        size_t ri = row_of(g, i);
+        const float *oi = o + ri * ldo + c0, *gi = dout + ri * lddo + c0, *qi = qkv + ri * ldq + c0;
+        float D = 0.0f;
+        for (int c = 0; c < d; c++) D += gi[c] * oi[c], Qs[(size_t)i * d + c] = qi[c] * scale;
+        Dq[i] = D;
+        Lq[i] = lse[ri * lse_ld + lse_col];
+    }
+    /* query lanes: dq */
+    for (int b = 0; b < np; b += VW) {
+        vf q[MAXD], gq[MAXD], dq[MAXD];
+        for (int c = 0; c < d; c++)
+            q[c] = vload(Qt + (size_t)c * np + b), gq[c] = vload(Gt + (size_t)c * np + b), dq[c] = vsplat(0.0f);
+        const vf Dv = vload(Dq + b), Lv = vload(Lq + b);
         for (int j = 0; j < n; j++) {
-            p[j] = nerf_expf(p[j] - l0);
-            dp[j] = p[j] * (dp[j] - Di) * scale; /* ds_ij · scale */
+            const float *k = qkv + row_of(g, j) * ldq + C + c0, *v = k + C;
+            vf s = q[0] * k[0], dp = gq[0] * v[0];
+            for (int c = 1; c < d; c++) s += q[c] * k[c], dp += gq[c] * v[c];
+            vf p = vexp(s - Lv);
+            vf ds = p * (dp - Dv);
+            for (int c = 0; c < d; c++) dq[c] += ds * k[c];
         }
-        float *dq = dqkv + ri * ldd + c0;
-        for (int c = 0; c < d; c++) {
-            const float *k = Kt + (size_t)c * n;
-            float acc = 0.0f;
-#pragma omp simd reduction(+ : acc)
-            for (int j = 0; j < n; j++) acc += dp[j] * k[j];
-            dq[c] = acc;
-            float qc = q[c], gc = gi[c];
-            float *dk = dKt + (size_t)c * n, *dv = dVt + (size_t)c * n;
-#pragma omp simd
-            for (int j = 0; j < n; j++) {
-                dk[j] += qc * dp[j];
-                dv[j] += gc * p[j];
-            }
+        float ob[MAXD][VW];
+        for (int c = 0; c < d; c++) vstore(ob[c], dq[c] * scale);
+        int nt = n - b < VW ? n - b : VW;
+        for (int t = 0; t < nt; t++) {
+            float *r = dqkv + row_of(g, b + t) * ldd + c0;
+            for (int c = 0; c < d; c++) r[c] = ob[c][t];
         }
     }
-    for (int j = 0; j < n; j++) {
-        float *row = dqkv + (base + (size_t)j * stride) * ldd;
+    /* key lanes: dk, dv */
+    for (int b = 0; b < np; b += VW) {
+        vf k[MAXD], v[MAXD], dk[MAXD], dv[MAXD];
         for (int c = 0; c < d; c++) {
-            row[C + c0 + c] = dKt[(size_t)c * n + j];
-            row[2 * C + c0 + c] = dVt[(size_t)c * n + j];
+            k[c] = vload(Kt + (size_t)c * np + b), v[c] = vload(Vt + (size_t)c * np + b);
+            dk[c] = vsplat(0.0f), dv[c] = vsplat(0.0f);
+        }
+        for (int i = 0; i < n; i++) {
+            size_t ri = row_of(g, i);
+            const float *qs = Qs + (size_t)i * d, *qi = qkv + ri * ldq + c0, *gi = dout + ri * lddo + c0;
+            vf s = qs[0] * k[0], dp = gi[0] * v[0];
+            for (int c = 1; c < d; c++) s += qs[c] * k[c], dp += gi[c] * v[c];
+            vf p = vexp(s - Lq[i]);
+            vf ds = p * (dp - Dq[i]);
+            for (int c = 0; c < d; c++) dk[c] += ds * qi[c], dv[c] += p * gi[c];
+        }
+        float kb[MAXD][VW], vb[MAXD][VW];
+        for (int c = 0; c < d; c++) vstore(kb[c], dk[c] * scale), vstore(vb[c], dv[c]);
+        int nt = n - b < VW ? n - b : VW;
+        for (int t = 0; t < nt; t++) {
+            float *r = dqkv + row_of(g, b + t) * ldd;
+            for (int c = 0; c < d; c++) r[C + c0 + c] = kb[c][t], r[2 * C + c0 + c] = vb[c][t];
         }
     }
 }
+
+/* The d = 8 case (width 32, 2 heads per path) gets its own fully unrolled copy. */
+#define DISPATCH_D(call_d)                                                                                       \
+    do {                                                                                                         \
+        if (d == 8)                                                                                              \
+            call_d(8);                                                                                           \
+        else if (d == 4)                                                                                         \
+            call_d(4);                                                                                           \
+        else                                                                                                     \
+            call_d(d);                                                                                           \
+    } while (0)
 
 CLONES void nerf_i2r_forward(const nerf_i2r_shape *s, int n_patches, const float *qkv, int ld_qkv, float *o,
                              int ldo, float *lse, float *scratch)
@@ -136,11 +224,16 @@ CLONES void nerf_i2r_forward(const nerf_i2r_shape *s, int n_patches, const float
     for (int pa = 0; pa < n_patches; pa++) {
         size_t p0 = (size_t)pa * R * L;
         for (int h = 0; h < H; h++) {
-            for (int r = 0; r < R; r++) /* intra-ray: the L samples of ray r */
-                group_forward(L, d, p0 + (size_t)r * L, 1, h * d, C, qkv, ld_qkv, o, ldo, lse, 2 * H, h, scratch);
-            for (int t = 0; t < L; t++) /* inter-ray: the R rays at sample t */
-                group_forward(R, d, p0 + t, (size_t)L, half + h * d, C, qkv, ld_qkv, o, ldo, lse, 2 * H, H + h,
-                              scratch);
+            for (int r = 0; r < R; r++) { /* intra-ray: the L samples of ray r */
+                grp g = {.n = L, .d = d, .C = C, .c0 = h * d, .base = p0 + (size_t)r * L, .stride = 1};
+#define FWD_A(D) group_forward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, h, scratch)
+                DISPATCH_D(FWD_A);
+            }
+            for (int t = 0; t < L; t++) { /* inter-ray: the R rays at sample t */
+                grp g = {.n = R, .d = d, .C = C, .c0 = half + h * d, .base = p0 + t, .stride = (size_t)L};
+#define FWD_B(D) group_forward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, H + h, scratch)
+                DISPATCH_D(FWD_B);
+            }
         }
     }
 }
@@ -153,12 +246,17 @@ CLONES void nerf_i2r_backward(const nerf_i2r_shape *s, int n_patches, const floa
     for (int pa = 0; pa < n_patches; pa++) {
         size_t p0 = (size_t)pa * R * L;
         for (int h = 0; h < H; h++) {
-            for (int r = 0; r < R; r++)
-                group_backward(L, d, p0 + (size_t)r * L, 1, h * d, C, qkv, ld_qkv, o, ldo, lse, 2 * H, h, dout,
-                               lddo, dqkv, ld_dqkv, scratch);
-            for (int t = 0; t < L; t++)
-                group_backward(R, d, p0 + t, (size_t)L, half + h * d, C, qkv, ld_qkv, o, ldo, lse, 2 * H, H + h,
-                               dout, lddo, dqkv, ld_dqkv, scratch);
+            for (int r = 0; r < R; r++) {
+                grp g = {.n = L, .d = d, .C = C, .c0 = h * d, .base = p0 + (size_t)r * L, .stride = 1};
+#define BWD_A(D) group_backward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, h, dout, lddo, dqkv, ld_dqkv, scratch)
+                DISPATCH_D(BWD_A);
+            }
+            for (int t = 0; t < L; t++) {
+                grp g = {.n = R, .d = d, .C = C, .c0 = half + h * d, .base = p0 + t, .stride = (size_t)L};
+#define BWD_B(D)                                                                                                 \
+    group_backward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, H + h, dout, lddo, dqkv, ld_dqkv, scratch)
+                DISPATCH_D(BWD_B);
+            }
         }
     }
 }
