@@ -63,6 +63,21 @@ static int tmp_name(char *buf, size_t n, const char *path)
     return snprintf(buf, n, "%.*s.tmp-%d%s", (int)(dot - path), path, (int)getpid(), dot);
 }
 
+/* The end of every atomic write: on success rename the temporary file into place, on failure remove it. */
+static int publish(const char *tmp, const char *path, int rc, const char *msg, sci_error *err)
+{
+    if (rc < 0) {
+        unlink(tmp);
+        return sci_error_set(err, rc, "%s", msg);
+    }
+    if (rename(tmp, path) != 0) {
+        rc = -errno;
+        unlink(tmp);
+        return sci_error_set(err, rc, "%s: %s", path, strerror(-rc));
+    }
+    return 0;
+}
+
 int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type type, double scale,
                     const char *description, sci_error *err)
 {
@@ -88,16 +103,7 @@ int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type t
     tmp_name(tmp, sizeof tmp, path);
     int rc = sci_oiio_write(tmp, buf, c->w, c->h, (int)type, description, msg, sizeof msg);
     free(buf);
-    if (rc < 0) {
-        unlink(tmp);
-        return sci_error_set(err, rc, "%s", msg);
-    }
-    if (rename(tmp, path) != 0) {
-        rc = -errno;
-        unlink(tmp);
-        return sci_error_set(err, rc, "%s: %s", path, strerror(-rc));
-    }
-    return 0;
+    return publish(tmp, path, rc, msg, err);
 }
 
 int sci_image_write_gif(const char *path, const sci_cube *c, double scale, int delay_ms, sci_error *err)
@@ -115,16 +121,7 @@ int sci_image_write_gif(const char *path, const sci_cube *c, double scale, int d
     tmp_name(tmp, sizeof tmp, path);
     int rc = sci_oiio_write_gif(tmp, buf, c->w, c->h, c->n, delay_ms, msg, sizeof msg);
     free(buf);
-    if (rc < 0) {
-        unlink(tmp);
-        return sci_error_set(err, rc, "%s", msg);
-    }
-    if (rename(tmp, path) != 0) {
-        rc = -errno;
-        unlink(tmp);
-        return sci_error_set(err, rc, "%s: %s", path, strerror(-rc));
-    }
-    return 0;
+    return publish(tmp, path, rc, msg, err);
 }
 
 static int mkdir_p(const char *dir, sci_error *err)
