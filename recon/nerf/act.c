@@ -10,9 +10,10 @@
 #include "recon/nerf/fastmath.h"
 
 #define INV_SQRT2 0.70710678118654752440f
+#define CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #define INV_SQRT2PI 0.39894228040143267794f
 
-void nerf_act_forward(nerf_act a, size_t n, const float *x, float *y)
+CLONES void nerf_act_forward(nerf_act a, size_t n, const float *x, float *y)
 {
     switch (a) {
     case NERF_ACT_NONE:
@@ -38,7 +39,7 @@ void nerf_act_forward(nerf_act a, size_t n, const float *x, float *y)
     }
 }
 
-void nerf_act_backward(nerf_act a, size_t n, const float *x, const float *y, const float *dy, float *dx)
+CLONES void nerf_act_backward(nerf_act a, size_t n, const float *x, const float *y, const float *dy, float *dx)
 {
     switch (a) {
     case NERF_ACT_NONE:

@@ -59,19 +59,30 @@ void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin
 {
     const double b1 = a->cfg.beta1, b2 = a->cfg.beta2, eps = a->cfg.eps, wd = decay ? a->cfg.weight_decay : 0.0;
     const double lb1 = log(b1), lb2 = log(b2);
-#pragma omp parallel for schedule(static)
-    for (size_t j = begin; j < end; j++) {
-        double g = grad[j];
-        if (lazy && g == 0.0) continue;
-        g += wd * params[j];
-        uint32_t t = ++a->t[j];
-        double m = b1 * a->m[j] + (1.0 - b1) * g;
-        double s = sqrt(b2 * (double)a->s[j] * a->s[j] + (1.0 - b2) * g * g);
-        a->m[j] = (float)m;
-        a->s[j] = (float)s;
-        /* 1 − β^t via expm1 keeps precision for large t and β near 1 */
-        double c1 = b1 > 0.0 ? -expm1(t * lb1) : 1.0, c2 = b2 > 0.0 ? -expm1(t * lb2) : 1.0;
-        params[j] = (float)(params[j] - lr * sqrt(c2) / c1 * m / (s + eps));
+#pragma omp parallel
+    {
+        /* the bias correction depends on the parameter's own step count; neighbours almost always share it, so
+         * each thread keeps the last one (two expm1 and a sqrt per parameter were a third of the step) */
+        uint32_t t_last = 0;
+        double k_last = 0.0;
+#pragma omp for schedule(static)
+        for (size_t j = begin; j < end; j++) {
+            double g = grad[j];
+            if (lazy && g == 0.0) continue;
+            g += wd * params[j];
+            uint32_t t = ++a->t[j];
+            double m = b1 * a->m[j] + (1.0 - b1) * g;
+            double s = sqrt(b2 * (double)a->s[j] * a->s[j] + (1.0 - b2) * g * g);
+            a->m[j] = (float)m;
+            a->s[j] = (float)s;
+            if (t != t_last) {
+                /* 1 − β^t via expm1 keeps precision for large t and β near 1 */
+                double c1 = b1 > 0.0 ? -expm1(t * lb1) : 1.0, c2 = b2 > 0.0 ? -expm1(t * lb2) : 1.0;
+                k_last = lr * sqrt(c2) / c1;
+                t_last = t;
+            }
+            params[j] = (float)(params[j] - k_last * m / (s + eps));
+        }
     }
 }
 

@@ -80,7 +80,8 @@ void nerf_hashgrid_init(const nerf_hashgrid *g, float *table, sci_rng *rng)
 }
 
 /* Corner indices (entry index within the whole table) and trilinear weights of one point at one level, plus the
- * per-dimension clamp flags and fractions needed for the position gradient. */
+ * per-dimension clamp flags and fractions needed for the position gradient. Corner k has bit d of k set when it
+ * is the upper vertex in dimension d; its weight is the product over d in the order x, y, z. */
 typedef struct corners {
     uint64_t idx[8];
     float w[8];
@@ -88,7 +89,8 @@ typedef struct corners {
     int inside[3];
 } corners;
 
-static inline void level_corners(const level *v, uint64_t T, const float *x, corners *c)
+static inline __attribute__((always_inline)) void level_corners(const level *v, uint64_t T, const float *x,
+                                                                corners *c)
 {
     uint32_t cell[3];
     for (int d = 0; d < 3; d++) {
@@ -101,80 +103,106 @@ static inline void level_corners(const level *v, uint64_t T, const float *x, cor
         cell[d] = (uint32_t)fl;
         c->frac[d] = (float)(p - fl);
     }
-    for (int k = 0; k < 8; k++) {
-        uint32_t q[3];
-        float w = 1.0f;
-        for (int d = 0; d < 3; d++) {
-            int bit = (k >> d) & 1;
-            q[d] = cell[d] + (uint32_t)bit;
-            w *= bit ? c->frac[d] : 1.0f - c->frac[d];
-        }
-        uint64_t id;
-        if (v->dense)
-            id = (uint64_t)q[0] + (uint64_t)q[1] * v->res + (uint64_t)q[2] * v->res * v->res;
-        else
-            id = (uint64_t)((q[0] * PRIMES[0]) ^ (q[1] * PRIMES[1]) ^ (q[2] * PRIMES[2])) & (T - 1);
-        c->idx[k] = v->offset + id;
-        c->w[k] = w;
+    const float fx = c->frac[0], fy = c->frac[1], fz = c->frac[2];
+    const float wx[2] = {1.0f - fx, fx}, wy[2] = {1.0f - fy, fy}, wz[2] = {1.0f - fz, fz};
+    uint64_t hx[2], hy[2], hz[2];
+    if (v->dense) {
+        const uint64_t r = v->res, r2 = r * r;
+        for (int b = 0; b < 2; b++)
+            hx[b] = cell[0] + (uint64_t)b, hy[b] = (cell[1] + (uint64_t)b) * r, hz[b] = (cell[2] + (uint64_t)b) * r2;
+        for (int k = 0; k < 8; k++)
+            c->idx[k] = v->offset + hx[k & 1] + hy[(k >> 1) & 1] + hz[k >> 2];
+    } else {
+        for (int b = 0; b < 2; b++)
+            hx[b] = (uint32_t)((cell[0] + (uint32_t)b) * PRIMES[0]), hy[b] = (uint32_t)((cell[1] + (uint32_t)b) * PRIMES[1]),
+            hz[b] = (uint32_t)((cell[2] + (uint32_t)b) * PRIMES[2]);
+        for (int k = 0; k < 8; k++)
+            c->idx[k] = v->offset + ((hx[k & 1] ^ hy[(k >> 1) & 1] ^ hz[k >> 2]) & (T - 1));
     }
+    for (int k = 0; k < 8; k++) c->w[k] = wx[k & 1] * wy[(k >> 1) & 1] * wz[k >> 2];
 }
 
-void nerf_hashgrid_forward(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y, int ldy)
+/* Level-major loops: one level's table slice (at most T·F floats, 512 KiB for the RayFormer grid) stays in L2
+ * while every point visits it; point-major order would sweep the whole table (8 MiB) per point. The order in
+ * which points add into one gradient entry is still the point order, so results equal the point-major ones. */
+#define CLONES __attribute__((target_clones("avx2", "default")))
+
+CLONES void nerf_hashgrid_forward(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y,
+                                  int ldy)
 {
     const int L = g->cfg.n_levels, F = g->cfg.n_features;
     const uint64_t T = (uint64_t)1 << g->cfg.log2_table;
-    for (int i = 0; i < n; i++) {
-        const float *xi = x + 3 * (size_t)i;
-        float *yi = y + (size_t)i * ldy;
-        for (int l = 0; l < L; l++) {
+    for (int l = 0; l < L; l++) {
+        const level *v = &g->lv[l];
+        for (int i = 0; i < n; i++) {
             corners c;
-            level_corners(&g->lv[l], T, xi, &c);
-            float acc[8] = {0};
-            for (int k = 0; k < 8; k++) {
-                const float *e = table + c.idx[k] * F;
-                for (int f = 0; f < F; f++) acc[f] += c.w[k] * e[f];
-            }
-            for (int f = 0; f < F; f++) yi[l * F + f] = acc[f];
-        }
-    }
-}
-
-void nerf_hashgrid_backward(const nerf_hashgrid *g, const float *table, int n, const float *x, const float *dy,
-                            int lddy, float *dtable, float *dx)
-{
-    const int L = g->cfg.n_levels, F = g->cfg.n_features;
-    const uint64_t T = (uint64_t)1 << g->cfg.log2_table;
-    for (int i = 0; i < n; i++) {
-        const float *xi = x + 3 * (size_t)i, *gi = dy + (size_t)i * lddy;
-        double gx[3] = {0, 0, 0};
-        for (int l = 0; l < L; l++) {
-            const level *v = &g->lv[l];
-            corners c;
-            level_corners(v, T, xi, &c);
-            const float *gl = gi + l * F;
-            if (dtable)
+            level_corners(v, T, x + 3 * (size_t)i, &c);
+            float *yi = y + (size_t)i * ldy + l * F;
+            if (F == 2) {
+                float a0 = 0.0f, a1 = 0.0f;
                 for (int k = 0; k < 8; k++) {
-                    float *e = dtable + c.idx[k] * F;
-                    for (int f = 0; f < F; f++) e[f] += c.w[k] * gl[f];
+                    const float *e = table + c.idx[k] * 2;
+                    a0 += c.w[k] * e[0];
+                    a1 += c.w[k] * e[1];
                 }
-            if (dx) {
-                double gl3[3] = {0, 0, 0};
+                yi[0] = a0, yi[1] = a1;
+            } else {
+                float acc[8] = {0};
                 for (int k = 0; k < 8; k++) {
                     const float *e = table + c.idx[k] * F;
-                    double dot = 0.0;
-                    for (int f = 0; f < F; f++) dot += (double)e[f] * gl[f];
-                    for (int d = 0; d < 3; d++) {
-                        double wd = ((k >> d) & 1) ? 1.0 : -1.0;
-                        for (int o = 0; o < 3; o++)
-                            if (o != d) wd *= ((k >> o) & 1) ? c.frac[o] : 1.0f - c.frac[o];
-                        gl3[d] += wd * dot;
-                    }
+                    for (int f = 0; f < F; f++) acc[f] += c.w[k] * e[f];
                 }
-                for (int d = 0; d < 3; d++)
-                    if (c.inside[d]) gx[d] += v->scale * gl3[d];
+                for (int f = 0; f < F; f++) yi[f] = acc[f];
             }
         }
-        if (dx)
-            for (int d = 0; d < 3; d++) dx[3 * (size_t)i + d] = (float)gx[d];
+    }
+}
+
+CLONES void nerf_hashgrid_backward(const nerf_hashgrid *g, const float *table, int n, const float *x,
+                                   const float *dy, int lddy, float *dtable, float *dx)
+{
+    const int L = g->cfg.n_levels, F = g->cfg.n_features;
+    const uint64_t T = (uint64_t)1 << g->cfg.log2_table;
+    if (dx) memset(dx, 0, 3 * (size_t)n * sizeof *dx);
+    for (int l = 0; l < L; l++) {
+        const level *v = &g->lv[l];
+        const float sc = (float)v->scale;
+        for (int i = 0; i < n; i++) {
+            corners c;
+            level_corners(v, T, x + 3 * (size_t)i, &c);
+            const float *gl = dy + (size_t)i * lddy + l * F;
+            if (dtable) {
+                if (F == 2) {
+                    const float g0 = gl[0], g1 = gl[1];
+                    for (int k = 0; k < 8; k++) {
+                        float *e = dtable + c.idx[k] * 2;
+                        e[0] += c.w[k] * g0;
+                        e[1] += c.w[k] * g1;
+                    }
+                } else {
+                    for (int k = 0; k < 8; k++) {
+                        float *e = dtable + c.idx[k] * F;
+                        for (int f = 0; f < F; f++) e[f] += c.w[k] * gl[f];
+                    }
+                }
+            }
+            if (dx) {
+                /* ∂y/∂p_d = Σ_k ±(product of the other two weights)·e_k; float sums over 8 corners, 16 levels */
+                float gl3[3] = {0, 0, 0};
+                const float fr[3][2] = {{1.0f - c.frac[0], c.frac[0]}, {1.0f - c.frac[1], c.frac[1]},
+                                        {1.0f - c.frac[2], c.frac[2]}};
+                for (int k = 0; k < 8; k++) {
+                    const float *e = table + c.idx[k] * F;
+                    float dot = 0.0f;
+                    for (int f = 0; f < F; f++) dot += e[f] * gl[f];
+                    const int b0 = k & 1, b1 = (k >> 1) & 1, b2 = k >> 2;
+                    gl3[0] += (b0 ? 1.0f : -1.0f) * fr[1][b1] * fr[2][b2] * dot;
+                    gl3[1] += (b1 ? 1.0f : -1.0f) * fr[0][b0] * fr[2][b2] * dot;
+                    gl3[2] += (b2 ? 1.0f : -1.0f) * fr[0][b0] * fr[1][b1] * dot;
+                }
+                for (int d = 0; d < 3; d++)
+                    if (c.inside[d]) dx[3 * (size_t)i + d] += sc * gl3[d];
+            }
+        }
     }
 }

@@ -39,11 +39,24 @@ void nerf_linear_backward(int n, int in, int out, const float *W, const float *x
     if (dW)
         cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, out, in, n, 1.0f, dy, ldy, x, ldx, 1.0f, dW, in);
     if (db) {
-        for (int o = 0; o < out; o++) {
-            double s = 0.0;
-            for (int i = 0; i < n; i++) s += dy[(size_t)i * ldy + o];
-            db[o] += (float)s;
+        /* row-wise so the inner loop runs over contiguous outputs and vectorises; the sum per output is still
+         * over rows in order, in double */
+        double acc[256], *a = out <= 256 ? acc : NULL;
+        if (!a) {
+            for (int o = 0; o < out; o++) {
+                double s = 0.0;
+                for (int i = 0; i < n; i++) s += dy[(size_t)i * ldy + o];
+                db[o] += (float)s;
+            }
+            return;
         }
+        for (int o = 0; o < out; o++) a[o] = 0.0;
+        for (int i = 0; i < n; i++) {
+            const float *r = dy + (size_t)i * ldy;
+#pragma omp simd
+            for (int o = 0; o < out; o++) a[o] += r[o];
+        }
+        for (int o = 0; o < out; o++) db[o] += (float)a[o];
     }
 }
 

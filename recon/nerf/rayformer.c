@@ -222,18 +222,13 @@ static inline void patch_range(int n_patches, int nt, int t, int *p0, int *p1)
     *p1 = (int)((long)n_patches * (t + 1) / nt);
 }
 
-/* Forward of one patch (rows [row0, row0 + R·L)) on the calling thread. */
+/* Forward of one patch (rows [row0, row0 + R·L)) on the calling thread, after the hash encoding of its rows. */
 static void patch_forward(const nerf_rayformer *n, const float *P, nerf_rayformer_ws *w, int p, const float *pos,
                           float *sigma, float *rgb_out, float *scr)
 {
     const int C = n->C, G = n->G, S = n->S, Hc = n->Hc, R = n->R, L = n->L, Ci = n->cin, rows = R * L;
     const size_t row0 = (size_t)p * rows;
     const nerf_rayformer_config *cf = &n->cfg;
-    float *u = w->u + row0 * 3;
-    for (int i = 0; i < rows; i++)
-        for (int d = 0; d < 3; d++)
-            u[3 * i + d] = (pos[(row0 + i) * 3 + d] - cf->aabb_min[d]) / (cf->aabb_max[d] - cf->aabb_min[d]);
-    nerf_hashgrid_forward(n->grid, P, rows, u, w->act[0] + row0 * C, C);
     int cur = 0;
     for (int b = 0; b < cf->n_blocks; b++) {
         nerf_block_forward(&n->bs, P + n->off_block[b], 1, row0, w->act[cur], w->act[cur ^ 1], &w->sv[b], scr);
@@ -276,6 +271,14 @@ int nerf_rayformer_forward(const nerf_rayformer *n, const float *P, nerf_rayform
     {
         int t = omp_get_thread_num(), p0, p1;
         patch_range(n_patches, omp_get_num_threads(), t, &p0, &p1);
+        /* the hash encoding runs over the thread's whole range at once (level-major, see hashgrid.c) */
+        const size_t per = (size_t)n->R * n->L, r0 = (size_t)p0 * per, nr = (size_t)(p1 - p0) * per;
+        const nerf_rayformer_config *cf = &n->cfg;
+        float *u = w->u + r0 * 3;
+        for (size_t i = 0; i < nr; i++)
+            for (int d = 0; d < 3; d++)
+                u[3 * i + d] = (pos[(r0 + i) * 3 + d] - cf->aabb_min[d]) / (cf->aabb_max[d] - cf->aabb_min[d]);
+        if (nr) nerf_hashgrid_forward(n->grid, P, (int)nr, u, w->act[0] + r0 * n->C, n->C);
         for (int p = p0; p < p1; p++) patch_forward(n, P, w, p, pos, sigma, rgb, w->scratch[t]);
     }
     return 0;
@@ -290,7 +293,6 @@ static void patch_backward(const nerf_rayformer *n, const float *P, nerf_rayform
     const nerf_rayformer_config *cf = &n->cfg;
     float *y = scr, *dy = y + (size_t)rows * C, *drp = dy + (size_t)rows * C, *c1 = drp + (size_t)rows * 3;
     float *dc1 = c1 + (size_t)rows * Hc, *dcin = dc1 + (size_t)rows * Hc, *dhout = dcin + (size_t)rows * Ci;
-    float *du = dhout + (size_t)rows * (G + 1);
     const float *hout = w->hout + row0 * (G + 1), *cin = w->cin + row0 * Ci, *c1pre = w->c1pre + row0 * Hc;
     const float *rgbs = w->rgb + row0 * 3;
     for (size_t i = 0; i < (size_t)rows * 3; i++) drp[i] = d_rgb ? d_rgb[row0 * 3 + i] : 0.0f;
@@ -333,15 +335,6 @@ static void patch_backward(const nerf_rayformer *n, const float *P, nerf_rayform
     for (int b = cf->n_blocks - 1; b >= 0; b--)
         nerf_block_backward(&n->bs, P + n->off_block[b], 1, row0, &w->sv[b], w->act[0], w->act[0],
                             Gr + n->off_block[b], scr);
-    const float *u = w->u + row0 * 3;
-    nerf_hashgrid_backward(n->grid, P, rows, u, g, C, Gr, d_pos ? du : NULL);
-    if (d_pos)
-        for (int i = 0; i < rows; i++)
-            for (int d = 0; d < 3; d++) {
-                float ud = u[3 * i + d];
-                d_pos[(row0 + i) * 3 + d] = (ud >= 0.0f && ud <= 1.0f)
-                                                ? du[3 * i + d] / (cf->aabb_max[d] - cf->aabb_min[d]) : 0.0f;
-            }
 }
 
 int nerf_rayformer_backward(const nerf_rayformer *n, const float *P, nerf_rayformer_ws *w, const float *d_sigma,
@@ -361,6 +354,17 @@ int nerf_rayformer_backward(const nerf_rayformer *n, const float *P, nerf_rayfor
         memset(Gr, 0, np * sizeof *Gr);
         patch_range(n_patches, nth, t, &p0, &p1);
         for (int p = p1 - 1; p >= p0; p--) patch_backward(n, P, w, p, d_sigma, d_rgb, Gr, d_pos, d_dir, w->scratch[t]);
+        /* hash encoding over the whole range; act[0] holds ∂L/∂h₀ of every row */
+        const size_t per = (size_t)n->R * n->L, r0 = (size_t)p0 * per, nr = (size_t)(p1 - p0) * per;
+        const float *u = w->u + r0 * 3;
+        if (nr) nerf_hashgrid_backward(n->grid, P, (int)nr, u, w->act[0] + r0 * n->C, n->C, Gr,
+                                       d_pos ? d_pos + r0 * 3 : NULL);
+        if (d_pos)
+            for (size_t i = 0; i < nr; i++)
+                for (int d = 0; d < 3; d++) {
+                    float ud = u[3 * i + d], *dp = &d_pos[(r0 + i) * 3 + d];
+                    *dp = (ud >= 0.0f && ud <= 1.0f) ? *dp / (n->cfg.aabb_max[d] - n->cfg.aabb_min[d]) : 0.0f;
+                }
 #pragma omp barrier
         /* fixed-order reduction: grad[j] = g0[j] + g1[j] + … (thread order), split by j */
 #pragma omp for schedule(static)
