@@ -1,0 +1,470 @@
+/* daemon/config.c — parse and validate scicapd.json (docs/config.md). */
+#include "daemon/config.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/json.h"
+
+static void defaults(scicapd_config *c)
+{
+    memset(c, 0, sizeof *c);
+    snprintf(c->socket_path, sizeof c->socket_path, "/run/scicapd/control.sock");
+    c->socket_mode = 0660;
+    snprintf(c->socket_group, sizeof c->socket_group, "scicap");
+    snprintf(c->admin_group, sizeof c->admin_group, "scicap");
+    c->max_clients = 32;
+    c->max_line_bytes = 65536;
+    snprintf(c->storage_root, sizeof c->storage_root, "/var/lib/scicapd");
+    snprintf(c->runtime_dir, sizeof c->runtime_dir, "/run/scicapd");
+    c->fsync = 1;
+    strcpy(c->dmd_backend, "sim");
+    strcpy(c->camera_backend, "sim");
+    strcpy(c->trigger_backend, "sim");
+    c->sim_counts_per_unit = 6000;
+    c->sim_dark_counts = 200;
+    c->sim_read_noise = 2;
+    c->sim_seed = 1;
+    c->sim_dmd_latency_us = 300;
+    scicapd_mask_set *m = &c->mask_sets[0];
+    snprintf(m->name, sizeof m->name, "random8");
+    m->frames = 8;
+    m->seed = 7;
+    m->spec = (sim_mask_spec){.kind = SIM_MASK_RANDOM, .density = 0.5, .block = 4, .step = 1, .dir_y = 1,
+                              .scale = 1};
+    c->mask_set_count = 1;
+    snprintf(c->capture_mask_set, sizeof c->capture_mask_set, "random8");
+    c->pattern_us = 1000;
+    c->dark_us = 100;
+    c->sync_mode = SYNC_MODE_HOST_MASTER;
+    strcpy(c->recon_method, "gap-tv");
+    strcpy(c->recon_preset, "default");
+    c->recon_auto = 0;
+    c->workers = 1;
+    c->capture_queue = 16;
+    c->recon_queue = 16;
+}
+
+int scicapd_config_default(scicapd_config **out, sci_error *err)
+{
+    scicapd_config *c = malloc(sizeof *c);
+    if (!c)
+        return sci_error_set(err, -ENOMEM, "config: out of memory");
+    defaults(c);
+    *out = c;
+    return 0;
+}
+
+void scicapd_config_free(scicapd_config *c)
+{
+    if (!c)
+        return;
+    json_decref(c->camera_json);
+    json_decref(c->trigger_json);
+    free(c);
+}
+
+/* A string member copied into buf[n]; too long is an error naming the key. */
+static int get_str(const sci_json_doc *doc, const json_t *o, const char *op, const char *key, char *buf, size_t n,
+                   sci_error *err)
+{
+    const char *s = NULL;
+    int rc = sci_json_get_string(doc, o, op, key, 0, &s, err);
+    if (rc != 0)
+        return rc;
+    char path[256];
+    if (strlen(s) >= n)
+        return sci_json_fail(doc, err, sci_json_path_key(path, sizeof path, op, key), "longer than %zu bytes",
+                             n - 1);
+    snprintf(buf, n, "%s", s);
+    return 0;
+}
+
+static int get_u32(const sci_json_doc *doc, const json_t *o, const char *op, const char *key, long long lo,
+                   long long hi, uint32_t *out, sci_error *err)
+{
+    long long v = *out;
+    int rc = sci_json_get_int(doc, o, op, key, 0, lo, hi, &v, err);
+    if (rc == 0)
+        *out = (uint32_t)v;
+    return rc < 0 ? rc : 0;
+}
+
+static int get_int(const sci_json_doc *doc, const json_t *o, const char *op, const char *key, long long lo,
+                   long long hi, int *out, sci_error *err)
+{
+    long long v = *out;
+    int rc = sci_json_get_int(doc, o, op, key, 0, lo, hi, &v, err);
+    if (rc == 0)
+        *out = (int)v;
+    return rc < 0 ? rc : 0;
+}
+
+/* An object member (absent: NULL, 0); anything else than an object is an error. */
+static int get_obj(const sci_json_doc *doc, const json_t *o, const char *op, const char *key, const json_t **out,
+                   sci_error *err)
+{
+    char path[256];
+    *out = json_object_get(o, key);
+    if (*out && !json_is_object(*out))
+        return sci_json_fail(doc, err, sci_json_path_key(path, sizeof path, op, key), "must be an object");
+    return 0;
+}
+
+static int parse_control(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
+{
+    static const char *const keys[] = {"socket", "mode", "group", "admin_group", "max_clients", "max_line_bytes",
+                                       NULL};
+    int rc;
+    long long line = (long long)c->max_line_bytes;
+    if ((rc = sci_json_check_keys(doc, o, "control", keys, err)) < 0 ||
+        (rc = get_str(doc, o, "control", "socket", c->socket_path, 108, err)) < 0 ||
+        (rc = get_str(doc, o, "control", "group", c->socket_group, sizeof c->socket_group, err)) < 0 ||
+        (rc = get_str(doc, o, "control", "admin_group", c->admin_group, sizeof c->admin_group, err)) < 0 ||
+        (rc = get_int(doc, o, "control", "max_clients", 1, 1024, &c->max_clients, err)) < 0 ||
+        (rc = sci_json_get_int(doc, o, "control", "max_line_bytes", 0, 1024, 16 << 20, &line, err)) < 0)
+        return rc;
+    c->max_line_bytes = (size_t)line;
+    if (c->socket_path[0] != '/')
+        return sci_json_fail(doc, err, "control.socket", "must be an absolute path (got \"%s\")", c->socket_path);
+    char mode[16] = "";
+    if ((rc = get_str(doc, o, "control", "mode", mode, sizeof mode, err)) < 0)
+        return rc;
+    if (rc == 0 && mode[0]) {
+        char *end;
+        unsigned long m = strtoul(mode, &end, 8);
+        if (*end || m > 0777 || (m & 0600) != 0600)
+            return sci_json_fail(doc, err, "control.mode", "must be an octal mode string such as \"0660\" that "
+                                 "lets the owner read and write (got \"%s\")", mode);
+        c->socket_mode = (unsigned)m;
+    }
+    return 0;
+}
+
+static int parse_storage(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
+{
+    static const char *const keys[] = {"root", "runtime_dir", "fsync", NULL};
+    int rc;
+    if ((rc = sci_json_check_keys(doc, o, "storage", keys, err)) < 0 ||
+        (rc = get_str(doc, o, "storage", "root", c->storage_root, sizeof c->storage_root - 64, err)) < 0 ||
+        (rc = get_str(doc, o, "storage", "runtime_dir", c->runtime_dir, sizeof c->runtime_dir, err)) < 0 ||
+        (rc = sci_json_get_bool(doc, o, "storage", "fsync", 0, &c->fsync, err)) < 0)
+        return rc;
+    if (c->storage_root[0] != '/')
+        return sci_json_fail(doc, err, "storage.root", "must be an absolute path (got \"%s\")", c->storage_root);
+    return 0;
+}
+
+/* "dmd": {"backend": "sim", "serial": "..."}; "camera"/"trigger": {"backend": ..., backend keys...}. */
+static int parse_device(const sci_json_doc *doc, const json_t *dev, const char *name, const char *const *backends,
+                        char *backend, size_t bn, json_t **rest, sci_error *err)
+{
+    const json_t *o;
+    char path[64];
+    int rc = get_obj(doc, dev, "devices", name, &o, err);
+    if (rc < 0 || !o)
+        return rc;
+    snprintf(path, sizeof path, "devices.%s", name);
+    int idx = 0;
+    if ((rc = sci_json_get_enum(doc, o, path, "backend", 0, backends, &idx, err)) < 0)
+        return rc;
+    if (rc == 0)
+        snprintf(backend, bn, "%s", backends[idx]);
+    if (rest) {
+        json_t *copy = json_deep_copy(o);
+        if (!copy)
+            return sci_error_set(err, -ENOMEM, "config: out of memory");
+        json_object_del(copy, "backend");
+        json_decref(*rest);
+        *rest = copy;
+    }
+    return 0;
+}
+
+static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
+{
+    static const char *const keys[] = {"dmd", "camera", "trigger", NULL};
+    static const char *const dmds[] = {"sim", "dlpc900", NULL};
+    /* v4l2 and gpiod are accepted here; the device layer says when a backend is not built in. */
+    static const char *const cams[] = {"sim", "v4l2", NULL};
+    static const char *const trigs[] = {"sim", "gpiod", NULL};
+    int rc;
+    if ((rc = sci_json_check_keys(doc, o, "devices", keys, err)) < 0 ||
+        (rc = parse_device(doc, o, "dmd", dmds, c->dmd_backend, sizeof c->dmd_backend, NULL, err)) < 0 ||
+        (rc = parse_device(doc, o, "camera", cams, c->camera_backend, sizeof c->camera_backend, &c->camera_json,
+                           err)) < 0 ||
+        (rc = parse_device(doc, o, "trigger", trigs, c->trigger_backend, sizeof c->trigger_backend,
+                           &c->trigger_json, err)) < 0)
+        return rc;
+    const json_t *d = json_object_get(o, "dmd");
+    if (d) {
+        static const char *const dkeys[] = {"backend", "serial", NULL};
+        if ((rc = sci_json_check_keys(doc, d, "devices.dmd", dkeys, err)) < 0 ||
+            (rc = get_str(doc, d, "devices.dmd", "serial", c->dmd_serial, sizeof c->dmd_serial, err)) < 0)
+            return rc;
+    }
+    if (strcmp(c->camera_backend, "sim") == 0 && c->camera_json && json_object_size(c->camera_json) > 0)
+        return sci_json_fail(doc, err, "devices.camera", "the sim camera takes no settings besides \"backend\" "
+                             "(its size is the scene's)");
+    return 0;
+}
+
+static int parse_simulator(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
+{
+    static const char *const keys[] = {"scene", "counts_per_unit", "dark_counts", "read_noise_counts", "seed",
+                                       "dmd_latency_us", NULL};
+    int rc;
+    long long seed = (long long)c->sim_seed;
+    const json_t *sc = json_object_get(o, "scene");
+    if ((rc = sci_json_check_keys(doc, o, "simulator", keys, err)) < 0)
+        return rc;
+    if (sc && !json_is_null(sc) &&
+        (rc = get_str(doc, o, "simulator", "scene", c->scene_path, sizeof c->scene_path, err)) < 0)
+        return rc;
+    if ((rc = sci_json_get_double(doc, o, "simulator", "counts_per_unit", 0, 1, 65535, &c->sim_counts_per_unit,
+                                  err)) < 0 ||
+        (rc = sci_json_get_double(doc, o, "simulator", "dark_counts", 0, 0, 60000, &c->sim_dark_counts, err)) < 0 ||
+        (rc = sci_json_get_double(doc, o, "simulator", "read_noise_counts", 0, 0, 1000, &c->sim_read_noise, err)) <
+            0 ||
+        (rc = sci_json_get_int(doc, o, "simulator", "seed", 0, 0, (long long)1 << 53, &seed, err)) < 0 ||
+        (rc = get_u32(doc, o, "simulator", "dmd_latency_us", 0, 100000, &c->sim_dmd_latency_us, err)) < 0)
+        return rc;
+    c->sim_seed = (uint64_t)seed;
+    return 0;
+}
+
+static int parse_mask_set(const sci_json_doc *doc, const json_t *o, const char *path, scicapd_mask_set *m,
+                          sci_error *err)
+{
+    static const char *const keys[] = {"type", "frames", "seed", "density", "block", "step", "direction", "path",
+                                       NULL};
+    static const char *const kinds[] = {"random", "shifting", "superpixel", "file", NULL};
+    static const char *const dirs[] = {"x", "y", NULL};
+    int rc, kind = 0, dir = 1;
+    long long seed = 7;
+    if (!json_is_object(o))
+        return sci_json_fail(doc, err, path, "must be an object");
+    m->frames = 8;
+    m->spec = (sim_mask_spec){.kind = SIM_MASK_RANDOM, .density = 0.5, .block = 4, .step = 1, .dir_y = 1,
+                              .scale = 1};
+    if ((rc = sci_json_check_keys(doc, o, path, keys, err)) < 0 ||
+        (rc = sci_json_get_enum(doc, o, path, "type", 1, kinds, &kind, err)) < 0 ||
+        (rc = get_int(doc, o, path, "frames", 1, 400, &m->frames, err)) < 0 ||
+        (rc = sci_json_get_int(doc, o, path, "seed", 0, 0, (long long)1 << 53, &seed, err)) < 0 ||
+        (rc = sci_json_get_double(doc, o, path, "density", 0, 1e-6, 1, &m->spec.density, err)) < 0 ||
+        (rc = get_int(doc, o, path, "block", 1, 4096, &m->spec.block, err)) < 0 ||
+        (rc = get_int(doc, o, path, "step", -64, 64, &m->spec.step, err)) < 0 ||
+        (rc = sci_json_get_enum(doc, o, path, "direction", 0, dirs, &dir, err)) < 0 ||
+        (rc = get_str(doc, o, path, "path", m->spec.path, sizeof m->spec.path, err)) < 0)
+        return rc;
+    m->spec.kind = (sim_mask_kind)kind;
+    m->spec.dir_y = dir;
+    m->seed = (uint64_t)seed;
+    if (m->spec.kind == SIM_MASK_FILE && !m->spec.path[0]) {
+        char p[256];
+        return sci_json_fail(doc, err, sci_json_path_key(p, sizeof p, path, "path"), "required for type \"file\"");
+    }
+    return 0;
+}
+
+static int parse_mask_sets(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
+{
+    const char *name;
+    json_t *v;
+    c->mask_set_count = 0;
+    json_object_foreach((json_t *)o, name, v) {
+        char path[256];
+        sci_json_path_key(path, sizeof path, "mask_sets", name);
+        if (c->mask_set_count == SCICAPD_MAX_MASK_SETS)
+            return sci_json_fail(doc, err, path, "more than %d mask sets", SCICAPD_MAX_MASK_SETS);
+        if (!name[0] || strlen(name) >= SCICAPD_NAME_MAX || strcspn(name, "/ \t\n") != strlen(name) || name[0] == '.')
+            return sci_json_fail(doc, err, path, "a mask set name must be 1..%d characters without '/', spaces or "
+                                 "a leading dot", SCICAPD_NAME_MAX - 1);
+        scicapd_mask_set *m = &c->mask_sets[c->mask_set_count];
+        snprintf(m->name, sizeof m->name, "%s", name);
+        int rc = parse_mask_set(doc, v, path, m, err);
+        if (rc < 0)
+            return rc;
+        c->mask_set_count++;
+    }
+    if (c->mask_set_count == 0)
+        return sci_json_fail(doc, err, "mask_sets", "must define at least one mask set");
+    return 0;
+}
+
+static int parse_capture(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
+{
+    static const char *const keys[] = {"mask_set", "pattern_us", "dark_us", "exposure_us", "sync_mode",
+                                       "counts_per_unit", NULL};
+    static const char *const modes[] = {"dmd-master", "host-master", "camera-master", NULL};
+    int rc, mode = (int)c->sync_mode;
+    if ((rc = sci_json_check_keys(doc, o, "capture", keys, err)) < 0 ||
+        (rc = get_str(doc, o, "capture", "mask_set", c->capture_mask_set, sizeof c->capture_mask_set, err)) < 0 ||
+        (rc = get_u32(doc, o, "capture", "pattern_us", 1, 10000000, &c->pattern_us, err)) < 0 ||
+        (rc = get_u32(doc, o, "capture", "dark_us", 0, 10000000, &c->dark_us, err)) < 0 ||
+        (rc = get_u32(doc, o, "capture", "exposure_us", 0, 60000000, &c->exposure_us, err)) < 0 ||
+        (rc = sci_json_get_enum(doc, o, "capture", "sync_mode", 0, modes, &mode, err)) < 0 ||
+        (rc = sci_json_get_double(doc, o, "capture", "counts_per_unit", 0, 0, 1e9, &c->counts_per_unit, err)) < 0)
+        return rc;
+    c->sync_mode = (enum sync_mode)mode;
+    return 0;
+}
+
+static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
+{
+    static const char *const keys[] = {"method", "preset", "auto", "workers", "threads", NULL};
+    static const char *const methods[] = {"gap-tv", "admm-tv", NULL};
+    static const char *const presets[] = {"fast", "default", "quality", NULL};
+    int rc, m = 0, p = 1;
+    if ((rc = sci_json_check_keys(doc, o, "reconstruction", keys, err)) < 0 ||
+        (rc = sci_json_get_enum(doc, o, "reconstruction", "method", 0, methods, &m, err)) < 0)
+        return rc;
+    if (rc == 0)
+        snprintf(c->recon_method, sizeof c->recon_method, "%s", methods[m]);
+    if ((rc = sci_json_get_enum(doc, o, "reconstruction", "preset", 0, presets, &p, err)) < 0)
+        return rc;
+    if (rc == 0)
+        snprintf(c->recon_preset, sizeof c->recon_preset, "%s", presets[p]);
+    if ((rc = sci_json_get_bool(doc, o, "reconstruction", "auto", 0, &c->recon_auto, err)) < 0 ||
+        (rc = get_int(doc, o, "reconstruction", "workers", 1, 16, &c->workers, err)) < 0 ||
+        (rc = get_int(doc, o, "reconstruction", "threads", 0, 256, &c->recon_threads, err)) < 0)
+        return rc;
+    return 0;
+}
+
+static int parse_queues(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
+{
+    static const char *const keys[] = {"capture", "reconstruction", NULL};
+    int rc;
+    if ((rc = sci_json_check_keys(doc, o, "queues", keys, err)) < 0 ||
+        (rc = get_int(doc, o, "queues", "capture", 1, 4096, &c->capture_queue, err)) < 0 ||
+        (rc = get_int(doc, o, "queues", "reconstruction", 1, 4096, &c->recon_queue, err)) < 0)
+        return rc;
+    return 0;
+}
+
+static int parse_doc(const sci_json_doc *doc, scicapd_config *c, sci_error *err)
+{
+    static const char *const keys[] = {"version", "control", "storage", "devices", "simulator", "mask_sets",
+                                       "capture", "reconstruction", "queues", NULL};
+    const json_t *root = sci_json_doc_root(doc);
+    if (!json_is_object(root))
+        return sci_json_fail(doc, err, "", "the configuration must be a JSON object");
+    long long version = 1;
+    int rc;
+    if ((rc = sci_json_check_keys(doc, root, "", keys, err)) < 0 ||
+        (rc = sci_json_get_int(doc, root, "", "version", 0, 1, 1, &version, err)) < 0)
+        return rc;
+    static const struct {
+        const char *key;
+        int (*parse)(const sci_json_doc *, const json_t *, scicapd_config *, sci_error *);
+    } sections[] = {{"control", parse_control},     {"storage", parse_storage},     {"devices", parse_devices},
+                    {"simulator", parse_simulator}, {"mask_sets", parse_mask_sets}, {"capture", parse_capture},
+                    {"reconstruction", parse_recon}, {"queues", parse_queues}};
+    for (size_t i = 0; i < sizeof sections / sizeof sections[0]; i++) {
+        const json_t *o;
+        if ((rc = get_obj(doc, root, "", sections[i].key, &o, err)) < 0)
+            return rc;
+        if (o && (rc = sections[i].parse(doc, o, c, err)) < 0)
+            return rc;
+    }
+    if (!scicapd_config_mask_set(c, c->capture_mask_set))
+        return sci_json_fail(doc, err, json_object_get(json_object_get(root, "capture"), "mask_set")
+                                           ? "capture.mask_set" : "mask_sets",
+                             "the default mask set \"%s\" is not defined in mask_sets", c->capture_mask_set);
+    if (c->sync_mode == SYNC_MODE_CAMERA_MASTER && strcmp(c->camera_backend, "sim") == 0)
+        return sci_json_fail(doc, err, "capture.sync_mode", "camera-master needs a free-running camera; the "
+                             "simulated bench supports host-master and dmd-master");
+    return 0;
+}
+
+static int load_doc(scicapd_config **out, sci_json_doc *doc, const char *path, sci_error *err)
+{
+    scicapd_config *c = malloc(sizeof *c);
+    if (!c) {
+        sci_json_doc_free(doc);
+        return sci_error_set(err, -ENOMEM, "config: out of memory");
+    }
+    defaults(c);
+    snprintf(c->path, sizeof c->path, "%s", path ? path : "");
+    int rc = parse_doc(doc, c, err);
+    sci_json_doc_free(doc);
+    if (rc < 0) {
+        scicapd_config_free(c);
+        return rc;
+    }
+    *out = c;
+    return 0;
+}
+
+int scicapd_config_load(scicapd_config **out, const char *path, sci_error *err)
+{
+    if (!path)
+        return scicapd_config_default(out, err);
+    sci_json_doc *doc;
+    int rc = sci_json_doc_load_file(&doc, path, err);
+    if (rc < 0)
+        return rc;
+    return load_doc(out, doc, path, err);
+}
+
+int scicapd_config_load_string(scicapd_config **out, const char *name, const char *text, sci_error *err)
+{
+    sci_json_doc *doc;
+    int rc = sci_json_doc_load_string(&doc, name, text, strlen(text), err);
+    if (rc < 0)
+        return rc;
+    return load_doc(out, doc, NULL, err);
+}
+
+const scicapd_mask_set *scicapd_config_mask_set(const scicapd_config *c, const char *name)
+{
+    for (int i = 0; i < c->mask_set_count; i++)
+        if (strcmp(c->mask_sets[i].name, name) == 0)
+            return &c->mask_sets[i];
+    return NULL;
+}
+
+json_t *scicapd_config_restart_keys(const scicapd_config *a, const scicapd_config *b)
+{
+    json_t *r = json_array();
+    if (strcmp(a->socket_path, b->socket_path) || a->socket_mode != b->socket_mode ||
+        strcmp(a->socket_group, b->socket_group))
+        json_array_append_new(r, json_string("control.socket"));
+    if (strcmp(a->storage_root, b->storage_root) || strcmp(a->runtime_dir, b->runtime_dir))
+        json_array_append_new(r, json_string("storage"));
+    if (strcmp(a->dmd_backend, b->dmd_backend) || strcmp(a->camera_backend, b->camera_backend) ||
+        strcmp(a->trigger_backend, b->trigger_backend) || strcmp(a->dmd_serial, b->dmd_serial) ||
+        !json_equal(a->camera_json, b->camera_json) || !json_equal(a->trigger_json, b->trigger_json))
+        json_array_append_new(r, json_string("devices"));
+    if (strcmp(a->scene_path, b->scene_path) || a->sim_counts_per_unit != b->sim_counts_per_unit ||
+        a->sim_dark_counts != b->sim_dark_counts || a->sim_read_noise != b->sim_read_noise ||
+        a->sim_seed != b->sim_seed || a->sim_dmd_latency_us != b->sim_dmd_latency_us)
+        json_array_append_new(r, json_string("simulator"));
+    if (a->workers != b->workers || a->recon_threads != b->recon_threads)
+        json_array_append_new(r, json_string("reconstruction.workers"));
+    return r;
+}
+
+json_t *scicapd_config_to_json(const scicapd_config *c)
+{
+    char mode[8];
+    snprintf(mode, sizeof mode, "%04o", c->socket_mode);
+    json_t *sets = json_array();
+    for (int i = 0; i < c->mask_set_count; i++)
+        json_array_append_new(sets, json_string(c->mask_sets[i].name));
+    return json_pack("{s:s, s:{s:s, s:s, s:s, s:i, s:I}, s:{s:s, s:s, s:b}, s:{s:s, s:s, s:s}, s:s, s:o,"
+                     " s:{s:s, s:I, s:I, s:I, s:s}, s:{s:s, s:s, s:b, s:i, s:i}, s:{s:i, s:i}}",
+                     "path", c->path, "control", "socket", c->socket_path, "mode", mode, "group", c->socket_group,
+                     "max_clients", c->max_clients, "max_line_bytes", (json_int_t)c->max_line_bytes, "storage",
+                     "root", c->storage_root, "runtime_dir", c->runtime_dir, "fsync", c->fsync, "devices", "dmd",
+                     c->dmd_backend, "camera", c->camera_backend, "trigger", c->trigger_backend, "scene",
+                     c->scene_path[0] ? c->scene_path : "(embedded default)", "mask_sets", sets, "capture",
+                     "mask_set", c->capture_mask_set, "pattern_us", (json_int_t)c->pattern_us, "dark_us",
+                     (json_int_t)c->dark_us, "exposure_us", (json_int_t)c->exposure_us, "sync_mode",
+                     sync_mode_name(c->sync_mode), "reconstruction", "method", c->recon_method, "preset",
+                     c->recon_preset, "auto", c->recon_auto, "workers", c->workers, "threads", c->recon_threads,
+                     "queues", "capture", c->capture_queue, "reconstruction", c->recon_queue);
+}

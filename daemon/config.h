@@ -1,0 +1,99 @@
+/* daemon/config.h — scicapd's configuration: /etc/scicap/scicapd.json (docs/config.md), validated.
+ *
+ * Every key has a default, so the daemon runs with no file at all: the simulated bench (DMD, camera and trigger
+ * backends "sim") showing the embedded default scene (sim/default_scene.h). A file overrides what it lists;
+ * unknown keys are refused (typos), and every error reads "file:line:col: key.path: reason" (SCI_ECONFIG).
+ *
+ *     scicapd_config *cfg;
+ *     if (scicapd_config_load(&cfg, "/etc/scicap/scicapd.json", &err) < 0) ... err.msg ...
+ *     scicapd_config_free(cfg);
+ *
+ * Reload (SIGHUP, `scicap reload`): load a new object, and swap it in only when it loaded cleanly; the old one
+ * stays in force otherwise. scicapd_config_restart_keys names the sections whose change needs a restart.
+ * Units: times in µs, sizes in bytes or pixels as named. Objects are immutable after loading; not thread-safe
+ * to modify, safe to read from several threads.
+ */
+#ifndef SCICAP_DAEMON_CONFIG_H
+#define SCICAP_DAEMON_CONFIG_H
+
+#include <jansson.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "base/error.h"
+#include "drivers/sync.h"
+#include "sim/masks.h"
+
+#define SCICAPD_CONFIG_DEFAULT_PATH "/etc/scicap/scicapd.json"
+#define SCICAPD_NAME_MAX 64
+#define SCICAPD_PATH_MAX 1024
+#define SCICAPD_MAX_MASK_SETS 64
+
+/* A named set of N binary masks, made at the DMD's size when first used (sim/masks.h kinds). */
+typedef struct scicapd_mask_set {
+    char name[SCICAPD_NAME_MAX];
+    int frames;             /* N, 1..400 */
+    uint64_t seed;          /* random kinds */
+    sim_mask_spec spec;     /* kind, density, block, step, direction, path; mapped = 0 (DMD = sensor) */
+} scicapd_mask_set;
+
+typedef struct scicapd_config {
+    char path[SCICAPD_PATH_MAX];          /* file it came from; "" = built-in defaults */
+    /* control */
+    char socket_path[SCICAPD_PATH_MAX];   /* /run/scicapd/control.sock */
+    unsigned socket_mode;                 /* 0660 */
+    char socket_group[SCICAPD_NAME_MAX];  /* "scicap"; "" = keep the process's group */
+    int max_clients;                      /* 32 */
+    size_t max_line_bytes;                /* 65536: longest request line */
+    char admin_group[SCICAPD_NAME_MAX];   /* members may reload/shutdown (besides root and the daemon's user) */
+    /* storage */
+    char storage_root[SCICAPD_PATH_MAX];  /* /var/lib/scicapd */
+    char runtime_dir[SCICAPD_PATH_MAX];   /* /run/scicapd */
+    int fsync;                            /* 1: fsync files and folders before a capture is announced */
+    /* devices: backend names ("sim", "dlpc900", "v4l2", "gpiod") and their own config objects (owned copies) */
+    char dmd_backend[16], camera_backend[16], trigger_backend[16];
+    char dmd_serial[SCICAPD_NAME_MAX];    /* "" = first found */
+    json_t *camera_json, *trigger_json;   /* the "camera" / "trigger" objects minus "backend"; may be NULL */
+    /* simulator (used when a backend is "sim") */
+    char scene_path[SCICAPD_PATH_MAX];    /* "" = the embedded default scene */
+    double sim_counts_per_unit;           /* sensor counts for a full-on mirror on a white target */
+    double sim_dark_counts;               /* dark level, counts */
+    double sim_read_noise;                /* read noise sigma, counts */
+    uint64_t sim_seed;
+    uint32_t sim_dmd_latency_us;          /* trigger to first pattern */
+    /* mask sets */
+    scicapd_mask_set mask_sets[SCICAPD_MAX_MASK_SETS];
+    int mask_set_count;
+    /* capture defaults */
+    char capture_mask_set[SCICAPD_NAME_MAX];
+    uint32_t pattern_us, dark_us;         /* per mask */
+    uint32_t exposure_us;                 /* camera exposure; 0 = cover the sequence (auto) */
+    enum sync_mode sync_mode;
+    double counts_per_unit;               /* uncalibrated scale: counts for "white" (0 = simulator's value) */
+    /* reconstruction defaults */
+    char recon_method[16];                /* "gap-tv" */
+    char recon_preset[16];                /* "default" */
+    int recon_auto;                       /* reconstruct every capture unless the request says otherwise */
+    int workers;                          /* reconstruction threads, 1..16 */
+    int recon_threads;                    /* OpenMP threads per reconstruction; 0 = OpenMP's default */
+    /* queues */
+    int capture_queue, recon_queue;       /* bounded job queues: a full queue answers "busy" */
+} scicapd_config;
+
+/* Built-in defaults (no file). -ENOMEM only. */
+int scicapd_config_default(scicapd_config **out, sci_error *err);
+/* Load and validate `path`. A missing file is an error (-ENOENT naming it): pass NULL for the defaults. */
+int scicapd_config_load(scicapd_config **out, const char *path, sci_error *err);
+/* Same from text (`name` stands for the file name in messages). */
+int scicapd_config_load_string(scicapd_config **out, const char *name, const char *text, sci_error *err);
+void scicapd_config_free(scicapd_config *c);
+
+/* The mask set called `name`, or NULL. Borrowed from c. */
+const scicapd_mask_set *scicapd_config_mask_set(const scicapd_config *c, const char *name);
+/* Sections that differ between a and b and only take effect at restart (socket, storage, devices, workers),
+ * as a new JSON array of strings (empty when none). */
+json_t *scicapd_config_restart_keys(const scicapd_config *a, const scicapd_config *b);
+/* The configuration in force as JSON (for `status`). New reference. */
+json_t *scicapd_config_to_json(const scicapd_config *c);
+
+#endif

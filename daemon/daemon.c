@@ -1,0 +1,579 @@
+/* daemon/daemon.c — the scicapd object: construction in dependency order, the event loop, request dispatch,
+ * and teardown in reverse order. */
+#include "daemon/daemon.h"
+
+#include <errno.h>
+#include <grp.h>
+#include <math.h>
+#include <poll.h>
+#include <pwd.h>
+#include <signal.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/eventfd.h>
+#include <sys/signalfd.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "base/clock.h"
+#include "daemon/acquire.h"
+#include "daemon/config.h"
+#include "daemon/control.h"
+#include "daemon/jobs.h"
+#include "daemon/mailbox.h"
+#include "daemon/notify.h"
+#include "daemon/protocol.h"
+#include "daemon/queue.h"
+#include "daemon/store.h"
+#include "daemon/workers.h"
+
+#define STORE_QUEUE 8
+
+struct scicapd {
+    const sci_log *log;
+    scicapd_options opts;
+    char opt_socket[1024], opt_storage[1024], opt_runtime[1024], opt_config[1024];
+    scicapd_config *cfg;        /* in force; swapped by reload (event-loop thread only) */
+    scicapd_notify notify;
+    scicapd_store *store;
+    scicapd_store_recovery recovered;
+    scicapd_jobs *jobs;
+    scicapd_mailbox *mailbox;
+    scicapd_queue *acq_q, *store_q, *recon_q;
+    scicapd_acquire *acq;
+    scicapd_workers *workers;
+    scicapd_control *ctl;
+    int sfd, stopfd;
+    sigset_t oldmask;
+    int store_started;
+    atomic_int stopping;
+    atomic_long stored;
+    int64_t started_ns, last_status_ns;
+};
+
+/* ---- configuration ---- */
+
+static int load_config(scicapd *d, scicapd_config **out, sci_error *err)
+{
+    scicapd_config *c;
+    int rc = scicapd_config_load(&c, d->opts.config_path, err);
+    if (rc < 0)
+        return rc;
+    if (d->opts.socket_path)
+        snprintf(c->socket_path, sizeof c->socket_path, "%s", d->opts.socket_path);
+    if (d->opts.storage_root)
+        snprintf(c->storage_root, sizeof c->storage_root, "%s", d->opts.storage_root);
+    if (d->opts.runtime_dir)
+        snprintf(c->runtime_dir, sizeof c->runtime_dir, "%s", d->opts.runtime_dir);
+    if (d->opts.fsync >= 0)
+        c->fsync = d->opts.fsync;
+    *out = c;
+    return 0;
+}
+
+/* Reload: the new configuration replaces the old one only if it loaded cleanly. */
+static int reload(scicapd *d, json_t **restart, sci_error *err)
+{
+    scicapd_notify_reloading(&d->notify);
+    scicapd_config *c;
+    int rc = load_config(d, &c, err);
+    if (rc < 0) {
+        sci_log_write(d->log, SCI_LOG_ERR, "reload refused, the running configuration stays: %s", err->msg);
+        scicapd_notify_ready(&d->notify, "reload refused; running on the previous configuration");
+        return rc;
+    }
+    json_t *keys = scicapd_config_restart_keys(d->cfg, c);
+    scicapd_config_free(d->cfg);
+    d->cfg = c;
+    scicapd_control_set_limits(d->ctl, c->max_clients, c->max_line_bytes);
+    scicapd_queue_resize(d->acq_q, c->capture_queue);
+    scicapd_queue_resize(d->recon_q, c->recon_queue);
+    sci_log_write(d->log, SCI_LOG_NOTICE, "configuration reloaded from %s%s", c->path[0] ? c->path : "(defaults)",
+                  json_array_size(keys) ? " (some changes need a restart)" : "");
+    scicapd_notify_ready(&d->notify, "configuration reloaded");
+    if (restart)
+        *restart = keys;
+    else
+        json_decref(keys);
+    return 0;
+}
+
+/* ---- from the writer thread ---- */
+
+static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *err)
+{
+    scicapd *d = user;
+    scicapd_job *j = s->job;
+    if (!j) {
+        scicapd_snapshot_free(d->jobs, s);
+        return;
+    }
+    const scicapd_capture_args *c = &j->capture;
+    if (rc < 0) {
+        sci_log_write(d->log, SCI_LOG_ERR, "job %llu: storing snapshot %d failed: %s", (unsigned long long)j->id,
+                      s->index, err->msg);
+        if (scicapd_job_state_get(d->jobs, j) == SCICAPD_JOB_RUNNING)
+            scicapd_job_set_state(d->jobs, j, SCICAPD_JOB_FAILED, err->msg);
+        scicapd_mailbox_post(d->mailbox, j->client, 1,
+                             scicapd_event("capture.failed", j->id, j->request_id,
+                                           json_pack("{s:i, s:s}", "index", s->index, "error", err->msg)));
+        scicapd_snapshot_free(d->jobs, s);
+        return;
+    }
+    atomic_fetch_add(&d->stored, 1);
+    scicapd_job_add_output(d->jobs, j, s->capture_id);
+    scicapd_job_set_progress(d->jobs, j, s->index + 1, c->count, NAN);
+    double latency_ms = (double)(sci_clock_mono_ns() - j->submitted_ns) * 1e-6;
+    scicapd_mailbox_post(d->mailbox, j->client, 1,
+                         scicapd_event("capture.stored", j->id, j->request_id,
+                                       json_pack("{s:s, s:s, s:i, s:b, s:f}", "capture", s->capture_id, "dir", s->dir,
+                                                 "index", s->index, "broken", s->broken, "latency_ms", latency_ms)));
+    if (c->reconstruct) {
+        scicapd_job *r;
+        const char *why = NULL;
+        if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_RECONSTRUCT, j->client, j->request_id, &r) < 0) {
+            why = "out of memory";
+        } else {
+            snprintf(r->recon.capture_id, sizeof r->recon.capture_id, "%s", s->capture_id);
+            r->recon.spec = c->recon;
+            int q = scicapd_queue_push(d->recon_q, r);
+            if (q < 0) {
+                why = q == SCI_EBUSY ? "reconstruction queue full" : "daemon stopping";
+                scicapd_jobs_forget(d->jobs, r);
+                scicapd_job_unref(d->jobs, r);
+            } else {
+                scicapd_mailbox_post(d->mailbox, j->client, 1,
+                                     scicapd_event("recon.queued", r->id, r->request_id,
+                                                   json_pack("{s:s, s:s, s:I}", "capture", s->capture_id, "method",
+                                                             scicapd_method_name(c->recon.method), "capture_job",
+                                                             (json_int_t)j->id)));
+            }
+        }
+        if (why)
+            scicapd_mailbox_post(d->mailbox, j->client, 1,
+                                 scicapd_event("recon.rejected", j->id, j->request_id,
+                                               json_pack("{s:s, s:s}", "capture", s->capture_id, "reason", why)));
+    }
+    if (s->index + 1 == c->count && scicapd_job_state_get(d->jobs, j) == SCICAPD_JOB_RUNNING) {
+        scicapd_job_set_state(d->jobs, j, SCICAPD_JOB_DONE, NULL);
+        json_t *o = scicapd_job_json(d->jobs, j);
+        scicapd_mailbox_post(d->mailbox, j->client, 1, scicapd_event("capture.done", j->id, j->request_id, o));
+    }
+    scicapd_snapshot_free(d->jobs, s);
+}
+
+/* ---- requests ---- */
+
+static int is_admin(const scicapd *d, const scicapd_client *c)
+{
+    if (c->uid == 0 || c->uid == geteuid())
+        return 1;
+    const char *gname = d->cfg->admin_group;
+    struct group *g = gname[0] ? getgrnam(gname) : NULL;
+    if (!g)
+        return 0;
+    if (c->gid == g->gr_gid)
+        return 1;
+    struct passwd *pw = getpwuid(c->uid);
+    if (!pw)
+        return 0;
+    gid_t groups[256];
+    int n = 256;
+    if (getgrouplist(pw->pw_name, pw->pw_gid, groups, &n) < 0)
+        return 0;
+    for (int i = 0; i < n; i++)
+        if (groups[i] == g->gr_gid)
+            return 1;
+    return 0;
+}
+
+static void reply(scicapd *d, scicapd_client *c, char *line)
+{
+    scicapd_control_send_to(d->ctl, c, line);
+    free(line);
+}
+
+static void reply_err(scicapd *d, scicapd_client *c, const json_t *id, scicapd_errcode code, const char *msg)
+{
+    reply(d, c, scicapd_reply_error(id, code, msg));
+}
+
+static json_t *status_json(scicapd *d)
+{
+    int q, r, f;
+    scicapd_jobs_count(d->jobs, &q, &r, &f);
+    return json_pack("{s:s, s:i, s:i, s:f, s:s, s:s, s:s, s:b, s:{s:[i,i], s:[i,i], s:[i,i]}, s:{s:i, s:i, s:i},"
+                     " s:i, s:i, s:I, s:{s:i, s:i}, s:b}",
+                     "version", SCICAP_VERSION, "protocol", SCICAPD_PROTOCOL_VERSION, "pid", (int)getpid(),
+                     "uptime_s", sci_clock_s(d->started_ns, sci_clock_mono_ns()), "config",
+                     d->cfg->path[0] ? d->cfg->path : "(built-in defaults)", "socket", d->cfg->socket_path,
+                     "storage", scicapd_store_root(d->store), "dmd_connected", scicapd_acquire_dmd_connected(d->acq),
+                     "queues", "capture", scicapd_queue_len(d->acq_q), scicapd_queue_capacity(d->acq_q),
+                     "reconstruction", scicapd_queue_len(d->recon_q), scicapd_queue_capacity(d->recon_q), "storage",
+                     scicapd_queue_len(d->store_q), scicapd_queue_capacity(d->store_q), "jobs", "queued", q,
+                     "running", r, "finished", f, "workers_busy", scicapd_workers_busy(d->workers), "clients",
+                     scicapd_control_clients(d->ctl), "captures_stored", (json_int_t)atomic_load(&d->stored),
+                     "recovered", "captures", d->recovered.captures, "removed_partial", d->recovered.removed,
+                     "stopping", atomic_load(&d->stopping));
+}
+
+static void submit(scicapd *d, scicapd_client *c, const json_t *id, scicapd_job *j, scicapd_queue *q,
+                   const char *what)
+{
+    int rc = scicapd_queue_push(q, j);
+    if (rc < 0) {
+        char msg[128];
+        snprintf(msg, sizeof msg, "%s queue full (%d jobs); try again later", what, scicapd_queue_capacity(q));
+        scicapd_jobs_forget(d->jobs, j);
+        scicapd_job_unref(d->jobs, j);
+        reply_err(d, c, id, rc == SCI_EBUSY ? SCICAPD_E_BUSY : SCICAPD_E_SHUTTING_DOWN,
+                  rc == SCI_EBUSY ? msg : "the daemon is stopping");
+        return;
+    }
+    reply(d, c, scicapd_reply_ok(id, json_pack("{s:I, s:s}", "job", (json_int_t)j->id, "state", "queued")));
+}
+
+static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
+{
+    scicapd *d = user;
+    scicapd_request r;
+    sci_error err = {0};
+    /* checks 2-4: JSON, version, command */
+    scicapd_errcode ec = scicapd_request_parse(line, len, &r, &err);
+    if (ec != SCICAPD_OK) {
+        reply_err(d, c, r.id, ec, err.msg);
+        scicapd_request_clear(&r);
+        return;
+    }
+    /* check 5: arguments */
+    scicapd_capture_args cap;
+    scicapd_calib_args cal;
+    scicapd_recon_args rec;
+    scicapd_simulate_args sim;
+    uint64_t job_id = 0;
+    int rc;
+    switch (r.cmd) {
+    case SCICAPD_CMD_CAPTURE: rc = scicapd_args_capture(&r, d->cfg, &cap, &err); break;
+    case SCICAPD_CMD_CALIBRATE: rc = scicapd_args_calibrate(&r, d->cfg, &cal, &err); break;
+    case SCICAPD_CMD_RECONSTRUCT: rc = scicapd_args_reconstruct(&r, d->cfg, &rec, &err); break;
+    case SCICAPD_CMD_CANCEL: rc = scicapd_args_cancel(&r, &job_id, &err); break;
+    case SCICAPD_CMD_SIMULATE: rc = scicapd_args_simulate(&r, &sim, &err); break;
+    default: rc = scicapd_args_none(&r, &err); break;
+    }
+    if (rc < 0) {
+        reply_err(d, c, r.id, SCICAPD_E_BAD_ARGUMENTS, err.msg);
+        goto out;
+    }
+    /* check 6: permission */
+    if (scicapd_cmd_is_admin(r.cmd) && !is_admin(d, c)) {
+        char msg[200];
+        snprintf(msg, sizeof msg, "\"%s\" needs root, the daemon's user or group \"%s\" (peer uid %d)",
+                 scicapd_cmd_name(r.cmd), d->cfg->admin_group, (int)c->uid);
+        sci_log_write(d->log, SCI_LOG_WARNING, "client %llu: %s", (unsigned long long)c->id, msg);
+        reply_err(d, c, r.id, SCICAPD_E_PERMISSION, msg);
+        goto out;
+    }
+    if (atomic_load(&d->stopping) && r.cmd != SCICAPD_CMD_STATUS && r.cmd != SCICAPD_CMD_JOBS) {
+        reply_err(d, c, r.id, SCICAPD_E_SHUTTING_DOWN, "the daemon is stopping");
+        goto out;
+    }
+    scicapd_job *j = NULL;
+    switch (r.cmd) {
+    case SCICAPD_CMD_STATUS: reply(d, c, scicapd_reply_ok(r.id, status_json(d))); break;
+    case SCICAPD_CMD_DEVICES: reply(d, c, scicapd_reply_ok(r.id, scicapd_acquire_devices_json(d->acq))); break;
+    case SCICAPD_CMD_JOBS: reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:o}", "jobs", scicapd_jobs_json(d->jobs)))); break;
+    case SCICAPD_CMD_WATCH:
+        c->watching = 1;
+        reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:b}", "watching", 1)));
+        break;
+    case SCICAPD_CMD_CAPTURE:
+    case SCICAPD_CMD_CALIBRATE:
+        if (scicapd_jobs_create(d->jobs, r.cmd == SCICAPD_CMD_CAPTURE ? SCICAPD_JOB_CAPTURE : SCICAPD_JOB_CALIBRATE,
+                                c->id, r.id, &j) < 0) {
+            reply_err(d, c, r.id, SCICAPD_E_FAILED, "out of memory");
+            break;
+        }
+        j->capture = cap;
+        j->calib = cal;
+        submit(d, c, r.id, j, d->acq_q, "capture");
+        break;
+    case SCICAPD_CMD_RECONSTRUCT: {
+        char dir[1100];
+        if (scicapd_store_capture_dir(d->store, rec.capture_id, dir, sizeof dir, &err) < 0) {
+            reply_err(d, c, r.id, SCICAPD_E_NOT_FOUND, err.msg);
+            break;
+        }
+        if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_RECONSTRUCT, c->id, r.id, &j) < 0) {
+            reply_err(d, c, r.id, SCICAPD_E_FAILED, "out of memory");
+            break;
+        }
+        j->recon = rec;
+        submit(d, c, r.id, j, d->recon_q, "reconstruction");
+        break;
+    }
+    case SCICAPD_CMD_CANCEL: {
+        scicapd_job *t = scicapd_jobs_find(d->jobs, job_id);
+        if (!t) {
+            char msg[64];
+            snprintf(msg, sizeof msg, "no job %llu", (unsigned long long)job_id);
+            reply_err(d, c, r.id, SCICAPD_E_NOT_FOUND, msg);
+            break;
+        }
+        atomic_store(&t->cancel, 1);
+        reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:I, s:s}", "job", (json_int_t)t->id, "state",
+                                                     scicapd_job_state_name(scicapd_job_state_get(d->jobs, t)))));
+        scicapd_job_unref(d->jobs, t);
+        break;
+    }
+    case SCICAPD_CMD_RELOAD: {
+        json_t *restart = NULL;
+        if (reload(d, &restart, &err) < 0)
+            reply_err(d, c, r.id, SCICAPD_E_FAILED, err.msg);
+        else
+            reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:s, s:o}", "config", d->cfg->path[0] ? d->cfg->path : "",
+                                                         "restart_needed", restart)));
+        break;
+    }
+    case SCICAPD_CMD_SHUTDOWN:
+        sci_log_write(d->log, SCI_LOG_NOTICE, "shutdown requested by client %llu (pid %d uid %d)",
+                      (unsigned long long)c->id, (int)c->pid, (int)c->uid);
+        reply(d, c, scicapd_reply_ok(r.id, NULL));
+        scicapd_request_stop(d);
+        break;
+    case SCICAPD_CMD_SIMULATE:
+        if (scicapd_acquire_fault(d->acq, &sim, &err) < 0)
+            reply_err(d, c, r.id, err.code == -ENOTSUP ? SCICAPD_E_UNSUPPORTED : SCICAPD_E_BUSY, err.msg);
+        else
+            reply(d, c, scicapd_reply_ok(r.id, NULL));
+        break;
+    case SCICAPD_CMD_COUNT: break;
+    }
+out:
+    scicapd_request_clear(&r);
+}
+
+/* ---- life ---- */
+
+int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci_error *err)
+{
+    scicapd *d = calloc(1, sizeof *d);
+    if (!d)
+        return sci_error_set(err, -ENOMEM, "scicapd: out of memory");
+    d->log = log;
+    d->opts = *o;
+    d->sfd = d->stopfd = -1;
+    d->started_ns = sci_clock_mono_ns();
+    scicapd_notify_init(&d->notify);
+    int rc;
+    /* 1. configuration */
+    if ((rc = load_config(d, &d->cfg, err)) < 0)
+        goto fail;
+    /* 2. storage (and recovery of a crashed run) */
+    if (mkdir(d->cfg->runtime_dir, 0750) != 0 && errno != EEXIST) {
+        rc = sci_error_set(err, -errno, "runtime folder %s: %s", d->cfg->runtime_dir, strerror(errno));
+        goto fail;
+    }
+    if ((rc = scicapd_store_open(&d->store, d->cfg->storage_root, d->cfg->fsync, log, &d->recovered, err)) < 0)
+        goto fail;
+    if (d->recovered.removed)
+        sci_log_write(log, SCI_LOG_WARNING, "storage %s: removed %d partial folders left by an interrupted run",
+                      d->cfg->storage_root, d->recovered.removed);
+    sci_log_write(log, SCI_LOG_INFO, "storage %s: %d captures", d->cfg->storage_root, d->recovered.captures);
+    /* 3. queues and the job table */
+    if ((rc = scicapd_jobs_new(&d->jobs)) < 0 || (rc = scicapd_mailbox_new(&d->mailbox)) < 0 ||
+        (rc = scicapd_queue_new(&d->acq_q, d->cfg->capture_queue)) < 0 ||
+        (rc = scicapd_queue_new(&d->store_q, STORE_QUEUE)) < 0 ||
+        (rc = scicapd_queue_new(&d->recon_q, d->cfg->recon_queue)) < 0) {
+        sci_error_set(err, rc, "scicapd: %s", sci_strerror(rc));
+        goto fail;
+    }
+    /* 4. signals, before any thread starts so that all inherit the mask */
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGTERM);
+    sigaddset(&set, SIGINT);
+    sigaddset(&set, SIGHUP);
+    pthread_sigmask(SIG_BLOCK, &set, &d->oldmask);
+    signal(SIGPIPE, SIG_IGN);
+    d->sfd = signalfd(-1, &set, SFD_CLOEXEC | SFD_NONBLOCK);
+    d->stopfd = eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+    if (d->sfd < 0 || d->stopfd < 0) {
+        rc = sci_error_set(err, -errno, "scicapd: signalfd/eventfd: %s", strerror(errno));
+        goto fail;
+    }
+    /* 5. devices */
+    scicapd_acquire_env ae = {.jobs = d->jobs, .mailbox = d->mailbox, .store = d->store, .in = d->acq_q,
+                              .out = d->store_q, .log = log};
+    if ((rc = scicapd_acquire_new(&d->acq, d->cfg, &ae, err)) < 0)
+        goto fail;
+    /* 6. the control socket */
+    if ((rc = scicapd_control_open(&d->ctl, d->cfg->socket_path, d->cfg->socket_mode, d->cfg->socket_group,
+                                   d->cfg->max_clients, d->cfg->max_line_bytes, log, on_line, d, err)) < 0)
+        goto fail;
+    /* 7. threads: writer, reconstruction workers, acquisition */
+    if ((rc = scicapd_store_start(d->store, d->store_q, on_stored, d, err)) < 0)
+        goto fail;
+    d->store_started = 1;
+    scicapd_workers_env we = {.jobs = d->jobs, .mailbox = d->mailbox, .store = d->store, .in = d->recon_q, .log = log};
+    if ((rc = scicapd_workers_start(&d->workers, &we, d->cfg->workers, d->cfg->recon_threads, err)) < 0 ||
+        (rc = scicapd_acquire_start(d->acq, err)) < 0)
+        goto fail;
+    sci_log_write(log, SCI_LOG_NOTICE, "scicapd %s listening on %s (config %s, storage %s)", SCICAP_VERSION,
+                  d->cfg->socket_path, d->cfg->path[0] ? d->cfg->path : "built-in defaults", d->cfg->storage_root);
+    *out = d;
+    return 0;
+fail:
+    scicapd_free(d);
+    return rc;
+}
+
+void scicapd_ready(scicapd *d)
+{
+    char s[160];
+    snprintf(s, sizeof s, "ready: %d captures in %s", d->recovered.captures, d->cfg->storage_root);
+    scicapd_notify_ready(&d->notify, s);
+}
+
+void scicapd_request_stop(scicapd *d)
+{
+    uint64_t one = 1;
+    ssize_t w = write(d->stopfd, &one, sizeof one);
+    (void)w;
+}
+
+static void deliver(scicapd *d)
+{
+    scicapd_letter *l = scicapd_mailbox_take(d->mailbox);
+    for (scicapd_letter *p = l; p; p = p->next) {
+        if (p->client)
+            scicapd_control_send(d->ctl, p->client, p->line);
+        if (p->broadcast)
+            scicapd_control_broadcast(d->ctl, p->line, p->client);
+    }
+    scicapd_letters_free(l);
+}
+
+static void housekeeping(scicapd *d)
+{
+    int64_t now = sci_clock_mono_ns();
+    int64_t period = scicapd_notify_watchdog_period_ns(&d->notify);
+    if (period > 0 && now - d->notify.last_ping_ns >= period) {
+        /* only when the acquisition thread shows signs of life within the watchdog interval */
+        if (now - scicapd_acquire_heartbeat_ns(d->acq) < 2 * period)
+            scicapd_notify_watchdog(&d->notify);
+        else
+            sci_log_write(d->log, SCI_LOG_ERR, "acquisition thread silent for %.1f s: watchdog not fed",
+                          sci_clock_s(scicapd_acquire_heartbeat_ns(d->acq), now));
+    }
+    if (now - d->last_status_ns >= 2000000000LL) {
+        d->last_status_ns = now;
+        int q, r, f;
+        scicapd_jobs_count(d->jobs, &q, &r, &f);
+        scicapd_notify_status(&d->notify, "%s; %ld captures stored; jobs: %d queued, %d running; %d clients",
+                              scicapd_acquire_dmd_connected(d->acq) ? "ready" : "DMD disconnected",
+                              (long)atomic_load(&d->stored), q, r, scicapd_control_clients(d->ctl));
+    }
+}
+
+int scicapd_run(scicapd *d)
+{
+    enum { FIXED = 3, MAXFD = FIXED + 1 + 1100 };
+    struct pollfd *fds = calloc(MAXFD, sizeof *fds);
+    if (!fds)
+        return -ENOMEM;
+    int stop = 0;
+    while (!stop) {
+        fds[0] = (struct pollfd){.fd = d->sfd, .events = POLLIN};
+        fds[1] = (struct pollfd){.fd = scicapd_mailbox_fd(d->mailbox), .events = POLLIN};
+        fds[2] = (struct pollfd){.fd = d->stopfd, .events = POLLIN};
+        int n = scicapd_control_pollfds(d->ctl, fds + FIXED, MAXFD - FIXED);
+        int64_t period = scicapd_notify_watchdog_period_ns(&d->notify);
+        int timeout = 1000;
+        if (period > 0) {
+            int64_t left = d->notify.last_ping_ns + period - sci_clock_mono_ns();
+            timeout = left <= 0 ? 0 : left / 1000000 < timeout ? (int)(left / 1000000) + 1 : timeout;
+        }
+        int pr = poll(fds, (nfds_t)(FIXED + n), timeout);
+        if (pr < 0 && errno != EINTR) {
+            free(fds);
+            return -errno;
+        }
+        if (pr > 0 && (fds[0].revents & POLLIN)) {
+            struct signalfd_siginfo si;
+            while (read(d->sfd, &si, sizeof si) == sizeof si) {
+                if (si.ssi_signo == SIGHUP) {
+                    sci_error err = {0};
+                    sci_log_write(d->log, SCI_LOG_NOTICE, "SIGHUP: reloading the configuration");
+                    reload(d, NULL, &err);
+                } else {
+                    sci_log_write(d->log, SCI_LOG_NOTICE, "signal %d: stopping", (int)si.ssi_signo);
+                    stop = 1;
+                }
+            }
+        }
+        if (pr > 0 && (fds[2].revents & POLLIN))
+            stop = 1;
+        if (pr > 0)
+            scicapd_control_dispatch(d->ctl, fds + FIXED, n);
+        deliver(d);
+        housekeeping(d);
+    }
+    free(fds);
+    return 0;
+}
+
+void scicapd_free(scicapd *d)
+{
+    if (!d)
+        return;
+    atomic_store(&d->stopping, 1);
+    scicapd_notify_stopping(&d->notify, "stopping: finishing the current snapshot, canceling reconstructions");
+    scicapd_control_stop_listening(d->ctl);
+    /* acquisition: no new jobs; the current snapshot finishes and goes to the writer */
+    if (d->acq_q)
+        scicapd_queue_close(d->acq_q);
+    if (d->jobs) {
+        /* reconstructions stop at their next iteration and write nothing */
+        scicapd_jobs_cancel_all(d->jobs);
+    }
+    scicapd_acquire_stop(d->acq);
+    if (d->recon_q)
+        scicapd_queue_close(d->recon_q);
+    scicapd_workers_stop(d->workers);
+    /* the writer stores everything acquired */
+    if (d->store_q)
+        scicapd_queue_close(d->store_q);
+    if (d->store_started)
+        scicapd_store_stop(d->store);
+    /* last words to the clients */
+    if (d->ctl && d->mailbox) {
+        deliver(d);
+        for (int i = 0; i < 50 && scicapd_control_flushing(d->ctl); i++) {
+            struct pollfd fds[1100];
+            int n = scicapd_control_pollfds(d->ctl, fds, 1100);
+            poll(fds, (nfds_t)n, 20);
+            scicapd_control_dispatch(d->ctl, fds, n);
+        }
+    }
+    scicapd_control_close(d->ctl);
+    scicapd_acquire_free(d->acq);
+    scicapd_job *j;
+    while (d->recon_q && (j = scicapd_queue_take(d->recon_q)))
+        scicapd_job_unref(d->jobs, j);
+    scicapd_queue_free(d->recon_q);
+    scicapd_queue_free(d->store_q);
+    scicapd_queue_free(d->acq_q);
+    scicapd_mailbox_free(d->mailbox);
+    scicapd_jobs_free(d->jobs);
+    scicapd_store_close(d->store);
+    if (d->sfd >= 0) {
+        close(d->sfd);
+        pthread_sigmask(SIG_SETMASK, &d->oldmask, NULL);
+    }
+    if (d->stopfd >= 0)
+        close(d->stopfd);
+    scicapd_config_free(d->cfg);
+    free(d);
+}

@@ -1,0 +1,79 @@
+/* daemon/jobs.h — jobs (capture, calibrate, reconstruct) and the table the `jobs` and `cancel` commands read.
+ *
+ * A job is created on the event-loop thread with its arguments fully resolved (so a reload never changes a job
+ * already accepted), queued, and run by the acquisition thread or a reconstruction worker. Its state and
+ * progress are changed under the table's lock; the arguments are immutable after creation. Jobs are
+ * reference-counted: the table holds one reference, a queue or a worker another.
+ * Cancel sets an atomic flag the runner checks between snapshots and between solver iterations.
+ * The table keeps every unfinished job and the most recent SCICAPD_JOBS_HISTORY finished ones.
+ * Thread-safe.
+ */
+#ifndef SCICAP_DAEMON_JOBS_H
+#define SCICAP_DAEMON_JOBS_H
+
+#include <jansson.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdint.h>
+
+#include "daemon/protocol.h"
+
+#define SCICAPD_JOBS_HISTORY 256
+
+typedef enum scicapd_job_kind { SCICAPD_JOB_CAPTURE, SCICAPD_JOB_CALIBRATE, SCICAPD_JOB_RECONSTRUCT } scicapd_job_kind;
+typedef enum scicapd_job_state {
+    SCICAPD_JOB_QUEUED, SCICAPD_JOB_RUNNING, SCICAPD_JOB_DONE, SCICAPD_JOB_FAILED, SCICAPD_JOB_CANCELED
+} scicapd_job_state;
+
+const char *scicapd_job_kind_name(scicapd_job_kind k);
+const char *scicapd_job_state_name(scicapd_job_state s);
+
+typedef struct scicapd_job {
+    uint64_t id;               /* 1, 2, ... per daemon run */
+    scicapd_job_kind kind;
+    uint64_t client;           /* connection that submitted it (0: the daemon itself) */
+    json_t *request_id;        /* the submitter's request id (owned, immutable) */
+    int64_t submitted_ns, started_ns, finished_ns; /* CLOCK_MONOTONIC */
+    atomic_int cancel;         /* set by cancel / shutdown */
+    /* arguments (immutable) */
+    scicapd_capture_args capture;
+    scicapd_calib_args calib;
+    scicapd_recon_args recon;
+    /* under the table lock */
+    scicapd_job_state state;
+    int done, total;           /* snapshots stored / iterations run, of total */
+    double psnr;               /* latest PSNR (reconstruct with truth), NaN otherwise */
+    char error[256];
+    json_t *outputs;           /* array of capture ids / output folders (owned) */
+    int refs;
+} scicapd_job;
+
+typedef struct scicapd_jobs scicapd_jobs;
+
+int scicapd_jobs_new(scicapd_jobs **out);
+void scicapd_jobs_free(scicapd_jobs *t);
+
+/* A new job in state queued, registered in the table, with 2 references (table + caller). -ENOMEM. */
+int scicapd_jobs_create(scicapd_jobs *t, scicapd_job_kind kind, uint64_t client, const json_t *request_id,
+                        scicapd_job **out);
+/* Take a reference to job `id` (NULL if unknown). */
+scicapd_job *scicapd_jobs_find(scicapd_jobs *t, uint64_t id);
+void scicapd_job_unref(scicapd_jobs *t, scicapd_job *j);
+/* Forget a job that was never queued (e.g. queue full): it leaves the table. */
+void scicapd_jobs_forget(scicapd_jobs *t, scicapd_job *j);
+
+void scicapd_job_set_state(scicapd_jobs *t, scicapd_job *j, scicapd_job_state s, const char *error);
+void scicapd_job_set_progress(scicapd_jobs *t, scicapd_job *j, int done, int total, double psnr);
+/* Append an output name (capture id or folder) to the job's outputs. */
+void scicapd_job_add_output(scicapd_jobs *t, scicapd_job *j, const char *name);
+scicapd_job_state scicapd_job_state_get(scicapd_jobs *t, scicapd_job *j);
+
+/* Snapshot of one job / all jobs as JSON (new references). */
+json_t *scicapd_job_json(scicapd_jobs *t, scicapd_job *j);
+json_t *scicapd_jobs_json(scicapd_jobs *t);
+/* Counts by state (for status and STATUS=). */
+void scicapd_jobs_count(scicapd_jobs *t, int *queued, int *running, int *finished);
+/* Set the cancel flag of every unfinished job. */
+void scicapd_jobs_cancel_all(scicapd_jobs *t);
+
+#endif

@@ -1,0 +1,369 @@
+/* daemon/protocol.c — request checks, argument parsing, reply and event encoding (protocol version 1). */
+#include "daemon/protocol.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const char *const cmd_names[SCICAPD_CMD_COUNT] = {
+    "status", "devices", "capture", "calibrate", "reconstruct", "jobs", "cancel", "watch", "reload", "shutdown",
+    "simulate",
+};
+static const char *const err_names[SCICAPD_E_COUNT] = {
+    "ok", "too_long", "bad_json", "bad_version", "unknown_command", "bad_arguments", "permission", "busy",
+    "not_found", "failed", "shutting_down", "unsupported",
+};
+
+const char *scicapd_cmd_name(scicapd_cmd c) { return (unsigned)c < SCICAPD_CMD_COUNT ? cmd_names[c] : "?"; }
+int scicapd_cmd_is_admin(scicapd_cmd c)
+{
+    return c == SCICAPD_CMD_RELOAD || c == SCICAPD_CMD_SHUTDOWN || c == SCICAPD_CMD_SIMULATE;
+}
+const char *scicapd_errcode_name(scicapd_errcode e) { return (unsigned)e < SCICAPD_E_COUNT ? err_names[e] : "?"; }
+const char *scicapd_method_name(scicapd_method m) { return m == SCICAPD_METHOD_ADMMTV ? "admm-tv" : "gap-tv"; }
+
+void scicapd_request_clear(scicapd_request *r)
+{
+    json_decref(r->id);
+    sci_json_doc_free(r->doc);
+    memset(r, 0, sizeof *r);
+}
+
+scicapd_errcode scicapd_request_parse(const char *line, size_t len, scicapd_request *out, sci_error *err)
+{
+    memset(out, 0, sizeof *out);
+    out->id = json_null();
+    if (memchr(line, '\0', len)) {
+        sci_error_set(err, SCI_EPROTO, "request: NUL byte in the line");
+        return SCICAPD_E_BAD_JSON;
+    }
+    if (sci_json_doc_load_string(&out->doc, "request", line, len, err) < 0)
+        return SCICAPD_E_BAD_JSON;
+    const json_t *root = sci_json_doc_root(out->doc);
+    if (!json_is_object(root)) {
+        sci_json_fail(out->doc, err, "", "a request must be a JSON object");
+        return SCICAPD_E_BAD_JSON;
+    }
+    json_t *id = json_object_get(root, "id");
+    if (id) {
+        if (!json_is_integer(id) && !(json_is_string(id) && json_string_length(id) <= 64)) {
+            sci_json_fail(out->doc, err, "id", "must be an integer or a string of at most 64 bytes");
+            return SCICAPD_E_BAD_JSON;
+        }
+        json_decref(out->id);
+        out->id = json_incref(id);
+    }
+    long long v = SCICAPD_PROTOCOL_VERSION;
+    if (sci_json_get_int(out->doc, root, "", "v", 0, SCICAPD_PROTOCOL_VERSION, SCICAPD_PROTOCOL_VERSION, &v,
+                         err) < 0) {
+        sci_error_prefix(err, "this daemon speaks protocol version %d: ", SCICAPD_PROTOCOL_VERSION);
+        return SCICAPD_E_BAD_VERSION;
+    }
+    const char *cmd = NULL;
+    if (sci_json_get_string(out->doc, root, "", "cmd", 1, &cmd, err) < 0)
+        return SCICAPD_E_UNKNOWN_COMMAND;
+    out->cmd = SCICAPD_CMD_COUNT;
+    for (int i = 0; i < SCICAPD_CMD_COUNT; i++)
+        if (strcmp(cmd, cmd_names[i]) == 0)
+            out->cmd = (scicapd_cmd)i;
+    if (out->cmd == SCICAPD_CMD_COUNT) {
+        sci_json_fail(out->doc, err, "cmd", "unknown command \"%.64s\"", cmd);
+        return SCICAPD_E_UNKNOWN_COMMAND;
+    }
+    static const char *const top[] = {"v", "id", "cmd", "args", NULL};
+    if (sci_json_check_keys(out->doc, root, "", top, err) < 0)
+        return SCICAPD_E_BAD_JSON;
+    out->args = json_object_get(root, "args");
+    return SCICAPD_OK;
+}
+
+/* ---- arguments ---- */
+
+static int args_obj(const scicapd_request *r, const char *const *keys, sci_error *err)
+{
+    if (!r->args)
+        return 0;
+    if (!json_is_object(r->args))
+        return sci_json_fail(r->doc, err, "args", "must be an object");
+    return sci_json_check_keys(r->doc, r->args, "args", keys, err);
+}
+
+int scicapd_args_none(const scicapd_request *r, sci_error *err)
+{
+    static const char *const keys[] = {NULL};
+    return args_obj(r, keys, err);
+}
+
+static int get_u32(const scicapd_request *r, const char *key, long long lo, long long hi, uint32_t *out,
+                   sci_error *err)
+{
+    long long v = *out;
+    int rc = r->args ? sci_json_get_int(r->doc, r->args, "args", key, 0, lo, hi, &v, err) : 1;
+    if (rc == 0)
+        *out = (uint32_t)v;
+    return rc < 0 ? rc : 0;
+}
+
+static int get_mask_set(const scicapd_request *r, const scicapd_config *cfg, scicapd_mask_set *out,
+                        sci_error *err)
+{
+    const char *name = cfg->capture_mask_set;
+    if (r->args && sci_json_get_string(r->doc, r->args, "args", "mask_set", 0, &name, err) < 0)
+        return SCI_ECONFIG;
+    const scicapd_mask_set *m = scicapd_config_mask_set(cfg, name);
+    if (!m)
+        return sci_json_fail(r->doc, err, "args.mask_set", "no mask set \"%.64s\" in the configuration", name);
+    *out = *m;
+    return 0;
+}
+
+uint32_t scicapd_auto_exposure_us(int n, uint32_t pattern_us, uint32_t dark_us, uint32_t latency_us)
+{
+    uint64_t t = (uint64_t)latency_us + (uint64_t)n * (pattern_us + dark_us) + 500;
+    return t > 60000000 ? 60000000 : (uint32_t)t;
+}
+
+int scicapd_recon_spec_resolve(const char *method, const char *preset, const sci_json_doc *doc,
+                               const json_t *params, const char *path, scicapd_recon_spec *out, sci_error *err)
+{
+    memset(out, 0, sizeof *out);
+    if (strcmp(method, "gap-tv") == 0)
+        out->method = SCICAPD_METHOD_GAPTV;
+    else if (strcmp(method, "admm-tv") == 0)
+        out->method = SCICAPD_METHOD_ADMMTV;
+    else
+        return sci_error_set(err, SCI_ECONFIG, "method \"%.32s\": expected gap-tv or admm-tv", method);
+    sci_gaptv_params_default(&out->gap);
+    sci_admmtv_params_default(&out->admm);
+    int iters = 100, tv_iters = 5;
+    if (strcmp(preset, "fast") == 0)
+        iters = 30;
+    else if (strcmp(preset, "quality") == 0)
+        iters = 200, tv_iters = 8;
+    else if (strcmp(preset, "default") != 0)
+        return sci_error_set(err, SCI_ECONFIG, "preset \"%.32s\": expected fast, default or quality", preset);
+    snprintf(out->preset, sizeof out->preset, "%s", preset);
+    out->gap.iters = out->admm.iters = iters;
+    out->gap.tv_iters = out->admm.tv_iters = tv_iters;
+    out->gap.metrics_every = out->admm.metrics_every = 1;
+    out->gap.ssim_every = out->admm.ssim_every = 0;
+    if (params) {
+        static const char *const keys[] = {"iters", "lambda", "tv_weight", "tv_iters", "gamma", "accelerate", NULL};
+        if (!json_is_object(params))
+            return sci_json_fail(doc, err, path, "must be an object");
+        long long it = iters, tvi = tv_iters;
+        double lambda = 1, tvw = out->gap.tv_weight, gamma = out->admm.gamma;
+        int acc = out->gap.accelerate, rc;
+        if ((rc = sci_json_check_keys(doc, params, path, keys, err)) < 0 ||
+            (rc = sci_json_get_int(doc, params, path, "iters", 0, 1, 100000, &it, err)) < 0 ||
+            (rc = sci_json_get_int(doc, params, path, "tv_iters", 0, 1, 1000, &tvi, err)) < 0 ||
+            (rc = sci_json_get_double(doc, params, path, "lambda", 0, 1e-9, 1e3, &lambda, err)) < 0 ||
+            (rc = sci_json_get_double(doc, params, path, "tv_weight", 0, 0, 1e3, &tvw, err)) < 0 ||
+            (rc = sci_json_get_double(doc, params, path, "gamma", 0, 0, 1e3, &gamma, err)) < 0 ||
+            (rc = sci_json_get_bool(doc, params, path, "accelerate", 0, &acc, err)) < 0)
+            return rc;
+        out->gap.iters = out->admm.iters = (int)it;
+        out->gap.tv_iters = out->admm.tv_iters = (int)tvi;
+        out->gap.lambda = out->admm.lambda = lambda;
+        out->gap.tv_weight = out->admm.tv_weight = tvw;
+        out->admm.gamma = gamma;
+        out->gap.accelerate = acc;
+    }
+    return 0;
+}
+
+json_t *scicapd_recon_spec_json(const scicapd_recon_spec *s)
+{
+    if (s->method == SCICAPD_METHOD_ADMMTV)
+        return json_pack("{s:s, s:s, s:i, s:f, s:f, s:f, s:i}", "method", "admm-tv", "preset", s->preset, "iters",
+                         s->admm.iters, "lambda", s->admm.lambda, "gamma", s->admm.gamma, "tv_weight",
+                         s->admm.tv_weight, "tv_iters", s->admm.tv_iters);
+    return json_pack("{s:s, s:s, s:i, s:f, s:b, s:f, s:i}", "method", "gap-tv", "preset", s->preset, "iters",
+                     s->gap.iters, "lambda", s->gap.lambda, "accelerate", s->gap.accelerate, "tv_weight",
+                     s->gap.tv_weight, "tv_iters", s->gap.tv_iters);
+}
+
+/* method / preset / params members of `obj` at `path` with defaults from the configuration. */
+static int get_recon(const scicapd_request *r, const json_t *obj, const char *path, const scicapd_config *cfg,
+                     scicapd_recon_spec *out, sci_error *err)
+{
+    static const char *const methods[] = {"gap-tv", "admm-tv", NULL};
+    static const char *const presets[] = {"fast", "default", "quality", NULL};
+    const char *method = cfg->recon_method, *preset = cfg->recon_preset;
+    const json_t *params = NULL;
+    if (obj) {
+        int m, p, rc;
+        if ((rc = sci_json_get_enum(r->doc, obj, path, "method", 0, methods, &m, err)) < 0)
+            return rc;
+        if (rc == 0)
+            method = methods[m];
+        if ((rc = sci_json_get_enum(r->doc, obj, path, "preset", 0, presets, &p, err)) < 0)
+            return rc;
+        if (rc == 0)
+            preset = presets[p];
+        params = json_object_get(obj, "params");
+    }
+    char pp[64];
+    return scicapd_recon_spec_resolve(method, preset, r->doc, params, sci_json_path_key(pp, sizeof pp, path, "params"),
+                                      out, err);
+}
+
+int scicapd_args_capture(const scicapd_request *r, const scicapd_config *cfg, scicapd_capture_args *out,
+                         sci_error *err)
+{
+    static const char *const keys[] = {"mask_set", "pattern_us", "dark_us", "exposure_us", "sync_mode", "count",
+                                       "reconstruct", "method", "preset", "params", NULL};
+    static const char *const modes[] = {"dmd-master", "host-master", "camera-master", NULL};
+    memset(out, 0, sizeof *out);
+    int rc;
+    if ((rc = args_obj(r, keys, err)) < 0 || (rc = get_mask_set(r, cfg, &out->mask_set, err)) < 0)
+        return rc;
+    out->pattern_us = cfg->pattern_us;
+    out->dark_us = cfg->dark_us;
+    out->exposure_us = cfg->exposure_us;
+    out->sync = cfg->sync_mode;
+    out->count = 1;
+    out->reconstruct = cfg->recon_auto;
+    long long count = 1;
+    int mode = (int)out->sync;
+    if ((rc = get_u32(r, "pattern_us", 1, 10000000, &out->pattern_us, err)) < 0 ||
+        (rc = get_u32(r, "dark_us", 0, 10000000, &out->dark_us, err)) < 0 ||
+        (rc = get_u32(r, "exposure_us", 0, 60000000, &out->exposure_us, err)) < 0)
+        return rc;
+    if (r->args && ((rc = sci_json_get_int(r->doc, r->args, "args", "count", 0, 1, 1000, &count, err)) < 0 ||
+                    (rc = sci_json_get_enum(r->doc, r->args, "args", "sync_mode", 0, modes, &mode, err)) < 0 ||
+                    (rc = sci_json_get_bool(r->doc, r->args, "args", "reconstruct", 0, &out->reconstruct, err)) < 0))
+        return rc;
+    out->count = (int)count;
+    out->sync = (enum sync_mode)mode;
+    if (out->sync == SYNC_MODE_CAMERA_MASTER && strcmp(cfg->camera_backend, "sim") == 0)
+        return sci_json_fail(r->doc, err, "args.sync_mode", "camera-master needs a free-running camera; the "
+                             "simulated bench supports host-master and dmd-master");
+    if ((uint64_t)out->mask_set.frames * (out->pattern_us + out->dark_us) > 60000000)
+        return sci_json_fail(r->doc, err, r->args && json_object_get(r->args, "pattern_us") ? "args.pattern_us" : "args",
+                             "%d masks of %u+%u us last longer than 60 s", out->mask_set.frames, out->pattern_us,
+                             out->dark_us);
+    return get_recon(r, r->args, "args", cfg, &out->recon, err);
+}
+
+int scicapd_args_calibrate(const scicapd_request *r, const scicapd_config *cfg, scicapd_calib_args *out,
+                           sci_error *err)
+{
+    static const char *const keys[] = {"kind", "mask_set", "pattern_us", "dark_us", "exposure_us", "average", NULL};
+    static const char *const kinds[] = {"dark", "masks", NULL};
+    memset(out, 0, sizeof *out);
+    int rc, kind = 0;
+    long long avg = 4;
+    if ((rc = args_obj(r, keys, err)) < 0)
+        return rc;
+    if (!r->args || !json_object_get(r->args, "kind"))
+        return sci_json_fail(r->doc, err, r->args ? "args" : "", "args.kind is required: \"dark\" or \"masks\"");
+    if ((rc = sci_json_get_enum(r->doc, r->args, "args", "kind", 1, kinds, &kind, err)) < 0 ||
+        (rc = get_mask_set(r, cfg, &out->mask_set, err)) < 0 ||
+        (rc = sci_json_get_int(r->doc, r->args, "args", "average", 0, 1, 64, &avg, err)) < 0)
+        return rc;
+    out->kind = (scicapd_calib_kind)kind;
+    out->average = (int)avg;
+    out->pattern_us = cfg->pattern_us;
+    out->dark_us = cfg->dark_us;
+    out->exposure_us = cfg->exposure_us;
+    if ((rc = get_u32(r, "pattern_us", 1, 10000000, &out->pattern_us, err)) < 0 ||
+        (rc = get_u32(r, "dark_us", 0, 10000000, &out->dark_us, err)) < 0 ||
+        (rc = get_u32(r, "exposure_us", 0, 60000000, &out->exposure_us, err)) < 0)
+        return rc;
+    return 0;
+}
+
+int scicapd_args_reconstruct(const scicapd_request *r, const scicapd_config *cfg, scicapd_recon_args *out,
+                             sci_error *err)
+{
+    static const char *const keys[] = {"capture", "method", "preset", "params", NULL};
+    memset(out, 0, sizeof *out);
+    const char *cap = NULL;
+    int rc;
+    if ((rc = args_obj(r, keys, err)) < 0)
+        return rc;
+    if (!r->args)
+        return sci_json_fail(r->doc, err, "", "args.capture is required (a capture id)");
+    if ((rc = sci_json_get_string(r->doc, r->args, "args", "capture", 1, &cap, err)) < 0)
+        return rc;
+    if (!cap[0] || strlen(cap) >= sizeof out->capture_id || strchr(cap, '/') || cap[0] == '.')
+        return sci_json_fail(r->doc, err, "args.capture", "not a capture id: \"%.64s\"", cap);
+    snprintf(out->capture_id, sizeof out->capture_id, "%s", cap);
+    return get_recon(r, r->args, "args", cfg, &out->spec, err);
+}
+
+int scicapd_args_cancel(const scicapd_request *r, uint64_t *job, sci_error *err)
+{
+    static const char *const keys[] = {"job", NULL};
+    long long j;
+    int rc;
+    if ((rc = args_obj(r, keys, err)) < 0)
+        return rc;
+    if (!r->args)
+        return sci_json_fail(r->doc, err, "", "args.job is required (a job number)");
+    if ((rc = sci_json_get_int(r->doc, r->args, "args", "job", 1, 1, (long long)1 << 53, &j, err)) < 0)
+        return rc;
+    *job = (uint64_t)j;
+    return 0;
+}
+
+int scicapd_args_simulate(const scicapd_request *r, scicapd_simulate_args *out, sci_error *err)
+{
+    static const char *const keys[] = {"fault", "n", NULL};
+    static const char *const faults[] = {"dmd-unplug", "dmd-replug", "camera-stall", "trigger-miss",
+                                         "acquire-delay", NULL};
+    int rc, f;
+    long long n = 0;
+    if ((rc = args_obj(r, keys, err)) < 0)
+        return rc;
+    if (!r->args)
+        return sci_json_fail(r->doc, err, "", "args.fault is required");
+    if ((rc = sci_json_get_enum(r->doc, r->args, "args", "fault", 1, faults, &f, err)) < 0 ||
+        (rc = sci_json_get_int(r->doc, r->args, "args", "n", 0, 0, 1000000, &n, err)) < 0)
+        return rc;
+    out->fault = (scicapd_fault)f;
+    out->n = (long)n;
+    return 0;
+}
+
+/* ---- encoding ---- */
+
+static char *line_of(json_t *msg)
+{
+    char *s = msg ? json_dumps(msg, JSON_COMPACT | JSON_ENSURE_ASCII) : NULL;
+    json_decref(msg);
+    if (!s)
+        return NULL;
+    size_t n = strlen(s);
+    char *out = realloc(s, n + 2);
+    if (!out) {
+        free(s);
+        return NULL;
+    }
+    out[n] = '\n';
+    out[n + 1] = '\0';
+    return out;
+}
+
+static json_t *id_or_null(const json_t *id) { return id ? json_incref((json_t *)id) : json_null(); }
+
+char *scicapd_reply_ok(const json_t *id, json_t *result)
+{
+    return line_of(json_pack("{s:i, s:o, s:b, s:o}", "v", SCICAPD_PROTOCOL_VERSION, "id", id_or_null(id), "ok", 1,
+                             "result", result ? result : json_object()));
+}
+
+char *scicapd_reply_error(const json_t *id, scicapd_errcode code, const char *message)
+{
+    return line_of(json_pack("{s:i, s:o, s:b, s:{s:s, s:s}}", "v", SCICAPD_PROTOCOL_VERSION, "id", id_or_null(id),
+                             "ok", 0, "error", "code", scicapd_errcode_name(code), "message",
+                             message && message[0] ? message : scicapd_errcode_name(code)));
+}
+
+char *scicapd_event(const char *name, uint64_t job, const json_t *id, json_t *data)
+{
+    return line_of(json_pack("{s:i, s:s, s:I, s:o, s:o}", "v", SCICAPD_PROTOCOL_VERSION, "event", name, "job",
+                             (json_int_t)job, "id", id_or_null(id), "data", data ? data : json_object()));
+}

@@ -1,0 +1,367 @@
+/* daemon/store.c — capture folders written atomically, calibrations, recovery after a crash, writer thread. */
+#include "daemon/store.h"
+
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <ftw.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "io/image.h"
+#include "io/problem_dir.h"
+
+struct scicapd_store {
+    char root[1024];
+    int fsync_on;
+    const sci_log *log;
+    pthread_mutex_t mu;
+    unsigned long next_capture, next_calib;
+    pthread_t thread;
+    int running;
+    scicapd_queue *q;
+    scicapd_stored_fn on_stored;
+    void *user;
+};
+
+static int rm_cb(const char *p, const struct stat *sb, int flag, struct FTW *ftw)
+{
+    (void)sb, (void)flag, (void)ftw;
+    return remove(p) == 0 || errno == ENOENT ? 0 : -1;
+}
+
+int scicapd_remove_tree(const char *path)
+{
+    struct stat st;
+    if (lstat(path, &st) != 0)
+        return errno == ENOENT ? 0 : -errno;
+    return nftw(path, rm_cb, 16, FTW_DEPTH | FTW_PHYS) == 0 ? 0 : -errno;
+}
+
+static int mkdir_p(const char *path, sci_error *err)
+{
+    char buf[1100];
+    snprintf(buf, sizeof buf, "%s", path);
+    for (char *p = buf + 1; *p; p++)
+        if (*p == '/') {
+            *p = '\0';
+            if (mkdir(buf, 0750) != 0 && errno != EEXIST)
+                return sci_error_set(err, -errno, "%s: cannot create folder: %s", buf, strerror(errno));
+            *p = '/';
+        }
+    if (mkdir(buf, 0750) != 0 && errno != EEXIST)
+        return sci_error_set(err, -errno, "%s: cannot create folder: %s", buf, strerror(errno));
+    return 0;
+}
+
+static int is_partial(const char *name)
+{
+    return name[0] == '.' || strstr(name, ".tmp-") || strstr(name, ".old-") || strstr(name, ".partial");
+}
+
+/* Remove partial entries of `dir`; count complete ones named <prefix>NNNNNN and track the largest number. */
+static void sweep(const char *dir, const char *prefix, unsigned long *max, int *complete, int *removed,
+                  int recurse_recon)
+{
+    DIR *d = opendir(dir);
+    if (!d)
+        return;
+    struct dirent *e;
+    size_t pl = prefix ? strlen(prefix) : 0;
+    while ((e = readdir(d))) {
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0)
+            continue;
+        char p[1400];
+        snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
+        if (is_partial(e->d_name)) {
+            if (scicapd_remove_tree(p) == 0)
+                (*removed)++;
+            continue;
+        }
+        if (prefix && strncmp(e->d_name, prefix, pl) == 0) {
+            const char *num = e->d_name + pl;
+            const char *dash = strrchr(num, '-');
+            unsigned long v = strtoul(dash ? dash + 1 : num, NULL, 10);
+            if (v > *max)
+                *max = v;
+            if (complete)
+                (*complete)++;
+        }
+        if (recurse_recon) {
+            char r[1500];
+            snprintf(r, sizeof r, "%s/recon", p);
+            unsigned long dummy = 0;
+            sweep(r, NULL, &dummy, NULL, removed, 0);
+        }
+    }
+    closedir(d);
+}
+
+int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, const sci_log *log,
+                       scicapd_store_recovery *rec, sci_error *err)
+{
+    scicapd_store *s = calloc(1, sizeof *s);
+    if (!s)
+        return sci_error_set(err, -ENOMEM, "store: out of memory");
+    snprintf(s->root, sizeof s->root, "%s", root);
+    s->fsync_on = fsync_on;
+    s->log = log;
+    pthread_mutex_init(&s->mu, NULL);
+    char caps[1100], cals[1100];
+    snprintf(caps, sizeof caps, "%s/captures", root);
+    snprintf(cals, sizeof cals, "%s/calibrations", root);
+    int rc;
+    if ((rc = mkdir_p(caps, err)) < 0 || (rc = mkdir_p(cals, err)) < 0) {
+        scicapd_store_close(s);
+        return rc;
+    }
+    scicapd_store_recovery r = {0};
+    unsigned long maxc = 0, maxk = 0;
+    sweep(caps, "c", &maxc, &r.captures, &r.removed, 1);
+    sweep(cals, "dark-", &maxk, NULL, &r.removed, 0);
+    sweep(cals, "masks-", &maxk, NULL, &r.removed, 0);
+    s->next_capture = maxc + 1;
+    s->next_calib = maxk + 1;
+    if (rec)
+        *rec = r;
+    *out = s;
+    return 0;
+}
+
+void scicapd_store_close(scicapd_store *s)
+{
+    if (!s)
+        return;
+    pthread_mutex_destroy(&s->mu);
+    free(s);
+}
+
+const char *scicapd_store_root(const scicapd_store *s) { return s->root; }
+
+void scicapd_snapshot_free(scicapd_jobs *jobs, scicapd_snapshot *s)
+{
+    if (!s)
+        return;
+    if (s->job)
+        scicapd_job_unref(jobs, s->job);
+    sci_problem_free(s->problem);
+    sci_cube_free(s->raw);
+    sci_cube_free(s->dmd_masks);
+    sci_cube_free(s->dark);
+    json_decref(s->meta);
+    json_decref(s->calibration);
+    free(s);
+}
+
+static int fsync_path(const char *p)
+{
+    int fd = open(p, O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+        return -errno;
+    int rc = fsync(fd) == 0 ? 0 : -errno;
+    close(fd);
+    return rc;
+}
+
+static int fsync_cb(const char *p, const struct stat *sb, int flag, struct FTW *ftw)
+{
+    (void)sb, (void)ftw;
+    return (flag == FTW_F || flag == FTW_DP || flag == FTW_D) ? (fsync_path(p) < 0 ? -1 : 0) : 0;
+}
+
+static int write_json(const char *path, const json_t *j, sci_error *err)
+{
+    if (json_dump_file(j, path, JSON_INDENT(2) | JSON_SORT_KEYS) != 0)
+        return sci_error_set(err, -EIO, "%s: cannot write", path);
+    return 0;
+}
+
+/* Rename tmp to final after syncing it; then sync the parent. */
+static int publish(scicapd_store *st, const char *tmp, const char *final, const char *parent, sci_error *err)
+{
+    if (st->fsync_on && nftw(tmp, fsync_cb, 16, FTW_PHYS) != 0)
+        return sci_error_set(err, -EIO, "%s: fsync failed: %s", tmp, strerror(errno));
+    if (rename(tmp, final) != 0)
+        return sci_error_set(err, -errno, "%s: cannot rename to %s: %s", tmp, final, strerror(errno));
+    if (st->fsync_on)
+        fsync_path(parent);
+    return 0;
+}
+
+int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_error *err)
+{
+    pthread_mutex_lock(&st->mu);
+    unsigned long n = st->next_capture++;
+    pthread_mutex_unlock(&st->mu);
+    snprintf(s->capture_id, sizeof s->capture_id, "c%06lu", n);
+    char parent[1100], tmp[1200], path[1400];
+    snprintf(parent, sizeof parent, "%s/captures", st->root);
+    snprintf(tmp, sizeof tmp, "%s/.%s.partial", parent, s->capture_id);
+    snprintf(s->dir, sizeof s->dir, "%s/%s", parent, s->capture_id);
+    snprintf(s->problem->name, sizeof s->problem->name, "%s", s->capture_id);
+    json_object_set_new(s->meta, "capture_id", json_string(s->capture_id));
+    json_t *source = json_pack("{s:s, s:s}", "kind", "scicapd-capture", "capture_id", s->capture_id);
+    sci_problem *p = s->problem;
+    int rc = sci_problem_dir_write(tmp, &p, 1, source, 0, err);
+    json_decref(source);
+    if (rc < 0)
+        goto fail;
+    snprintf(path, sizeof path, "%s/raw.tif", tmp);
+    if ((rc = sci_image_write(path, s->raw, 0, SCI_PIXEL_U16, 1.0, "scicap raw snapshot (counts)", err)) < 0)
+        goto fail;
+    if ((rc = sci_stack_write(tmp, "dmd_mask", "png", s->dmd_masks, SCI_PIXEL_U8, 255.0, NULL, err)) < 0)
+        goto fail;
+    if (s->dark) {
+        snprintf(path, sizeof path, "%s/dark.tif", tmp);
+        if ((rc = sci_image_write(path, s->dark, 0, SCI_PIXEL_U16, 1.0, "scicap dark frame (counts)", err)) < 0)
+            goto fail;
+    }
+    json_t *cal = s->calibration ? json_incref(s->calibration) : json_pack("{s:s}", "kind", "none");
+    snprintf(path, sizeof path, "%s/calibration.json", tmp);
+    rc = write_json(path, cal, err);
+    json_decref(cal);
+    if (rc < 0)
+        goto fail;
+    snprintf(path, sizeof path, "%s/meta.json", tmp);
+    if ((rc = write_json(path, s->meta, err)) < 0 || (rc = publish(st, tmp, s->dir, parent, err)) < 0)
+        goto fail;
+    return 0;
+fail:
+    scicapd_remove_tree(tmp);
+    sci_error_prefix(err, "capture %s: ", s->capture_id);
+    return rc;
+}
+
+int scicapd_store_capture_dir(const scicapd_store *st, const char *id, char *buf, size_t n, sci_error *err)
+{
+    struct stat sb;
+    if (!id[0] || strchr(id, '/') || id[0] == '.')
+        return sci_error_set(err, -ENOENT, "no capture \"%s\"", id);
+    snprintf(buf, n, "%s/captures/%s", st->root, id);
+    char pj[1400];
+    snprintf(pj, sizeof pj, "%s/problem.json", buf);
+    if (stat(pj, &sb) != 0)
+        return sci_error_set(err, -ENOENT, "no capture \"%s\" in %s/captures", id, st->root);
+    return 0;
+}
+
+int scicapd_store_write_calibration(scicapd_store *st, const char *key, const sci_cube *data, const json_t *record,
+                                    json_t **record_out, sci_error *err)
+{
+    pthread_mutex_lock(&st->mu);
+    unsigned long n = st->next_calib++;
+    pthread_mutex_unlock(&st->mu);
+    char parent[1100], id[128], tmp[1300], final[1300], path[1400];
+    snprintf(parent, sizeof parent, "%s/calibrations", st->root);
+    snprintf(id, sizeof id, "%s-%06lu", key, n);
+    snprintf(tmp, sizeof tmp, "%s/.%s.partial", parent, id);
+    snprintf(final, sizeof final, "%s/%s", parent, id);
+    json_t *rec = json_deep_copy(record);
+    json_object_set_new(rec, "id", json_string(id));
+    json_object_set_new(rec, "folder", json_string(final));
+    int rc;
+    if ((rc = mkdir_p(tmp, err)) < 0)
+        goto fail;
+    if (strcmp(key, "dark") == 0) {
+        snprintf(path, sizeof path, "%s/dark.tif", tmp);
+        rc = sci_image_write(path, data, 0, SCI_PIXEL_U16, 1.0, "scicap dark frame (counts)", err);
+    } else {
+        rc = sci_stack_write(tmp, "mask", "exr", data, SCI_PIXEL_F32, 1.0, NULL, err);
+    }
+    if (rc < 0)
+        goto fail;
+    snprintf(path, sizeof path, "%s/calibration.json", tmp);
+    if ((rc = write_json(path, rec, err)) < 0 || (rc = publish(st, tmp, final, parent, err)) < 0)
+        goto fail;
+    /* the pointer: written beside and renamed over the old one */
+    char ptr[1300], ptmp[1400];
+    snprintf(ptr, sizeof ptr, "%s/%s.json", parent, key);
+    snprintf(ptmp, sizeof ptmp, "%s/.%s.json.tmp-%d", parent, key, (int)getpid());
+    if ((rc = write_json(ptmp, rec, err)) < 0)
+        goto fail;
+    if (st->fsync_on)
+        fsync_path(ptmp);
+    if (rename(ptmp, ptr) != 0) {
+        rc = sci_error_set(err, -errno, "%s: cannot rename: %s", ptr, strerror(errno));
+        unlink(ptmp);
+        goto fail;
+    }
+    if (record_out)
+        *record_out = rec;
+    else
+        json_decref(rec);
+    return 0;
+fail:
+    json_decref(rec);
+    scicapd_remove_tree(tmp);
+    return rc;
+}
+
+int scicapd_store_load_calibration(scicapd_store *st, const char *key, sci_cube **data, json_t **record,
+                                   sci_error *err)
+{
+    char ptr[1300], path[1400];
+    snprintf(ptr, sizeof ptr, "%s/calibrations/%s.json", st->root, key);
+    json_error_t je;
+    json_t *rec = json_load_file(ptr, 0, &je);
+    if (!rec)
+        return access(ptr, F_OK) == 0 ? sci_error_set(err, SCI_EFORMAT, "%s: %s", ptr, je.text)
+                                      : sci_error_set(err, -ENOENT, "no %s calibration", key);
+    const char *folder = json_string_value(json_object_get(rec, "folder"));
+    int rc;
+    if (!folder) {
+        rc = sci_error_set(err, SCI_EFORMAT, "%s: no \"folder\"", ptr);
+        goto fail;
+    }
+    int bits;
+    if (strcmp(key, "dark") == 0) {
+        snprintf(path, sizeof path, "%s/dark.tif", folder);
+        rc = sci_image_read(path, data, &bits, err);
+    } else {
+        snprintf(path, sizeof path, "%s/mask.json", folder);
+        rc = sci_stack_read(path, data, NULL, err);
+    }
+    if (rc < 0)
+        goto fail;
+    *record = rec;
+    return 0;
+fail:
+    json_decref(rec);
+    return rc;
+}
+
+static void *writer_main(void *arg)
+{
+    scicapd_store *st = arg;
+    scicapd_snapshot *s;
+    while ((s = scicapd_queue_pop(st->q, -1))) {
+        sci_error err = {0};
+        int rc = scicapd_store_write_capture(st, s, &err);
+        st->on_stored(st->user, s, rc, &err);
+    }
+    return NULL;
+}
+
+int scicapd_store_start(scicapd_store *st, scicapd_queue *q, scicapd_stored_fn on_stored, void *user, sci_error *err)
+{
+    st->q = q;
+    st->on_stored = on_stored;
+    st->user = user;
+    int rc = pthread_create(&st->thread, NULL, writer_main, st);
+    if (rc != 0)
+        return sci_error_set(err, -rc, "store: cannot start the writer thread: %s", strerror(rc));
+    st->running = 1;
+    return 0;
+}
+
+void scicapd_store_stop(scicapd_store *st)
+{
+    if (st && st->running) {
+        pthread_join(st->thread, NULL);
+        st->running = 0;
+    }
+}

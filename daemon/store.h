@@ -1,0 +1,86 @@
+/* daemon/store.h — the storage root: capture folders, calibrations, crash recovery, and the writer thread.
+ *
+ *     ROOT/captures/c000042/          one snapshot (docs/capture-folder.md): a problem folder (io/problem_dir.h:
+ *                                     problem.json, meas_*.exr, mask_*.exr, truth_*.exr on the simulator) plus
+ *                                     raw.tif (16-bit counts), dmd_mask_*.png (the masks shown), dark.tif and
+ *                                     calibration.json (the calibration used), meta.json, and recon/<method>/
+ *     ROOT/calibrations/dark-000003/  a dark frame (dark.tif + calibration.json)
+ *     ROOT/calibrations/masks-random8-000004/  measured masks (mask_*.exr stack + calibration.json)
+ *     ROOT/calibrations/dark.json, masks-random8.json   which calibration is current (replaced atomically)
+ *
+ * Atomicity: a capture is written under ROOT/captures/.c000042.partial and renamed when complete (after fsync
+ * of every file and of the folder when fsync is on); only then is it announced. A kill -9 leaves at most a
+ * dot-named partial folder or a *.tmp-<pid> folder, which scicapd_store_open removes: a reader never sees half a
+ * capture, and every announced capture survives.
+ * Capture ids are c000001, c000002, ...; numbering continues after the largest id found at open.
+ * The writer thread takes snapshots from a bounded queue and calls on_stored for each (success or failure).
+ * Thread-safe: ids are allocated under a lock; folders are written by one thread each.
+ */
+#ifndef SCICAP_DAEMON_STORE_H
+#define SCICAP_DAEMON_STORE_H
+
+#include <jansson.h>
+#include <stdint.h>
+
+#include "base/log.h"
+#include "daemon/jobs.h"
+#include "daemon/queue.h"
+#include "recon/problem.h"
+
+typedef struct scicapd_store scicapd_store;
+
+/* What the acquisition thread hands to the writer. Everything is owned by the snapshot. */
+typedef struct scicapd_snapshot {
+    scicapd_job *job;        /* reference (released by scicapd_snapshot_free through the jobs table) */
+    int index;               /* 0-based snapshot of the job */
+    sci_problem *problem;    /* meas in calibrated units, the masks used, truth on the simulator */
+    sci_cube *raw;           /* counts, w×h×1 */
+    sci_cube *dmd_masks;     /* as shown on the DMD (0/1) */
+    sci_cube *dark;          /* dark frame subtracted (counts), or NULL */
+    json_t *meta;            /* settings, identities, timestamps, sync report */
+    json_t *calibration;     /* the calibration record used, or NULL */
+    int broken;              /* sync report says broken (stored, flagged in meta.json) */
+    char capture_id[32];     /* set by the store */
+    char dir[1100];          /* final folder, set by the store */
+} scicapd_snapshot;
+
+void scicapd_snapshot_free(scicapd_jobs *jobs, scicapd_snapshot *s);
+
+typedef struct scicapd_store_recovery {
+    int captures;            /* complete captures found */
+    int removed;             /* partial folders removed */
+} scicapd_store_recovery;
+
+/* Create ROOT/captures and ROOT/calibrations if needed, remove partial outputs of a previous run, find the
+ * next capture id. Errors: -errno naming the folder. */
+int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, const sci_log *log,
+                       scicapd_store_recovery *rec, sci_error *err);
+void scicapd_store_close(scicapd_store *s);
+const char *scicapd_store_root(const scicapd_store *s);
+
+/* Write one snapshot as a capture folder (assigns s->capture_id and s->dir). Blocks on file I/O. */
+int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_error *err);
+/* ROOT/captures/<id> into buf if it is a complete capture; -ENOENT otherwise. */
+int scicapd_store_capture_dir(const scicapd_store *st, const char *id, char *buf, size_t n, sci_error *err);
+
+/* Write a calibration folder (kind "dark": `data` is the dark frame in counts; "masks": the measured mask
+ * stack) and make it current for `key` ("dark" or "masks-<set>"). `record` is stored as calibration.json with
+ * "folder" and "id" added; *record_out (may be NULL) receives a new reference to the final record. */
+int scicapd_store_write_calibration(scicapd_store *st, const char *key, const sci_cube *data, const json_t *record,
+                                    json_t **record_out, sci_error *err);
+/* Load the current calibration for `key`: *data (counts for dark, the measured masks for masks) and *record.
+ * -ENOENT when there is none. */
+int scicapd_store_load_calibration(scicapd_store *st, const char *key, sci_cube **data, json_t **record,
+                                   sci_error *err);
+
+/* The writer thread: pops snapshots from q until it is closed and empty, writes each, then calls on_stored
+ * (on the writer thread) with rc and err; on_stored takes ownership of the snapshot. */
+typedef void (*scicapd_stored_fn)(void *user, scicapd_snapshot *s, int rc, const sci_error *err);
+int scicapd_store_start(scicapd_store *st, scicapd_queue *q, scicapd_stored_fn on_stored, void *user, sci_error *err);
+/* Waits for the queue (closed by the caller) to drain and the thread to end. */
+void scicapd_store_stop(scicapd_store *st);
+
+/* rm -rf `path` (no symlinks followed). 0 or -errno. */
+int scicapd_remove_tree(const char *path);
+
+#endif

@@ -1,0 +1,37 @@
+/* daemon/workers.h — the reconstruction worker pool.
+ *
+ * Each worker pops a reconstruct job, reads the capture folder as a problem (io/problem_dir.h), runs the solver
+ * (recon/gaptv.h, recon/admmtv.h) with a progress callback that updates the job, streams "recon.progress" events
+ * (iteration, PSNR when the truth is known, ETA; at most every 100 ms plus the last iteration) and stops at once
+ * when the job is canceled or the pool is stopping. A finished run is written to <capture>/recon/<method>/
+ * atomically (io/recon_store.h); a canceled or failed run writes nothing.
+ * Threads: `count` POSIX threads, each running OpenMP with `omp_threads` threads (0: OpenMP's default).
+ */
+#ifndef SCICAP_DAEMON_WORKERS_H
+#define SCICAP_DAEMON_WORKERS_H
+
+#include "base/log.h"
+#include "daemon/jobs.h"
+#include "daemon/mailbox.h"
+#include "daemon/queue.h"
+#include "daemon/store.h"
+
+typedef struct scicapd_workers scicapd_workers;
+
+typedef struct scicapd_workers_env {
+    scicapd_jobs *jobs;   /* borrowed */
+    scicapd_mailbox *mailbox;
+    scicapd_store *store;
+    scicapd_queue *in;    /* reconstruct jobs (references) */
+    const sci_log *log;
+} scicapd_workers_env;
+
+int scicapd_workers_start(scicapd_workers **out, const scicapd_workers_env *env, int count, int omp_threads,
+                          sci_error *err);
+/* Cancel running reconstructions, cancel what is queued (each announced), join the threads, free. The caller
+ * closes env->in first. NULL is harmless. */
+void scicapd_workers_stop(scicapd_workers *w);
+/* Workers busy right now. */
+int scicapd_workers_busy(scicapd_workers *w);
+
+#endif
