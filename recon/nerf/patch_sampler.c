@@ -1,0 +1,77 @@
+#include "recon/nerf/patch_sampler.h"
+
+#include <math.h>
+
+void nerf_patch_pixels(int x0, int y0, int pw, int ph, int *px, int *py)
+{
+    for (int y = 0; y < ph; y++)
+        for (int x = 0; x < pw; x++) {
+            px[y * pw + x] = x0 + x;
+            py[y * pw + x] = y0 + y;
+        }
+}
+
+void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, double near,
+                      double far, sci_rng *jitter, float *pcam, float *dcam, float *delta)
+{
+    const double step = (far - near) / L;
+    for (int r = 0; r < n_rays; r++) {
+        double d[3] = {(px[r] + 0.5 - cam->cx) / cam->fx, -(py[r] + 0.5 - cam->cy) / cam->fy, -1.0};
+        double norm = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        for (int c = 0; c < 3; c++)
+            dcam[3 * r + c] = (float)(d[c] / norm);
+        for (int s = 0; s < L; s++) {
+            double u = jitter ? sci_rng_uniform(jitter) : 0.5;
+            double t = near + (s + u) * step;
+            size_t k = (size_t)r * L + s;
+            for (int c = 0; c < 3; c++)
+                pcam[3 * k + c] = (float)(d[c] * t);
+            delta[k] = (float)(step * norm);
+        }
+    }
+}
+
+void nerf_rays_to_world(const double T[12], int n_rays, int L, const float *pcam, const float *dcam, float *pos,
+                        float *dir)
+{
+    size_t np = (size_t)n_rays * L;
+    for (size_t k = 0; k < np; k++) {
+        const float *p = pcam + 3 * k;
+        for (int r = 0; r < 3; r++)
+            pos[3 * k + r] = (float)(T[4 * r] * p[0] + T[4 * r + 1] * p[1] + T[4 * r + 2] * p[2] + T[4 * r + 3]);
+    }
+    for (int k = 0; k < n_rays; k++) {
+        const float *p = dcam + 3 * k;
+        for (int r = 0; r < 3; r++)
+            dir[3 * k + r] = (float)(T[4 * r] * p[0] + T[4 * r + 1] * p[1] + T[4 * r + 2] * p[2]);
+    }
+}
+
+void nerf_rays_bounds(const sci_camera *cam, int w, int h, const double (*poses)[12], int n, double near, double far,
+                      double pad, float lo[3], float hi[3])
+{
+    double mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
+    const double cx[2] = {0, w}, cy[2] = {0, h}, depth[2] = {near, far};
+    for (int j = 0; j < n; j++) {
+        const double *T = poses[j];
+        for (int c = 0; c < 9; c++) {
+            double p[3] = {0, 0, 0};
+            if (c < 8) {
+                double t = depth[c >> 2];
+                p[0] = (cx[c & 1] - cam->cx) / cam->fx * t;
+                p[1] = -(cy[(c >> 1) & 1] - cam->cy) / cam->fy * t;
+                p[2] = -t;
+            }
+            for (int r = 0; r < 3; r++) {
+                double v = T[4 * r] * p[0] + T[4 * r + 1] * p[1] + T[4 * r + 2] * p[2] + T[4 * r + 3];
+                mn[r] = fmin(mn[r], v);
+                mx[r] = fmax(mx[r], v);
+            }
+        }
+    }
+    for (int r = 0; r < 3; r++) {
+        double ext = fmax(mx[r] - mn[r], 1e-3);
+        lo[r] = (float)(mn[r] - pad * ext);
+        hi[r] = (float)(mx[r] + pad * ext);
+    }
+}

@@ -1,0 +1,32 @@
+/* recon/nerf/patch_sampler.h — rays of pixel patches (RayFormer's patch-level sampling) or of scattered pixels.
+ *
+ * A patch is pw × ph pixels whose top-left pixel is (x0, y0); ray r = y·pw + x sees pixel (x0 + x, y0 + y). A
+ * "scattered" patch has the same shape but its rays are arbitrary pixels (the random-ray baseline: the network still
+ * sees pw·ph rays at a time). Samples along a ray lie at depths t_s = near + (s + u_s)·(far − near)/L along −z in the
+ * camera frame, u_s = 0.5 at inference and U(0, 1) (stratified jitter) in training; δ_s = (far − near)/L·‖d‖
+ * with d = ((px + 0.5 − cx)/fx, −(py + 0.5 − cy)/fy, −1) the pixel's camera-frame direction (problem.h).
+ *
+ * The camera-frame arrays do not depend on the pose, so one fill serves all N poses of a snapshot; the world-frame
+ * positions and unit directions come from nerf_patch_to_world. Pure functions: reentrant.
+ */
+#ifndef SCICAP_RECON_NERF_PATCH_SAMPLER_H
+#define SCICAP_RECON_NERF_PATCH_SAMPLER_H
+
+#include "base/rng.h"
+#include "recon/problem.h"
+
+/* Camera-frame rays of n_rays pixels (px[r], py[r]) with L samples: pcam n_rays×L×3 (points), dcam n_rays×3 (unit
+ * directions), delta n_rays×L. jitter NULL: midpoints. */
+void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, double near,
+                      double far, sci_rng *jitter, float *pcam, float *dcam, float *delta);
+/* Pixels of a patch: px, py (pw·ph each) for the patch at (x0, y0). */
+void nerf_patch_pixels(int x0, int y0, int pw, int ph, int *px, int *py);
+/* World frame under camera-to-world pose T: pos = R·pcam + t (n_rays·L points), dir = R·dcam (n_rays). */
+void nerf_rays_to_world(const double T[12], int n_rays, int L, const float *pcam, const float *dcam, float *pos,
+                        float *dir);
+/* Axis-aligned box holding every sample of every pose (camera centres and the frustum corners at near and far),
+ * grown by `pad` (fraction of each side). */
+void nerf_rays_bounds(const sci_camera *cam, int w, int h, const double (*poses)[12], int n, double near, double far,
+                      double pad, float lo[3], float hi[3]);
+
+#endif

@@ -1,0 +1,55 @@
+/* recon/nerf/rayformer_solve.h — `scicap recon --method rayformer`: train a RayFormer radiance field (rayformer.h)
+ * on one SCI snapshot of a static scene seen by a moving camera, then render the N frames (rayformer.tex).
+ *
+ * Each training step picks B patch locations (overlapping windows: any top-left pixel), renders each of them from
+ * all N poses (N·B network patches), and minimises
+ *     loss = (1/P)·Σ_p (Y_p − Σ_i M_i,p·C_i,p)² + λ·mean TV(C over the rendered patches)
+ * with P = B·pw·ph measured pixels; C is the grey value = mean of the network's three colour channels (the problem
+ * is monochrome). Adam on the network (hash table lazy), learning rate decayed exponentially from lr to lr_final.
+ * Poses: known (problem->camera, fixed), or optimised jointly (start/end on SE(3), or per frame; poses.h).
+ * At the end the N frames are rendered window-wise (non-overlapping patches; the last row and column of patches
+ * shifted inside the image) at sample midpoints into result->frames.
+ *
+ * Trace: every step gets loss and the residual ‖Y − Ŷ‖/‖Y‖ *over the trained patches*; every metrics_every steps (and
+ * at the last) the full N frames are rendered for PSNR/SSIM; that intermediate render is excluded from wall time
+ * like the tracer's own metrics; the final render counts.
+ * Contract as gaptv.h: validates, fills result->frames and trace, returns 0, SCI_ECANCELED (frames = the model
+ * rendered at that point), SCI_EDIVERGED (no frames), or an error with its message in result->error. Needs
+ * problem->camera. Blocks; OpenMP; deterministic for a given seed and thread count.
+ */
+#ifndef SCICAP_RECON_NERF_RAYFORMER_SOLVE_H
+#define SCICAP_RECON_NERF_RAYFORMER_SOLVE_H
+
+#include "recon/nerf/poses.h"
+#include "recon/problem.h"
+
+typedef struct sci_rayformer_params {
+    int iters;                   /* training steps, >= 1 */
+    int patch;                   /* patch side: 2, 4, 8 or 16 (paper: 8) */
+    int patches_per_step;        /* B, patch locations per step, each rendered from all N poses */
+    int samples;                 /* L, samples per ray (paper: 32) */
+    int log2_table;              /* hash table entries per level, log2 (10 … 24) */
+    double finest_res;           /* finest hash-grid resolution (the coarsest is 16) */
+    double lr, lr_final;         /* network learning rate, decayed exponentially over the steps */
+    double tv_weight;            /* λ of the TV term (0: off) */
+    double tv_eps;               /* Charbonnier ε of the TV term (0: plain |d|) */
+    int patch_sampling;          /* 1: patches; 0: scattered random rays in groups of patch² (ablation baseline) */
+    nerf_poses_mode pose_mode;   /* KNOWN: problem->camera poses; LINEAR / PER_FRAME: optimised */
+    int pose_init_identity;      /* optimised poses start from the identity (SCINeRF) instead of the camera's */
+    double pose_perturb_rot_rad; /* perturbation added to the initial twists (U(±a) per component) */
+    double pose_perturb_trans;   /* scene units */
+    double pose_lr;              /* pose Adam learning rate */
+    int metrics_every;           /* full render for PSNR every k steps (0: only at the end) */
+    int ssim_every;              /* SSIM on those renders every k steps (0: only at the end) */
+    unsigned long long seed;
+    int threads;                 /* OpenMP threads for the network, 0: omp_get_max_threads() */
+} sci_rayformer_params;
+
+void sci_rayformer_params_default(sci_rayformer_params *p);
+/* -EINVAL with a message naming the parameter and its value. */
+int sci_rayformer_params_check(const sci_rayformer_params *p, sci_error *err);
+
+int sci_rayformer_solve(const sci_problem *problem, const sci_rayformer_params *params, sci_result *result,
+                        sci_progress_fn progress, void *user);
+
+#endif
