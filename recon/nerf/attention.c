@@ -5,12 +5,12 @@
  * keys as scalars broadcast from their rows: the scores, the running max, the exponentials, the normaliser and
  * the d output channels are all lane-wise, so no horizontal sum is ever taken and the d accumulators stay in
  * registers (d = 8 for the default network is a compile-time constant in its own specialisation).
- * The backward runs two such sweeps, both recomputing the probabilities from the saved lse:
- *   query lanes: dq_i = scale·Σ_j ds_ij k_j,
- *   key lanes:   dk_j = scale·Σ_i ds_ij q_i,  dv_j = Σ_i p_ij do_i,
- * with ds_ij = p_ij (dp_ij − D_i), dp_ij = do_i·v_j, D_i = do_i·o_i. Both sweeps form the score as
- * Σ_c (q_ic·scale)·k_jc in the same order as the forward, so p is bitwise the forward's.
- * Cost per (query, key) pair and head: forward ≈ 2d + 20 lane-operations / 16, backward ≈ 2.5× that.
+ * The backward recomputes the probabilities from the saved lse in the same query-lane sweep (the score is
+ * Σ_c (q_ic·scale)·k_jc in the forward's order, so p is bitwise the forward's) and gets
+ *   dq_i = scale·Σ_j ds_ij k_j                 in the query lanes, and, from the 16 × n blocks of p and ds it
+ *   dk_j = scale·Σ_i ds_ij q_i, dv_j = Σ_i p_ij do_i    leaves in scratch, with the d channels in the lanes,
+ * with ds_ij = p_ij (dp_ij − D_i), dp_ij = do_i·v_j, D_i = do_i·o_i.
+ * Cost per (query, key) pair and head: forward ≈ 2d + 20 lane-operations / 16, backward ≈ 2× that.
  * No FMA contraction under -std=c11 and a fixed summation order: results do not depend on the clone that runs
  * except for the vector width, which does not change any sum (all sums run over keys or queries in order).
  */
@@ -42,6 +42,14 @@ INLINE vf vload(const float *p)
     return v;
 }
 INLINE void vstore(float *p, vf v) { memcpy(p, &v, sizeof v); }
+typedef float v8 __attribute__((vector_size(32)));
+INLINE v8 v8load(const float *p)
+{
+    v8 v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+INLINE void v8store(float *p, v8 v) { memcpy(p, &v, sizeof v); }
 INLINE vf vsplat(float x) { return (vf){0} + x; }
 INLINE vf vsel(vi m, vf a, vf b) { return (vf)(((vi)a & m) | ((vi)b & ~m)); }
 INLINE vf vmax(vf a, vf b) { return vsel(a > b, a, b); }
@@ -74,7 +82,8 @@ size_t nerf_i2r_scratch_floats(const nerf_i2r_shape *s)
 {
     int n = s->L > s->R ? s->L : s->R, np = padded(n);
     int d = s->C / (2 * s->heads);
-    return (size_t)(4 * d + 2) * np + (size_t)n * (d + VW) + 64;
+    /* backward: Qt, Gt (d·np each), Dq, Lq (np), Qc, Gc (np·d), dK, dV (n·d), Pb, Sb (n·VW) */
+    return (size_t)(4 * d + 2) * np + (size_t)n * (2 * d + 2 * VW) + 64;
 }
 
 /* A group: n tokens, token j at row base + j·stride; one head at channel offset c0, width d. */
@@ -143,23 +152,23 @@ INLINE void group_backward(const grp *g, const int d, const float *qkv, int ldq,
 {
     const int n = g->n, np = padded(n), C = g->C, c0 = g->c0;
     const float scale = 1.0f / sqrtf((float)d);
-    float *Qt = scr, *Kt = Qt + (size_t)d * np, *Vt = Kt + (size_t)d * np, *Gt = Vt + (size_t)d * np;
-    float *Dq = Gt + (size_t)d * np, *Lq = Dq + np, *Qs = Lq + np;
+    float *Qt = scr, *Gt = Qt + (size_t)d * np, *Dq = Gt + (size_t)d * np, *Lq = Dq + np;
+    float *Qc = Lq + np, *Gc = Qc + (size_t)np * d, *dK = Gc + (size_t)np * d, *dV = dK + (size_t)n * d;
+    float *Pb = dV + (size_t)n * d, *Sb = Pb + (size_t)n * VW;
     gather_t(g, d, np, qkv, ldq, c0, scale, Qt);
-    gather_t(g, d, np, qkv, ldq, C + c0, 1.0f, Kt);
-    gather_t(g, d, np, qkv, ldq, 2 * C + c0, 1.0f, Vt);
     gather_t(g, d, np, dout, lddo, c0, 1.0f, Gt);
     for (int i = 0; i < np; i++) Dq[i] = 0.0f, Lq[i] = 0.0f;
     for (int i = 0; i < n; i++) {
         size_t ri = row_of(g, i);
         const float *oi = o + ri * ldo + c0, *gi = dout + ri * lddo + c0, *qi = qkv + ri * ldq + c0;
         float D = 0.0f;
-        for (int c = 0; c < d; c++) D += gi[c] * oi[c], Qs[(size_t)i * d + c] = qi[c] * scale;
+        for (int c = 0; c < d; c++) D += gi[c] * oi[c], Qc[(size_t)i * d + c] = qi[c], Gc[(size_t)i * d + c] = gi[c];
         Dq[i] = D;
         Lq[i] = lse[ri * lse_ld + lse_col];
     }
-    /* query lanes: dq */
+    memset(dK, 0, 2 * (size_t)n * d * sizeof *dK);
     for (int b = 0; b < np; b += VW) {
+        /* query lanes: p and ds for 16 queries against every key; dq in registers */
         vf q[MAXD], gq[MAXD], dq[MAXD];
         for (int c = 0; c < d; c++)
             q[c] = vload(Qt + (size_t)c * np + b), gq[c] = vload(Gt + (size_t)c * np + b), dq[c] = vsplat(0.0f);
@@ -171,6 +180,8 @@ INLINE void group_backward(const grp *g, const int d, const float *qkv, int ldq,
             vf p = vexp(s - Lv);
             vf ds = p * (dp - Dv);
             for (int c = 0; c < d; c++) dq[c] += ds * k[c];
+            vstore(Pb + (size_t)j * VW, p);
+            vstore(Sb + (size_t)j * VW, ds);
         }
         float ob[MAXD][VW];
         for (int c = 0; c < d; c++) vstore(ob[c], dq[c] * scale);
@@ -179,30 +190,34 @@ INLINE void group_backward(const grp *g, const int d, const float *qkv, int ldq,
             float *r = dqkv + row_of(g, b + t) * ldd + c0;
             for (int c = 0; c < d; c++) r[c] = ob[c][t];
         }
+        /* channel lanes: dk_j += Σ_t ds_tj q_t, dv_j += Σ_t p_tj do_t over this block's queries in order (d-wide
+         * vectors, no horizontal sum; the sum over queries keeps the query order) */
+        const float *qb = Qc + (size_t)b * d, *gb = Gc + (size_t)b * d;
+        if (d == 8) {
+            v8 qv[VW], gv[VW];
+            for (int t = 0; t < nt; t++) qv[t] = v8load(qb + 8 * t), gv[t] = v8load(gb + 8 * t);
+            for (int j = 0; j < n; j++) {
+                const float *sj = Sb + (size_t)j * VW, *pj = Pb + (size_t)j * VW;
+                v8 ak = v8load(dK + 8 * (size_t)j), av = v8load(dV + 8 * (size_t)j);
+                for (int t = 0; t < nt; t++) ak += sj[t] * qv[t], av += pj[t] * gv[t];
+                v8store(dK + 8 * (size_t)j, ak), v8store(dV + 8 * (size_t)j, av);
+            }
+        } else {
+            for (int j = 0; j < n; j++) {
+                float ak[MAXD], av[MAXD];
+                const float *sj = Sb + (size_t)j * VW, *pj = Pb + (size_t)j * VW;
+                for (int c = 0; c < d; c++) ak[c] = dK[(size_t)j * d + c], av[c] = dV[(size_t)j * d + c];
+                for (int t = 0; t < nt; t++) {
+                    const float st = sj[t], pt = pj[t], *qt = qb + (size_t)t * d, *gt = gb + (size_t)t * d;
+                    for (int c = 0; c < d; c++) ak[c] += st * qt[c], av[c] += pt * gt[c];
+                }
+                for (int c = 0; c < d; c++) dK[(size_t)j * d + c] = ak[c], dV[(size_t)j * d + c] = av[c];
+            }
+        }
     }
-    /* key lanes: dk, dv */
-    for (int b = 0; b < np; b += VW) {
-        vf k[MAXD], v[MAXD], dk[MAXD], dv[MAXD];
-        for (int c = 0; c < d; c++) {
-            k[c] = vload(Kt + (size_t)c * np + b), v[c] = vload(Vt + (size_t)c * np + b);
-            dk[c] = vsplat(0.0f), dv[c] = vsplat(0.0f);
-        }
-        for (int i = 0; i < n; i++) {
-            size_t ri = row_of(g, i);
-            const float *qs = Qs + (size_t)i * d, *qi = qkv + ri * ldq + c0, *gi = dout + ri * lddo + c0;
-            vf s = qs[0] * k[0], dp = gi[0] * v[0];
-            for (int c = 1; c < d; c++) s += qs[c] * k[c], dp += gi[c] * v[c];
-            vf p = vexp(s - Lq[i]);
-            vf ds = p * (dp - Dq[i]);
-            for (int c = 0; c < d; c++) dk[c] += ds * qi[c], dv[c] += p * gi[c];
-        }
-        float kb[MAXD][VW], vb[MAXD][VW];
-        for (int c = 0; c < d; c++) vstore(kb[c], dk[c] * scale), vstore(vb[c], dv[c]);
-        int nt = n - b < VW ? n - b : VW;
-        for (int t = 0; t < nt; t++) {
-            float *r = dqkv + row_of(g, b + t) * ldd;
-            for (int c = 0; c < d; c++) r[C + c0 + c] = kb[c][t], r[2 * C + c0 + c] = vb[c][t];
-        }
+    for (int j = 0; j < n; j++) {
+        float *r = dqkv + row_of(g, j) * ldd;
+        for (int c = 0; c < d; c++) r[C + c0 + c] = dK[(size_t)j * d + c] * scale, r[2 * C + c0 + c] = dV[(size_t)j * d + c];
     }
 }
 
