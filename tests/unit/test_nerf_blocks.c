@@ -447,11 +447,10 @@ static double att_loss(void *c)
     return L;
 }
 
-static void att_check(double logit_scale, const char *what)
+static void att_check_shape(nerf_i2r_shape sh, int P, double logit_scale, const char *what)
 {
-    nerf_i2r_shape sh = {.C = 8, .heads = 2, .L = 5, .R = 6};
-    const int P = 2, N = P * sh.R * sh.L, C = sh.C;
-    float *qkv = malloc((size_t)N * 3 * C * 4), *o = malloc((size_t)N * C * 4), *lse = malloc((size_t)N * 4 * 4);
+    const int N = P * sh.R * sh.L, C = sh.C;
+    float *qkv = malloc((size_t)N * 3 * C * 4), *o = malloc((size_t)N * C * 4), *lse = malloc((size_t)N * 2 * sh.heads * 4);
     float *w = malloc((size_t)N * C * 4), *dq = malloc((size_t)N * 3 * C * 4), *scr = malloc(nerf_i2r_scratch_floats(&sh) * 4);
     double *qd = malloc((size_t)N * 3 * C * 8), *wd = malloc((size_t)N * C * 8), *od = malloc((size_t)N * C * 8);
     for (int i = 0; i < N * 3 * C; i++) {
@@ -484,10 +483,25 @@ static void att_check(double logit_scale, const char *what)
     free(qkv), free(o), free(lse), free(w), free(dq), free(scr), free(qd), free(wd), free(od);
 }
 
+static void att_check(double logit_scale, const char *what)
+{
+    att_check_shape((nerf_i2r_shape){.C = 8, .heads = 2, .L = 5, .R = 6}, 2, logit_scale, what);
+}
+
 static void test_attention(void **s)
 {
     (void)s;
     att_check(1.0, "random");
+}
+
+/* Head width d = 8 (the RayFormer default, its own unrolled kernel) and d = 4, with 17 samples per ray so that
+ * a group spans two 16-lane blocks, the second padded. */
+static void test_attention_wide_heads(void **s)
+{
+    (void)s;
+    att_check_shape((nerf_i2r_shape){.C = 32, .heads = 2, .L = 17, .R = 3}, 1, 1.0, "d = 8, L = 17");
+    att_check_shape((nerf_i2r_shape){.C = 16, .heads = 2, .L = 3, .R = 18}, 1, 1.0, "d = 4, R = 18");
+    att_check_shape((nerf_i2r_shape){.C = 32, .heads = 2, .L = 17, .R = 3}, 1, 100.0, "d = 8, logits ±1e4");
 }
 
 /* Logits of ±1e4: q, k entries ~±100 give q·k/sqrt(2) up to ~1e4. */
@@ -550,7 +564,8 @@ int main(void)
         cmocka_unit_test(test_posenc),            cmocka_unit_test(test_sh),
         cmocka_unit_test(test_hashgrid_random),   cmocka_unit_test(test_hashgrid_borders),
         cmocka_unit_test(test_hashgrid_config_errors), cmocka_unit_test(test_attention),
-        cmocka_unit_test(test_attention_large_logits), cmocka_unit_test(test_block),
+        cmocka_unit_test(test_attention_large_logits),
+        cmocka_unit_test(test_attention_wide_heads), cmocka_unit_test(test_block),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
