@@ -73,6 +73,23 @@ CLONES void nerf_act_backward(nerf_act a, size_t n, const float *x, const float 
     }
 }
 
+CLONES void nerf_act_gelu_with_grad(size_t n, const float *x, float *y, float *dydx)
+{
+#pragma omp simd
+    for (size_t i = 0; i < n; i++) {
+        /* nerf_erff(z) spelled out so that its exp(−z²) = exp(−x²/2) also gives the normal density */
+        float xi = x[i], z = xi * INV_SQRT2, az = z < 0.0f ? -z : z;
+        float t = 1.0f / (1.0f + 0.3275911f * az);
+        float poly = t * (0.254829592f + t * (-0.284496736f + t * (1.421413741f + t * (-1.453152027f + t * 1.061405429f))));
+        float e = nerf_expf(-az * az);
+        float erf = 1.0f - poly * e;
+        erf = z < 0.0f ? -erf : erf;
+        float cdf = 0.5f * (1.0f + erf);
+        y[i] = 0.5f * xi * (1.0f + erf);
+        dydx[i] = cdf + xi * (INV_SQRT2PI * e);
+    }
+}
+
 const char *nerf_act_name(nerf_act a)
 {
     switch (a) {

@@ -30,6 +30,10 @@ typedef enum nerf_act {
 void nerf_act_forward(nerf_act a, size_t n, const float *x, float *y);
 /* x: the forward input; y: the forward output (only sigmoid reads it; may be NULL for the others). */
 void nerf_act_backward(nerf_act a, size_t n, const float *x, const float *y, const float *dy, float *dx);
+/* GELU and its derivative in one pass (one exp and one division per element, shared by erf and the density):
+ * y = GELU(x), dydx = Φ(x) + x·φ(x). y may alias x. For layers that keep dydx instead of recomputing GELU in
+ * the backward. */
+void nerf_act_gelu_with_grad(size_t n, const float *x, float *y, float *dydx);
 /* Name for printouts ("relu", ...). */
 const char *nerf_act_name(nerf_act a);
 

@@ -32,7 +32,7 @@ nerf_block_offsets nerf_block_layout(const nerf_block_shape *s)
 size_t nerf_block_saved_floats(const nerf_block_shape *s)
 {
     const size_t C = (size_t)s->att.C;
-    return C + 1 + 3 * C + 2 * (size_t)s->att.heads + C + C + 1 + (size_t)s->hidden;
+    return C + 1 + 3 * C + 2 * (size_t)s->att.heads + C + C + 1 + 2 * (size_t)s->hidden;
 }
 
 void nerf_block_saved_bind(const nerf_block_shape *s, size_t rows, float *mem, nerf_block_saved *sv)
@@ -45,13 +45,14 @@ void nerf_block_saved_bind(const nerf_block_shape *s, size_t rows, float *mem, n
     sv->att = mem; mem += rows * C;
     sv->xhat2 = mem; mem += rows * C;
     sv->rstd2 = mem; mem += rows;
-    sv->hpre = mem;
+    sv->h = mem; mem += rows * (size_t)s->hidden;
+    sv->dgelu = mem;
 }
 
 size_t nerf_block_scratch_floats(const nerf_block_shape *s, size_t rows)
 {
     const size_t C = (size_t)s->att.C, Hf = (size_t)s->hidden;
-    return rows * (C + 2 * Hf + C + 3 * C + C) + nerf_i2r_scratch_floats(&s->att);
+    return rows * (C + Hf + C + 3 * C + C) + nerf_i2r_scratch_floats(&s->att);
 }
 
 void nerf_block_init(const nerf_block_shape *s, float *params, int depth, sci_rng *rng)
@@ -75,12 +76,12 @@ void nerf_block_forward(const nerf_block_shape *s, const float *P, int n_patches
     const int C = s->att.C, Hf = s->hidden, H = s->att.heads;
     const int n = n_patches * s->att.R * s->att.L;
     nerf_block_offsets o = nerf_block_layout(s);
-    float *y = scratch, *h = y + (size_t)n * C, *att_scr = h + (size_t)n * Hf;
+    float *y = scratch, *att_scr = y + (size_t)n * C;
     const float *xr = x + row0 * C;
     float *outr = out + row0 * C;
     float *xhat1 = sv->xhat1 + row0 * C, *rstd1 = sv->rstd1 + row0, *qkv = sv->qkv + row0 * 3 * C;
     float *lse = sv->lse + row0 * 2 * H, *att = sv->att + row0 * C, *xhat2 = sv->xhat2 + row0 * C;
-    float *rstd2 = sv->rstd2 + row0, *hpre = sv->hpre + row0 * Hf;
+    float *rstd2 = sv->rstd2 + row0, *h = sv->h + row0 * Hf, *dgelu = sv->dgelu + row0 * Hf;
 
     nerf_layernorm_forward(n, C, P + o.ln1_g, P + o.ln1_b, xr, C, y, C, xhat1, rstd1);
     nerf_linear_forward(n, C, 3 * C, P + o.w_qkv, P + o.b_qkv, y, C, qkv, 3 * C);
@@ -88,8 +89,8 @@ void nerf_block_forward(const nerf_block_shape *s, const float *P, int n_patches
     memcpy(outr, xr, (size_t)n * C * sizeof *outr);
     nerf_linear_forward_add(n, C, C, P + o.w_o, P + o.b_o, att, C, outr, C);
     nerf_layernorm_forward(n, C, P + o.ln2_g, P + o.ln2_b, outr, C, y, C, xhat2, rstd2);
-    nerf_linear_forward(n, C, Hf, P + o.w_1, P + o.b_1, y, C, hpre, Hf);
-    nerf_act_forward(NERF_ACT_GELU, (size_t)n * Hf, hpre, h);
+    nerf_linear_forward(n, C, Hf, P + o.w_1, P + o.b_1, y, C, h, Hf);
+    nerf_act_gelu_with_grad((size_t)n * Hf, h, h, dgelu);
     nerf_linear_forward_add(n, Hf, C, P + o.w_2, P + o.b_2, h, Hf, outr, C);
 }
 
@@ -99,20 +100,19 @@ void nerf_block_backward(const nerf_block_shape *s, const float *P, int n_patche
     const int C = s->att.C, Hf = s->hidden, H = s->att.heads;
     const int n = n_patches * s->att.R * s->att.L;
     nerf_block_offsets o = nerf_block_layout(s);
-    float *y = scratch, *h = y + (size_t)n * C, *dh = h + (size_t)n * Hf, *dy = dh + (size_t)n * Hf;
+    float *y = scratch, *dh = y + (size_t)n * C, *dy = dh + (size_t)n * Hf;
     float *dqkv = dy + (size_t)n * C, *dx1 = dqkv + (size_t)n * 3 * C, *att_scr = dx1 + (size_t)n * C;
     const float *g = d_out + row0 * C;
     float *din = d_in + row0 * C;
     const float *xhat1 = sv->xhat1 + row0 * C, *rstd1 = sv->rstd1 + row0, *qkv = sv->qkv + row0 * 3 * C;
     const float *lse = sv->lse + row0 * 2 * H, *att = sv->att + row0 * C, *xhat2 = sv->xhat2 + row0 * C;
-    const float *rstd2 = sv->rstd2 + row0, *hpre = sv->hpre + row0 * Hf;
+    const float *rstd2 = sv->rstd2 + row0, *h = sv->h + row0 * Hf, *dgelu = sv->dgelu + row0 * Hf;
 
     /* feed-forward branch */
     memcpy(dx1, g, (size_t)n * C * sizeof *dx1);
     nerf_layernorm_apply(n, C, P + o.ln2_g, P + o.ln2_b, xhat2, y, C);
-    nerf_act_forward(NERF_ACT_GELU, (size_t)n * Hf, hpre, h);
     nerf_linear_backward(n, Hf, C, P + o.w_2, h, Hf, g, C, dh, Hf, 0, G + o.w_2, G + o.b_2);
-    nerf_act_backward(NERF_ACT_GELU, (size_t)n * Hf, hpre, NULL, dh, dh);
+    for (size_t i = 0; i < (size_t)n * Hf; i++) dh[i] *= dgelu[i];
     nerf_linear_backward(n, C, Hf, P + o.w_1, y, C, dh, Hf, dy, C, 0, G + o.w_1, G + o.b_1);
     nerf_layernorm_backward(n, C, P + o.ln2_g, xhat2, rstd2, dy, C, dx1, C, 1, G + o.ln2_g, G + o.ln2_b);
     /* attention branch */

@@ -6,9 +6,10 @@
  * on rows of whole patches (row layout of attention.h). Parameters are one float array of nerf_block_param_count
  * floats, laid out as below (offsets in nerf_block_offsets); gradients use the same layout and accumulate (+=).
  *
- * The forward saves, per row: x̂₁ (C), rstd₁, qkv (3C), lse (2·heads), attention output (C), x̂₂ (C), rstd₂ and
- * the FFN pre-activation (hidden) — nerf_block_saved_floats() per row — and recomputes LN outputs and the GELU
- * in the backward instead of storing them. Per-thread scratch: nerf_block_scratch_floats(rows_per_call).
+ * The forward saves, per row: x̂₁ (C), rstd₁, qkv (3C), lse (2·heads), attention output (C), x̂₂ (C), rstd₂, the
+ * FFN activation GELU(h) and its derivative GELU'(h) (hidden each) — nerf_block_saved_floats() per row — and
+ * recomputes the LN outputs in the backward instead of storing them (GELU is kept: recomputing it cost more than
+ * the 2·hidden floats). Per-thread scratch: nerf_block_scratch_floats(rows_per_call).
  * Runs on the calling thread (sgemm must be single-threaded inside OpenMP regions, see linear.h); reentrant.
  */
 #ifndef SCICAP_RECON_NERF_BLOCK_H
@@ -30,7 +31,7 @@ typedef struct nerf_block_offsets {
 
 /* Saved activations of a whole batch: each array has rows × width floats, row r at r·width. */
 typedef struct nerf_block_saved {
-    float *xhat1, *rstd1, *qkv, *lse, *att, *xhat2, *rstd2, *hpre;
+    float *xhat1, *rstd1, *qkv, *lse, *att, *xhat2, *rstd2, *h, *dgelu;
 } nerf_block_saved;
 
 nerf_block_offsets nerf_block_layout(const nerf_block_shape *s);
