@@ -25,6 +25,7 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
                                 .samples = 32,
                                 .log2_table = 16,
                                 .finest_res = 512,
+                                .sh_degree = 4,
                                 .lr = 1e-2,
                                 .lr_final = 1e-3,
                                 .tv_weight = 0.01,
@@ -56,6 +57,8 @@ int sci_rayformer_params_check(const sci_rayformer_params *p, sci_error *err)
         return sci_error_set(err, -EINVAL, "rayformer: log2-table must be in [10, 24] (got %d)", p->log2_table);
     if (!(p->finest_res >= 16) || !(p->finest_res <= 1e6))
         return sci_error_set(err, -EINVAL, "rayformer: finest-res must be in [16, 1e6] (got %g)", p->finest_res);
+    if (p->sh_degree < 1 || p->sh_degree > 4)
+        return sci_error_set(err, -EINVAL, "rayformer: sh-degree must be in [1, 4] (got %d)", p->sh_degree);
     if (!(p->lr > 0) || !(p->lr < 10) || !(p->lr_final > 0) || !(p->lr_final < 10))
         return sci_error_set(err, -EINVAL, "rayformer: lr and lr-final must be in (0, 10) (got %g, %g)", p->lr,
                              p->lr_final);
@@ -146,6 +149,7 @@ static int rf_run_init(rf_run *r, const sci_problem *pb, const sci_rayformer_par
     cfg.patch_w = r->pw;
     cfg.patch_h = r->ph;
     cfg.samples = r->L;
+    cfg.sh_degree = prm->sh_degree;
     nerf_rays_bounds(cam, r->w, r->h, (const double(*)[12])cur, r->n, r->near, r->far,
                      prm->pose_mode == NERF_POSES_KNOWN ? 0.02 : 0.15, cfg.aabb_min, cfg.aabb_max);
     free(cur);

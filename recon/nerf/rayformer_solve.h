@@ -30,6 +30,7 @@ typedef struct sci_rayformer_params {
     int samples;                 /* L, samples per ray (paper: 32) */
     int log2_table;              /* hash table entries per level, log2 (10 … 24) */
     double finest_res;           /* finest hash-grid resolution (the coarsest is 16) */
+    int sh_degree;               /* direction encoding degree 1 … 4 (4: the paper's 16 SH outputs) */
     double lr, lr_final;         /* network learning rate, decayed exponentially over the steps */
     double tv_weight;            /* λ of the TV term (0: off) */
     double tv_eps;               /* Charbonnier ε of the TV term (0: plain |d|) */
