@@ -358,6 +358,12 @@ static int rf_step(rf_run *r, int it, double *loss_out, double *residual)
 int sci_rayformer_solve(const sci_problem *problem, const sci_rayformer_params *params, sci_result *result,
                         sci_progress_fn progress, void *user)
 {
+    return sci_rayformer_solve_ex(problem, params, result, progress, user, NULL);
+}
+
+int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_params *params, sci_result *result,
+                           sci_progress_fn progress, void *user, double (*poses_out)[12])
+{
     snprintf(result->method, sizeof result->method, "rayformer");
     sci_error *err = &result->error;
     int rc = sci_rayformer_params_check(params, err);
@@ -416,6 +422,9 @@ int sci_rayformer_solve(const sci_problem *problem, const sci_rayformer_params *
             goto out;
         }
     }
+    if (poses_out && rc != SCI_EDIVERGED)
+        for (int j = 0; j < run.n; j++)
+            nerf_poses_get(run.poses, j, poses_out[j]);
     if (rc != SCI_EDIVERGED) {
         result->frames = x;
         x = NULL;

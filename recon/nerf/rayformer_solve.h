@@ -52,5 +52,9 @@ int sci_rayformer_params_check(const sci_rayformer_params *p, sci_error *err);
 
 int sci_rayformer_solve(const sci_problem *problem, const sci_rayformer_params *params, sci_result *result,
                         sci_progress_fn progress, void *user);
+/* The same, also writing the final N camera-to-world poses (optimised or given) to poses_out when it is not NULL
+ * (on success and on cancel). */
+int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_params *params, sci_result *result,
+                           sci_progress_fn progress, void *user, double (*poses_out)[12]);
 
 #endif
