@@ -169,6 +169,68 @@ void nerf_ref_rayformer_forward(const nerf_rayformer *net, const double *P, int 
     free(u), free(a), free(b), free(ho), free(ci), free(c1), free(rp);
 }
 
+static void ref_freq(int K, const double *x, double *y)
+{
+    int o = 0;
+    for (int d = 0; d < 3; d++) y[o++] = x[d];
+    for (int k = 0; k < K; k++) {
+        double f = ldexp(1.0, k);
+        for (int d = 0; d < 3; d++) y[o + d] = sin(f * x[d]);
+        for (int d = 0; d < 3; d++) y[o + 3 + d] = cos(f * x[d]);
+        o += 6;
+    }
+}
+
+void nerf_ref_mlp_forward(const nerf_mlp *net, const double *P, int n, const double *pos, const double *dir,
+                          int dir_every, double *sigma, double *rgb)
+{
+    const nerf_mlp_config *c = nerf_mlp_config_of(net);
+    nerf_mlp_layout lo = nerf_mlp_layout_of(net);
+    const int E = nerf_mlp_enc_dim(net), Dd = nerf_mlp_dir_dim(net), W = c->width, F = c->feature_dim;
+    const int Ch = c->color_hidden, Ci = F + Dd, wide = (W + E > Ci ? W + E : Ci) + 1;
+    double *e = malloc(E * sizeof *e), *a = malloc(wide * sizeof *a), *b = malloc(wide * sizeof *b);
+    double *ci = malloc(Ci * sizeof *ci), *c1 = malloc((Ch ? Ch : 1) * sizeof *c1), rp[3], s;
+    for (int i = 0; i < n; i++) {
+        double u[3];
+        for (int d = 0; d < 3; d++)
+            u[d] = (pos[3 * i + d] - c->aabb_min[d]) / ((double)c->aabb_max[d] - c->aabb_min[d]);
+        if (c->pos_enc == NERF_MLP_POS_HASH) {
+            nerf_ref_hashgrid_forward(nerf_mlp_grid(net), P, 1, u, e);
+        } else {
+            double x[3] = {2 * u[0] - 1, 2 * u[1] - 1, 2 * u[2] - 1};
+            ref_freq(c->pos_freqs, x, e);
+        }
+        memcpy(a, e, E * sizeof *a);
+        for (int l = 0; l < c->depth; l++) {
+            int in = lo.trunk_in[l];
+            if (l == c->skip && l > 0) memcpy(a + W, e, E * sizeof *a); /* [h, e] */
+            nerf_ref_linear(1, in, W, P + lo.trunk_w[l], P + lo.trunk_b[l], a, b);
+            for (int k = 0; k < W; k++) a[k] = b[k] > 0 ? b[k] : 0;
+        }
+        nerf_ref_linear(1, W, 1, P + lo.ws, P + lo.bs, a, &s);
+        s += c->density_bias;
+        sigma[i] = c->density_act == NERF_ACT_RELU ? (s > 0 ? s : 0) : exp(s < 88 ? s : 88);
+        nerf_ref_linear(1, W, F, P + lo.wf, P + lo.bf, a, ci);
+        const double *d = dir + 3 * (size_t)(i / dir_every);
+        if (c->dir_enc == NERF_MLP_DIR_SH) {
+            double sh[16], shg[16][3];
+            nerf_sh_eval(d[0], d[1], d[2], sh, shg);
+            for (int k = 0; k < Dd; k++) ci[F + k] = sh[k];
+        } else {
+            ref_freq(c->dir_freqs, d, ci + F);
+        }
+        if (Ch) {
+            nerf_ref_linear(1, Ci, Ch, P + lo.wc1, P + lo.bc1, ci, c1);
+            for (int k = 0; k < Ch; k++) c1[k] = c1[k] > 0 ? c1[k] : 0;
+            nerf_ref_linear(1, Ch, 3, P + lo.wc2, P + lo.bc2, c1, rp);
+        } else {
+            nerf_ref_linear(1, Ci, 3, P + lo.wc2, P + lo.bc2, ci, rp);
+        }
+        for (int k = 0; k < 3; k++) rgb[3 * (size_t)i + k] = 1.0 / (1.0 + exp(-rp[k]));
+    }
+    free(e), free(a), free(b), free(ci), free(c1);
+}
+
 void nerf_ref_render(int n_rays, int L, const double *sigma, const double *rgb, const double *delta,
                      const double *t, const int *n_valid, double t_stop, double *color, double *depth,
                      double *opacity)

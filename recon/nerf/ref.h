@@ -11,6 +11,7 @@
 #include "recon/nerf/attention.h"
 #include "recon/nerf/block.h"
 #include "recon/nerf/hashgrid.h"
+#include "recon/nerf/mlp.h"
 #include "recon/nerf/rayformer.h"
 #include "recon/nerf/render.h"
 
@@ -23,6 +24,9 @@ void nerf_ref_block_forward(const nerf_block_shape *s, const double *P, int n_pa
 /* sigma (N), rgb (N×3). */
 void nerf_ref_rayformer_forward(const nerf_rayformer *net, const double *P, int n_patches, const double *pos,
                                 const double *dir, double *sigma, double *rgb);
+/* The MLP field (mlp.h): sigma (n), rgb (n×3); point i uses dir[(i / dir_every)·3]. */
+void nerf_ref_mlp_forward(const nerf_mlp *net, const double *P, int n, const double *pos, const double *dir,
+                          int dir_every, double *sigma, double *rgb);
 /* Render with double inputs (same truncation rule as render.h). color n×3, depth, opacity n (nullable). */
 void nerf_ref_render(int n_rays, int L, const double *sigma, const double *rgb, const double *delta,
                      const double *t, const int *n_valid, double t_stop, double *color, double *depth,
