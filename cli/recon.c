@@ -17,6 +17,7 @@
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
 #include "recon/metrics.h"
+#include "recon/nerf/rayformer_solve.h"
 
 static void usage(FILE *f)
 {
@@ -29,7 +30,8 @@ static void usage(FILE *f)
             "previews, trace.csv (time against accuracy per iteration) and result.json. When the truth is known\n"
             "it prints per-frame and mean PSNR in both peak conventions, and SSIM.\n"
             "\n"
-            "  -m, --method NAME      gap-tv (default) or admm-tv\n"
+            "  -m, --method NAME      gap-tv (default), admm-tv, or rayformer (static scenes with a known camera;\n"
+            "                         work in progress: see docs/nerf-methods.md)\n"
             "  -o, --output DIR       output folder (required); replaced only with --force\n"
             "  -f, --force            replace an existing output folder\n"
             "  -s, --snapshot J       reconstruct only snapshot J (1-based); default all\n"
@@ -39,6 +41,8 @@ static void usage(FILE *f)
             "  -t, --tv-iters N       TV denoiser passes per iteration (default 5)\n"
             "      --plain            gap-tv: plain GAP instead of accelerated\n"
             "  -g, --gamma X          admm-tv: gamma added to the mask energy (default 1e-3)\n"
+            "  rayformer:  --patch P (2,4,8,16; default 8)  --patches-per-step B  --samples L (per ray)\n"
+            "              --lr X  --pose-mode known|linear|per-frame  --seed S   (--iters, --tv-weight apply too)\n"
             "      --metrics-every K  PSNR against truth in the trace every K iterations (default 1)\n"
             "      --ssim-every K     SSIM in the trace every K iterations (default 10; 0 = last only)\n"
             "  -j, --threads N        OpenMP threads (default: all cores)\n"
@@ -51,9 +55,10 @@ static void usage(FILE *f)
 }
 
 typedef struct recon_opts {
-    int method; /* 0 gap-tv, 1 admm-tv */
+    int method; /* 0 gap-tv, 1 admm-tv, 2 rayformer */
     sci_gaptv_params gap;
     sci_admmtv_params admm;
+    sci_rayformer_params rf;
     int quiet;
 } recon_opts;
 
@@ -89,6 +94,11 @@ static json_t *params_json(const recon_opts *o)
         return json_pack("{s:s, s:i, s:f, s:b, s:f, s:i}", "method", "gap-tv", "iters", o->gap.iters, "lambda",
                          o->gap.lambda, "accelerate", o->gap.accelerate, "tv_weight", o->gap.tv_weight, "tv_iters",
                          o->gap.tv_iters);
+    if (o->method == 2)
+        return json_pack("{s:s, s:i, s:i, s:i, s:i, s:f, s:f, s:i, s:I}", "method", "rayformer", "iters", o->rf.iters,
+                         "patch", o->rf.patch, "patches_per_step", o->rf.patches_per_step, "samples", o->rf.samples,
+                         "lr", o->rf.lr, "tv_weight", o->rf.tv_weight, "pose_mode", (int)o->rf.pose_mode, "seed",
+                         (json_int_t)o->rf.seed);
     return json_pack("{s:s, s:i, s:f, s:f, s:f, s:i}", "method", "admm-tv", "iters", o->admm.iters, "lambda",
                      o->admm.lambda, "gamma", o->admm.gamma, "tv_weight", o->admm.tv_weight, "tv_iters",
                      o->admm.tv_iters);
@@ -115,10 +125,11 @@ int cli_recon_main(int argc, char **argv)
     recon_opts o = {0};
     sci_gaptv_params_default(&o.gap);
     sci_admmtv_params_default(&o.admm);
+    sci_rayformer_params_default(&o.rf);
     const char *out = NULL;
     int force = 0, snapshot = 0, threads = 0, iters = -1, tv_iters = -1, metrics_every = -1, ssim_every = -1;
     double lambda = NAN, tv_weight = NAN;
-    enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM };
+    enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED };
     static const struct option longopts[] = {
         {"method", required_argument, 0, 'm'},   {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},          {"snapshot", required_argument, 0, 's'},
@@ -127,6 +138,9 @@ int cli_recon_main(int argc, char **argv)
         {"plain", no_argument, 0, OPT_PLAIN},    {"gamma", required_argument, 0, 'g'},
         {"metrics-every", required_argument, 0, OPT_METRICS}, {"ssim-every", required_argument, 0, OPT_SSIM},
         {"threads", required_argument, 0, 'j'},  {"quiet", no_argument, 0, 'q'},
+        {"patch", required_argument, 0, OPT_PATCH}, {"patches-per-step", required_argument, 0, OPT_PPS},
+        {"samples", required_argument, 0, OPT_SAMPLES}, {"lr", required_argument, 0, OPT_LR},
+        {"pose-mode", required_argument, 0, OPT_POSE}, {"seed", required_argument, 0, OPT_SEED},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
     };
     optind = 1;
@@ -139,8 +153,10 @@ int cli_recon_main(int argc, char **argv)
                 o.method = 0;
             else if (strcmp(optarg, "admm-tv") == 0)
                 o.method = 1;
+            else if (strcmp(optarg, "rayformer") == 0)
+                o.method = 2;
             else {
-                fprintf(stderr, "scicap recon: unknown method '%s' (gap-tv, admm-tv)\n", optarg);
+                fprintf(stderr, "scicap recon: unknown method '%s' (gap-tv, admm-tv, rayformer)\n", optarg);
                 return 2;
             }
             break;
@@ -156,6 +172,28 @@ int cli_recon_main(int argc, char **argv)
         case OPT_METRICS: bad = parse_int(optarg, "--metrics-every", 0, 1 << 30, &metrics_every); break;
         case OPT_SSIM: bad = parse_int(optarg, "--ssim-every", 0, 1 << 30, &ssim_every); break;
         case 'j': bad = parse_int(optarg, "--threads", 1, 1024, &threads); break;
+        case OPT_PATCH: bad = parse_int(optarg, "--patch", 2, 16, &o.rf.patch); break;
+        case OPT_PPS: bad = parse_int(optarg, "--patches-per-step", 1, 4096, &o.rf.patches_per_step); break;
+        case OPT_SAMPLES: bad = parse_int(optarg, "--samples", 2, 1024, &o.rf.samples); break;
+        case OPT_LR: bad = parse_double(optarg, "--lr", &o.rf.lr); break;
+        case OPT_POSE:
+            if (strcmp(optarg, "known") == 0)
+                o.rf.pose_mode = NERF_POSES_KNOWN;
+            else if (strcmp(optarg, "linear") == 0)
+                o.rf.pose_mode = NERF_POSES_LINEAR;
+            else if (strcmp(optarg, "per-frame") == 0)
+                o.rf.pose_mode = NERF_POSES_PER_FRAME;
+            else {
+                fprintf(stderr, "scicap recon: --pose-mode wants known, linear or per-frame, got '%s'\n", optarg);
+                bad = -1;
+            }
+            break;
+        case OPT_SEED: {
+            int sd = 0;
+            bad = parse_int(optarg, "--seed", 0, 1 << 30, &sd);
+            o.rf.seed = (unsigned long long)sd;
+            break;
+        }
         case 'q': o.quiet = 1; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
@@ -173,19 +211,22 @@ int cli_recon_main(int argc, char **argv)
         omp_set_num_threads(threads);
     /* Common options map onto whichever method runs. */
     if (iters > 0)
-        o.gap.iters = o.admm.iters = iters;
+        o.gap.iters = o.admm.iters = o.rf.iters = iters;
     if (!isnan(lambda))
         o.gap.lambda = o.admm.lambda = lambda;
     if (!isnan(tv_weight))
-        o.gap.tv_weight = o.admm.tv_weight = tv_weight;
+        o.gap.tv_weight = o.admm.tv_weight = o.rf.tv_weight = tv_weight;
     if (tv_iters > 0)
         o.gap.tv_iters = o.admm.tv_iters = tv_iters;
     if (metrics_every >= 0)
-        o.gap.metrics_every = o.admm.metrics_every = metrics_every;
+        o.gap.metrics_every = o.admm.metrics_every = o.rf.metrics_every = metrics_every;
     if (ssim_every >= 0)
-        o.gap.ssim_every = o.admm.ssim_every = ssim_every;
+        o.gap.ssim_every = o.admm.ssim_every = o.rf.ssim_every = ssim_every;
     sci_error err = {0};
-    if ((o.method == 0 ? sci_gaptv_params_check(&o.gap, &err) : sci_admmtv_params_check(&o.admm, &err)) < 0) {
+    int chk = o.method == 0   ? sci_gaptv_params_check(&o.gap, &err)
+              : o.method == 1 ? sci_admmtv_params_check(&o.admm, &err)
+                              : sci_rayformer_params_check(&o.rf, &err);
+    if (chk < 0) {
         fprintf(stderr, "scicap recon: %s\n", err.msg);
         return 2;
     }
@@ -209,15 +250,17 @@ int cli_recon_main(int argc, char **argv)
     json_t *params = params_json(&o);
     for (int j = first; j <= last && status == 0; j++) {
         const sci_problem *p = probs[j];
-        printf("%s: %s, %dx%d, %d frames per snapshot%s\n", p->name, o.method == 0 ? "gap-tv" : "admm-tv",
+        static const char *const names[] = {"gap-tv", "admm-tv", "rayformer"};
+        printf("%s: %s, %dx%d, %d frames per snapshot%s\n", p->name, names[o.method],
                p->mask->w, p->mask->h, p->mask->n, p->truth ? ", truth known" : "");
         fflush(stdout);
         cli_progress prog;
-        cli_progress_init(&prog, o.quiet ? -1 : 2, o.method == 0 ? o.gap.iters : o.admm.iters);
+        cli_progress_init(&prog, o.quiet ? -1 : 2, o.method == 0 ? o.gap.iters : o.method == 1 ? o.admm.iters : o.rf.iters);
         sci_result r = {0};
         int64_t t0 = sci_clock_mono_ns();
-        int rc = o.method == 0 ? sci_gaptv_solve(p, &o.gap, &r, cli_progress_update, &prog)
-                               : sci_admmtv_solve(p, &o.admm, &r, cli_progress_update, &prog);
+        int rc = o.method == 0   ? sci_gaptv_solve(p, &o.gap, &r, cli_progress_update, &prog)
+                 : o.method == 1 ? sci_admmtv_solve(p, &o.admm, &r, cli_progress_update, &prog)
+                                 : sci_rayformer_solve(p, &o.rf, &r, cli_progress_update, &prog);
         double secs = sci_clock_s(t0, sci_clock_mono_ns());
         cli_progress_done(&prog);
         if (rc < 0) {
