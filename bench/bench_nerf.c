@@ -1,9 +1,12 @@
-/* bench/bench_nerf.c — forward+backward throughput of the NeRF blocks and of the two-block RayFormer network.
+/* bench/bench_nerf.c — forward+backward throughput of the NeRF blocks, the two-block RayFormer training step and
+ * the SCINeRF-style MLP field.
  *
- * Prints points per second (forward + backward, both cores) for each block, then the whole network training step
- * (network forward, volume rendering, measurement + TV loss, backward, Adam) at 65,536 points per step
- * (4 patches × 64 pixels × 8 poses × 32 samples), the memory per point and the process peak RSS, and writes
- * bench/results/nerf.md. Timings are wall-clock medians of repeated runs.
+ * Prints, per block and for the whole networks, forward + backward points per second on both threads, the memory
+ * per point and the process peak RSS, and writes bench/results/nerf.md. The RayFormer step is the issue-5 target:
+ * network forward, volume rendering, measurement + TV loss, backward and Adam at 65,536 points per step
+ * (4 patches × 64 pixels × 8 poses × 32 samples). Each figure is the best and the median of repeated runs after a
+ * warm-up (the machine is shared: the best is the machine's speed, the median what the load left of it); the
+ * load average at the start and the end is recorded with them.
  */
 #include <math.h>
 #include <omp.h>
@@ -21,6 +24,7 @@
 #include "recon/nerf/layernorm.h"
 #include "recon/nerf/linear.h"
 #include "recon/nerf/loss.h"
+#include "recon/nerf/mlp.h"
 #include "recon/nerf/posenc.h"
 #include "recon/nerf/rayformer.h"
 #include "recon/nerf/render.h"
@@ -28,7 +32,7 @@
 
 typedef struct row {
     char name[64];
-    double pts_per_s, bytes_per_pt, cpu_ratio;
+    double best, median, bytes_per_pt, cpu_ratio;
 } row;
 
 static row rows[32];
@@ -45,8 +49,8 @@ static int cmpd(const void *a, const void *b)
 
 typedef void (*bench_fn)(void *ctx);
 
-/* Median wall time of `reps` runs after one warm-up; also the CPU/wall ratio (≈ cores kept busy). */
-static double time_it(bench_fn f, void *ctx, int reps, double *cpu_ratio)
+/* Best and median wall time of `reps` runs after one warm-up; also the CPU/wall ratio (≈ cores kept busy). */
+static double time_it(bench_fn f, void *ctx, int reps, double *cpu_ratio, double *median)
 {
     double t[64];
     f(ctx);
@@ -59,17 +63,33 @@ static double time_it(bench_fn f, void *ctx, int reps, double *cpu_ratio)
     double c1 = cpu(), w1 = now();
     qsort(t, reps, sizeof *t, cmpd);
     *cpu_ratio = (c1 - c0) / (w1 - w0);
-    return t[reps / 2];
+    *median = t[reps / 2];
+    return t[0];
 }
 
-static void add_row(const char *name, double n_points, double secs, double bytes_per_pt, double cr)
+static void add_row(const char *name, double n_points, double best, double median, double bytes_per_pt, double cr)
 {
     row *r = &rows[n_rows++];
     snprintf(r->name, sizeof r->name, "%s", name);
-    r->pts_per_s = n_points / secs;
+    r->best = n_points / best;
+    r->median = n_points / median;
     r->bytes_per_pt = bytes_per_pt;
     r->cpu_ratio = cr;
-    printf("%-44s %10.3f Mpts/s  %7.0f B/pt  cpu/wall %.2f\n", name, r->pts_per_s * 1e-6, bytes_per_pt, cr);
+    printf("%-48s %8.3f Mpts/s (median %7.3f)  %7.0f B/pt  cpu/wall %.2f\n", name, r->best * 1e-6,
+           r->median * 1e-6, bytes_per_pt, cr);
+}
+
+static void loadavg(char *buf, size_t n)
+{
+    FILE *f = fopen("/proc/loadavg", "r");
+    buf[0] = 0;
+    if (f) {
+        if (!fgets(buf, (int)n, f)) buf[0] = 0;
+        fclose(f);
+    }
+    char *sp = buf;
+    for (int k = 0; k < 3 && sp; k++) sp = strchr(sp + 1, ' ');
+    if (sp) *sp = 0;
 }
 
 /* ---------------------------------------------------------------- per-block contexts */
@@ -123,6 +143,17 @@ static void run_gelu(void *c)
         size_t n = (size_t)NPTS * 32 / NT, r0 = (size_t)t * n;
         nerf_act_forward(NERF_ACT_GELU, n, k->x + r0, k->y + r0);
         nerf_act_backward(NERF_ACT_GELU, n, k->x + r0, k->y + r0, k->dy + r0, k->dx + r0);
+    }
+}
+
+static void run_gelu_fused(void *c)
+{
+    blk *k = c;
+#pragma omp parallel num_threads(NT)
+    {
+        int t = omp_get_thread_num();
+        size_t n = (size_t)NPTS * 32 / NT, r0 = (size_t)t * n;
+        nerf_act_gelu_with_grad(n, k->x + r0, k->y + r0, k->dx + r0);
     }
 }
 
@@ -271,6 +302,49 @@ static void run_train(void *c)
     (void)N;
 }
 
+/* ---------------------------------------------------------------- SCINeRF-style MLP field */
+
+typedef struct mlpb {
+    nerf_mlp *net;
+    nerf_mlp_ws *ws;
+    float *P, *G, *pos, *dir, *sigma, *rgb, *dsig, *drgb;
+    int n, every;
+} mlpb;
+
+static void run_mlp(void *c)
+{
+    mlpb *k = c;
+    nerf_mlp_forward(k->net, k->P, k->ws, k->n, k->pos, k->dir, k->every, k->sigma, k->rgb);
+    nerf_mlp_backward(k->net, k->P, k->ws, k->dsig, k->drgb, k->G, NULL, NULL);
+}
+
+static float *falloc(size_t n, sci_rng *rng, double lo, double hi);
+
+/* Forward + backward of the field over n points (32 samples per ray share a direction). */
+static void bench_mlp(const char *name, const nerf_mlp_config *cfg, int n, int reps, sci_rng *rng)
+{
+    mlpb k = {.n = n, .every = 32};
+    sci_error err = {0};
+    if (nerf_mlp_new(&k.net, cfg, &err) < 0 || nerf_mlp_ws_new(&k.ws, k.net, n, NT, &err) < 0) {
+        fprintf(stderr, "bench_nerf: %s: %s\n", name, err.msg);
+        return;
+    }
+    size_t np = nerf_mlp_param_count(k.net);
+    k.P = falloc(np, NULL, 0, 0), k.G = falloc(np, NULL, 0, 0);
+    nerf_mlp_init(k.net, k.P, 2);
+    k.pos = falloc(3 * (size_t)n, rng, -1, 1), k.dir = falloc(3 * (size_t)n, NULL, 0, 0);
+    for (int r = 0; r < n; r++) k.dir[3 * r + 2] = -1.0f;
+    k.sigma = falloc(n, NULL, 0, 0), k.rgb = falloc(3 * (size_t)n, NULL, 0, 0);
+    k.dsig = falloc(n, rng, -1, 1), k.drgb = falloc(3 * (size_t)n, rng, -1, 1);
+    double cr, med, b = time_it(run_mlp, &k, reps, &cr, &med);
+    char label[64];
+    snprintf(label, sizeof label, "%s, %d pts", name, n);
+    add_row(label, n, b, med, (double)nerf_mlp_ws_bytes(k.ws) / n, cr);
+    free(k.P), free(k.G), free(k.pos), free(k.dir), free(k.sigma), free(k.rgb), free(k.dsig), free(k.drgb);
+    nerf_mlp_ws_free(k.ws);
+    nerf_mlp_free(k.net);
+}
+
 static float *falloc(size_t n, sci_rng *rng, double lo, double hi)
 {
     float *p = malloc(n * sizeof *p);
@@ -284,7 +358,9 @@ int main(void)
     sci_rng_seed(&rng, 1234, 9);
     omp_set_dynamic(0);
     int reps = 9;
-    printf("nerf blocks, %d points per call, %d threads (timings under load from other jobs)\n", NPTS, NT);
+    char load0[64], load1[64];
+    loadavg(load0, sizeof load0);
+    printf("nerf blocks, %d points per call, %d threads; load average %s\n", NPTS, NT, load0);
 
     /* whole network first, so that peak RSS is its own */
     train tr = {.patches = 4, .poses = 8, .R = 64, .L = 32};
@@ -305,14 +381,27 @@ int main(void)
     tr.drgb = falloc(3 * (size_t)N, NULL, 0, 0), tr.delta = falloc(N, &rng, 0.02, 0.04);
     tr.color = falloc(3 * (size_t)rays, NULL, 0, 0), tr.dcolor = falloc(3 * (size_t)rays, NULL, 0, 0);
     tr.Y = falloc(3 * (size_t)tr.patches * tr.R, &rng, 0, 4), tr.M = falloc((size_t)tr.poses * tr.patches * tr.R, &rng, 0, 1);
-    double cr;
-    double s = time_it(run_train, &tr, reps, &cr);
+    double cr, med;
+    double s = time_it(run_train, &tr, 15, &cr, &med);
     int64_t rss = sci_clock_peak_rss_bytes();
     double mib = (double)rss / (1 << 20);
-    printf("RayFormer 2 blocks, width 32, %d points/step: %.1f ms/step, peak RSS %.0f MiB (%.0f MiB before the "
-           "network), workspace %.0f MiB, %zu parameters\n",
-           N, s * 1e3, mib, (double)rss0 / (1 << 20), (double)nerf_rayformer_ws_bytes(tr.ws) / (1 << 20), np);
-    add_row("RayFormer step (fwd+render+loss+bwd+Adam)", N, s, (double)(rss - rss0) / N, cr);
+    printf("RayFormer 2 blocks, width 32, %d points/step: best %.1f ms/step, median %.1f ms, peak RSS %.0f MiB "
+           "(%.0f MiB before the network), workspace %.0f MiB, %zu parameters\n",
+           N, s * 1e3, med * 1e3, mib, (double)rss0 / (1 << 20), (double)nerf_rayformer_ws_bytes(tr.ws) / (1 << 20),
+           np);
+    add_row("RayFormer step (fwd+render+loss+bwd+Adam)", N, s, med, (double)(rss - rss0) / N, cr);
+    const double step_best = s, step_med = med;
+    nerf_rayformer_ws_free(tr.ws);
+    nerf_adam_free(tr.adam);
+    nerf_rayformer_free(tr.net);
+    free(tr.P), free(tr.G), free(tr.pos), free(tr.dir), free(tr.sigma), free(tr.rgb), free(tr.dsig), free(tr.drgb);
+    free(tr.delta), free(tr.color), free(tr.dcolor), free(tr.Y), free(tr.M);
+
+    /* the SCINeRF-style field: the paper's network and the hash variant */
+    nerf_mlp_config mc = nerf_mlp_config_scinerf();
+    bench_mlp("MLP field: SCINeRF freq, 8×256 skip 4", &mc, 8192, 5, &rng);
+    mc = nerf_mlp_config_hash();
+    bench_mlp("MLP field: hash 16×2, 2×64, SH", &mc, NPTS, reps, &rng);
 
     /* per-block */
     blk k = {0};
@@ -321,31 +410,33 @@ int main(void)
     k.dx = falloc(big, NULL, 0, 0), k.W = falloc(64 * 1024, &rng, -0.2, 0.2), k.b = falloc(1024, &rng, -0.1, 0.1);
     for (int t = 0; t < NT; t++) k.gW[t] = falloc(64 * 1024, NULL, 0, 0), k.gb[t] = falloc(1024, NULL, 0, 0);
     k.xhat = falloc((size_t)NPTS * 32, NULL, 0, 0), k.rstd = falloc(NPTS, NULL, 0, 0);
-    s = time_it(run_linear, &k, reps, &cr);
-    add_row("linear 32→32 (sgemm)", NPTS, s, 4.0 * (32 + 32), cr);
-    s = time_it(run_layernorm, &k, reps, &cr);
-    add_row("layernorm 32", NPTS, s, 4.0 * (32 + 1), cr);
-    s = time_it(run_gelu, &k, reps, &cr);
-    add_row("GELU ×32 channels", NPTS, s, 4.0 * 32, cr);
-    s = time_it(run_trunc_exp, &k, reps, &cr);
-    add_row("trunc_exp", NPTS, s, 4.0, cr);
+    s = time_it(run_linear, &k, reps, &cr, &med);
+    add_row("linear 32→32 (sgemm)", NPTS, s, med, 4.0 * (32 + 32), cr);
+    s = time_it(run_layernorm, &k, reps, &cr, &med);
+    add_row("layernorm 32", NPTS, s, med, 4.0 * (32 + 1), cr);
+    s = time_it(run_gelu, &k, reps, &cr, &med);
+    add_row("GELU ×32 channels (forward, backward)", NPTS, s, med, 4.0 * 32, cr);
+    s = time_it(run_gelu_fused, &k, reps, &cr, &med);
+    add_row("GELU ×32 channels (value + derivative, 1 pass)", NPTS, s, med, 4.0 * 64, cr);
+    s = time_it(run_trunc_exp, &k, reps, &cr, &med);
+    add_row("trunc_exp", NPTS, s, med, 4.0, cr);
     for (size_t i = 0; i < (size_t)NPTS * 3; i++) k.x[i] = (float)sci_rng_uniform(&rng);
-    s = time_it(run_posenc, &k, reps, &cr);
-    add_row("frequency encoding 3→63", NPTS, s, 4.0 * 63, cr);
-    s = time_it(run_sh, &k, reps, &cr);
-    add_row("SH degree 4 (16)", NPTS, s, 4.0 * 16, cr);
+    s = time_it(run_posenc, &k, reps, &cr, &med);
+    add_row("frequency encoding 3→63", NPTS, s, med, 4.0 * 63, cr);
+    s = time_it(run_sh, &k, reps, &cr, &med);
+    add_row("SH degree 4 (16)", NPTS, s, med, 4.0 * 16, cr);
     nerf_hashgrid_config hc = cfg.grid;
     nerf_hashgrid_new(&k.grid, &hc, &err);
     k.np = nerf_hashgrid_param_count(k.grid);
     k.table = falloc(k.np, &rng, -1e-4, 1e-4);
     for (int t = 0; t < NT; t++) k.gtab[t] = falloc(k.np, NULL, 0, 0);
-    s = time_it(run_hash, &k, reps, &cr);
-    add_row("hash grid 16×2, T=2^16", NPTS, s, 4.0 * (3 + 32), cr);
+    s = time_it(run_hash, &k, reps, &cr, &med);
+    add_row("hash grid 16×2, T=2^16", NPTS, s, med, 4.0 * (3 + 32), cr);
     k.att = (nerf_i2r_shape){.C = 32, .heads = 2, .L = 32, .R = 64};
     k.qkv = falloc(big, &rng, -2, 2), k.dqkv = falloc(big, NULL, 0, 0), k.lse = falloc((size_t)NPTS * 4, NULL, 0, 0);
     for (int t = 0; t < NT; t++) k.scr[t] = falloc(nerf_block_scratch_floats(&(nerf_block_shape){k.att, 64}, 2048), NULL, 0, 0);
-    s = time_it(run_attention, &k, reps, &cr);
-    add_row("I²R-MSA core (2 heads/path, L=32, R=64)", NPTS, s, 4.0 * (96 + 32 + 4), cr);
+    s = time_it(run_attention, &k, reps, &cr, &med);
+    add_row("I²R-MSA core (2 heads/path, L=32, R=64)", NPTS, s, med, 4.0 * (96 + 32 + 4), cr);
     k.bs = (nerf_block_shape){.att = k.att, .hidden = 64};
     free(k.W);
     k.W = falloc(nerf_block_param_count(&k.bs), NULL, 0, 0);
@@ -353,27 +444,34 @@ int main(void)
     for (int t = 0; t < NT; t++) free(k.gW[t]), k.gW[t] = falloc(nerf_block_param_count(&k.bs), NULL, 0, 0);
     k.sv_mem = falloc((size_t)NPTS * nerf_block_saved_floats(&k.bs), NULL, 0, 0);
     nerf_block_saved_bind(&k.bs, NPTS, k.sv_mem, &k.sv);
-    s = time_it(run_block, &k, reps, &cr);
-    add_row("I²R transformer block (C=32, FFN 64)", NPTS, s, 4.0 * nerf_block_saved_floats(&k.bs), cr);
+    s = time_it(run_block, &k, reps, &cr, &med);
+    add_row("I²R transformer block (C=32, FFN 64)", NPTS, s, med, 4.0 * nerf_block_saved_floats(&k.bs), cr);
     rnd rd = {.r = {.n_rays = NPTS / 32, .L = 32, .sigma = k.x, .rgb = k.dy, .delta = k.b, .t_stop = 1e-4f}};
     float *delta = falloc(NPTS, &rng, 0.01, 0.05);
     rd.r.delta = delta;
     for (size_t i = 0; i < (size_t)NPTS; i++) k.x[i] = (float)(5 * sci_rng_uniform(&rng));
     rd.color = falloc((size_t)NPTS / 32 * 3, NULL, 0, 0), rd.dc = falloc((size_t)NPTS / 32 * 3, &rng, -1, 1);
     rd.ds = k.y, rd.drgb = k.dx;
-    s = time_it(run_render, &rd, reps, &cr);
-    add_row("volume rendering (32 samples/ray)", NPTS, s, 0.0, cr);
+    s = time_it(run_render, &rd, reps, &cr, &med);
+    add_row("volume rendering (32 samples/ray)", NPTS, s, med, 0.0, cr);
+    loadavg(load1, sizeof load1);
+    int64_t rss_all = sci_clock_peak_rss_bytes();
 
     FILE *f = fopen("bench/results/nerf.md", "w");
     if (f) {
-        fprintf(f, "| block (forward + backward, %d threads) | Mpoints/s | bytes/point | CPU/wall |\n|---|---:|---:|---:|\n", NT);
+        fprintf(f, "| forward + backward, %d threads | Mpoints/s best | median | bytes/point | CPU/wall |\n"
+                   "|---|---:|---:|---:|---:|\n", NT);
         for (int i = 0; i < n_rows; i++)
-            fprintf(f, "| %s | %.3f | %.0f | %.2f |\n", rows[i].name, rows[i].pts_per_s * 1e-6, rows[i].bytes_per_pt,
-                    rows[i].cpu_ratio);
-        fprintf(f, "\nRayFormer step: %d points (4 patches × 64 pixels × 8 poses × 32 samples), %.1f ms, peak RSS "
-                   "%.0f MiB, %zu parameters. Machine shared with other jobs: timings under load.\n",
-                N, rows[0].pts_per_s > 0 ? N / rows[0].pts_per_s * 1e3 : 0.0, mib, np);
+            fprintf(f, "| %s | %.3f | %.3f | %.0f | %.2f |\n", rows[i].name, rows[i].best * 1e-6,
+                    rows[i].median * 1e-6, rows[i].bytes_per_pt, rows[i].cpu_ratio);
+        fprintf(f, "\nRayFormer step: %d points (4 patches × 64 pixels × 8 poses × 32 samples), best %.1f ms, median "
+                   "%.1f ms; peak RSS %.0f MiB during the step (whole run %.0f MiB), %zu parameters. bytes/point: "
+                   "peak RSS growth of the step per point for the step, saved activations + workspace for the MLP "
+                   "fields, inputs + outputs for the blocks. Load average %s at the start, %s at the end (2 cores, "
+                   "shared with other jobs).\n",
+                N, step_best * 1e3, step_med * 1e3, mib, (double)rss_all / (1 << 20), np, load0, load1);
         fclose(f);
     }
+    printf("peak RSS of the whole run %.0f MiB; load average %s → %s\n", (double)rss_all / (1 << 20), load0, load1);
     return 0;
 }
