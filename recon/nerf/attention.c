@@ -27,7 +27,7 @@
 #define CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #define INLINE static inline __attribute__((always_inline))
 
-/* The vector helpers are always inlined, so the psABI note about passing 64-byte vectors never applies. */
+/* The vector helpers are always inlined: the psABI warning about returning 64-byte vectors never applies. */
 #pragma GCC diagnostic ignored "-Wpsabi"
 
 #define VW 16
@@ -41,7 +41,13 @@ INLINE vf vload(const float *p)
     memcpy(&v, p, sizeof v);
     return v;
 }
-INLINE void vstore(float *p, vf v) { memcpy(p, &v, sizeof v); }
+/* Stores and selects are macros and vexp takes a pointer: no function has a 64-byte vector parameter, which
+ * would make gcc print a psABI note on every build even though everything here is inlined. */
+typedef struct vbox {
+    vf v;
+} vbox;
+#define vstore(p, x) memcpy((p), &(vbox){(x)}.v, sizeof(vf))
+#define vsel(m, a, b) ((vf)(((vi)(a) & (m)) | ((vi)(b) & ~(m))))
 typedef float v8 __attribute__((vector_size(32)));
 INLINE v8 v8load(const float *p)
 {
@@ -49,14 +55,16 @@ INLINE v8 v8load(const float *p)
     memcpy(&v, p, sizeof v);
     return v;
 }
-INLINE void v8store(float *p, v8 v) { memcpy(p, &v, sizeof v); }
+typedef struct v8box {
+    v8 v;
+} v8box;
+#define v8store(p, x) memcpy((p), &(v8box){(x)}.v, sizeof(v8))
 INLINE vf vsplat(float x) { return (vf){0} + x; }
-INLINE vf vsel(vi m, vf a, vf b) { return (vf)(((vi)a & m) | ((vi)b & ~m)); }
-INLINE vf vmax(vf a, vf b) { return vsel(a > b, a, b); }
 
 /* Lane-wise nerf_expf (fastmath.h), the same operations in the same order. */
-INLINE vf vexp(vf x)
+INLINE vf vexp(const vf *xp)
 {
+    const vf x = *xp;
     const vf lo = vsplat(-87.3f), hi = vsplat(88.3f);
     vf xc = vsel(x < lo, lo, x);
     xc = vsel(xc > hi, hi, xc);
@@ -122,12 +130,13 @@ INLINE void group_forward(const grp *g, const int d, const float *qkv, int ldq, 
             vf s = q[0] * k[0];
             for (int c = 1; c < d; c++) s += q[c] * k[c];
             vstore(St + (size_t)j * VW, s);
-            m = j ? vmax(m, s) : s;
+            m = j ? vsel(s > m, s, m) : s;
         }
         vf l = vsplat(0.0f);
         for (int j = 0; j < n; j++) {
             const float *v = qkv + row_of(g, j) * ldq + 2 * C + c0;
-            vf p = vexp(vload(St + (size_t)j * VW) - m);
+            vf arg = vload(St + (size_t)j * VW) - m;
+            vf p = vexp(&arg);
             l += p;
             for (int c = 0; c < d; c++) acc[c] += p * v[c];
         }
@@ -177,7 +186,8 @@ INLINE void group_backward(const grp *g, const int d, const float *qkv, int ldq,
             const float *k = qkv + row_of(g, j) * ldq + C + c0, *v = k + C;
             vf s = q[0] * k[0], dp = gq[0] * v[0];
             for (int c = 1; c < d; c++) s += q[c] * k[c], dp += gq[c] * v[c];
-            vf p = vexp(s - Lv);
+            vf arg = s - Lv;
+            vf p = vexp(&arg);
             vf ds = p * (dp - Dv);
             for (int c = 0; c < d; c++) dq[c] += ds * k[c];
             vstore(Pb + (size_t)j * VW, p);

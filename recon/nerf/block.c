@@ -108,8 +108,10 @@ void nerf_block_backward(const nerf_block_shape *s, const float *P, int n_patche
     const float *lse = sv->lse + row0 * 2 * H, *att = sv->att + row0 * C, *xhat2 = sv->xhat2 + row0 * C;
     const float *rstd2 = sv->rstd2 + row0, *h = sv->h + row0 * Hf, *dgelu = sv->dgelu + row0 * Hf;
 
-    /* feed-forward branch */
-    memcpy(dx1, g, (size_t)n * C * sizeof *dx1);
+    /* feed-forward branch; in place (d_in == d_out, as the network calls it) the gradient plane itself carries
+     * dx1, saving two copies of n×C: g is last read by the FFN's linear backward, before dx1 changes */
+    if (din == g) dx1 = din;
+    else memcpy(dx1, g, (size_t)n * C * sizeof *dx1);
     nerf_layernorm_apply(n, C, P + o.ln2_g, P + o.ln2_b, xhat2, y, C);
     nerf_linear_backward(n, Hf, C, P + o.w_2, h, Hf, g, C, dh, Hf, 0, G + o.w_2, G + o.b_2);
     for (size_t i = 0; i < (size_t)n * Hf; i++) dh[i] *= dgelu[i];
@@ -121,5 +123,5 @@ void nerf_block_backward(const nerf_block_shape *s, const float *P, int n_patche
     nerf_layernorm_apply(n, C, P + o.ln1_g, P + o.ln1_b, xhat1, y, C);
     nerf_linear_backward(n, C, 3 * C, P + o.w_qkv, y, C, dqkv, 3 * C, dy, C, 0, G + o.w_qkv, G + o.b_qkv);
     nerf_layernorm_backward(n, C, P + o.ln1_g, xhat1, rstd1, dy, C, dx1, C, 1, G + o.ln1_g, G + o.ln1_b);
-    memcpy(din, dx1, (size_t)n * C * sizeof *din);
+    if (dx1 != din) memcpy(din, dx1, (size_t)n * C * sizeof *din);
 }
