@@ -1,0 +1,16 @@
+/* cli/client.h — `scicap` as the client of scicapd (docs/protocol.md).
+ *
+ * cli_client_main: argv[0] is one of status, devices, capture, calibrate, jobs, cancel, watch, reload, shutdown.
+ * cli_client_recon: `scicap recon --capture ID [--method M] [--preset P] [--iters N] [--wait]` (cli/recon.c calls
+ * it when it sees --capture). Both take --socket PATH (default $SCICAP_SOCKET, else /run/scicapd/control.sock)
+ * and return the exit status: 0 success, 1 failure (the daemon's error printed), 2 usage.
+ */
+#ifndef SCICAP_CLI_CLIENT_H
+#define SCICAP_CLI_CLIENT_H
+
+#define CLI_CLIENT_DEFAULT_SOCKET "/run/scicapd/control.sock"
+
+int cli_client_main(int argc, char **argv);
+int cli_client_recon(int argc, char **argv);
+
+#endif
