@@ -15,6 +15,7 @@
 #include <sys/eventfd.h>
 #include <sys/signalfd.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include "base/clock.h"
@@ -356,6 +357,16 @@ out:
 
 /* ---- life ---- */
 
+/* Threads created before scicapd_new (OpenBLAS starts its pool from a library constructor) do not block the
+ * signals; one delivered there is sent on to the main thread (tid == pid), where it is blocked and read from
+ * the signalfd. Async-signal-safe. */
+static void forward_to_main(int sig)
+{
+    int saved = errno;
+    syscall(SYS_tgkill, getpid(), getpid(), sig);
+    errno = saved;
+}
+
 int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci_error *err)
 {
     scicapd *d = calloc(1, sizeof *d);
@@ -396,6 +407,10 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
     sigaddset(&set, SIGINT);
     sigaddset(&set, SIGHUP);
     pthread_sigmask(SIG_BLOCK, &set, &d->oldmask);
+    struct sigaction sa = {.sa_handler = forward_to_main, .sa_flags = SA_RESTART};
+    sigaction(SIGTERM, &sa, NULL);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGHUP, &sa, NULL);
     signal(SIGPIPE, SIG_IGN);
     d->sfd = signalfd(-1, &set, SFD_CLOEXEC | SFD_NONBLOCK);
     d->stopfd = eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);

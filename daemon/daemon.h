@@ -9,7 +9,9 @@
  * Threads: the event loop (the caller of scicapd_run) owns the socket and the configuration; one acquisition
  * thread, one storage writer, `workers` reconstruction threads; hand-over through bounded queues and a
  * mailbox. Signals: scicapd_new blocks SIGTERM, SIGINT and SIGHUP in the calling thread (so in every thread it
- * starts) and reads them through a signalfd; SIGHUP reloads the configuration.
+ * starts) and reads them through a signalfd; SIGHUP reloads the configuration. Threads that existed before
+ * (OpenBLAS starts a pool from a library constructor) get a handler that forwards the signal to the main thread
+ * (tid == pid), so scicapd_new must be called from the process's main thread.
  * No hidden globals: two daemons may run in one process on different sockets and storage roots.
  */
 #ifndef SCICAP_DAEMON_DAEMON_H

@@ -1,0 +1,348 @@
+/* tests/integration/daemon_harness.h — start the built scicapd in a temporary folder and talk to it over its
+ * real Unix socket. Header-only (static inline) so each integration test program includes it.
+ *
+ *     harness h;
+ *     harness_start(&h, "{\"queues\": {\"capture\": 2}}", NULL);   // config text (NULL: none), extra env
+ *     hconn c; hconn_open(&c, &h);
+ *     json_t *r = hconn_request(&c, "status", NULL);              // the reply's "result", or fails the test
+ *     json_t *e = hconn_wait_event(&c, "capture.stored", 30000);
+ *     harness_stop(&h);                                           // SIGTERM, waits, checks the exit status
+ *
+ * The binary is found beside the test program (BUILD/tests/integration/x -> BUILD/scicapd).
+ */
+#ifndef SCICAP_TESTS_DAEMON_HARNESS_H
+#define SCICAP_TESTS_DAEMON_HARNESS_H
+
+#include <errno.h>
+#include <fcntl.h>
+#include <jansson.h>
+#include <libgen.h>
+#include <math.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "daemon/store.h"
+
+typedef struct harness {
+    char dir[256];       /* temporary folder */
+    char sock[300], store[300], run[300], config[300], log[300];
+    char bin[1024];
+    pid_t pid;
+    int have_config;
+} harness;
+
+typedef struct hconn {
+    int fd;
+    char buf[1 << 16];
+    size_t len;
+    int next_id;
+} hconn;
+
+static inline int64_t h_now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+}
+
+static inline void h_sleep_ms(int ms)
+{
+    struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
+    nanosleep(&ts, NULL);
+}
+
+static inline void harness_write_config(harness *h, const char *text)
+{
+    FILE *f = fopen(h->config, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+    h->have_config = 1;
+}
+
+static inline int h_connect_raw(const char *path)
+{
+    struct sockaddr_un sa = {.sun_family = AF_UNIX};
+    snprintf(sa.sun_path, sizeof sa.sun_path, "%s", path);
+    int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0)
+        return -1;
+    if (connect(fd, (struct sockaddr *)&sa, sizeof sa) != 0) {
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+/* Start (or restart, keeping dir) the daemon; env: NULL-terminated "K=V" list added to the environment. */
+static inline void harness_spawn(harness *h, char *const *env)
+{
+    unlink(h->sock);
+    h->pid = fork();
+    assert_true(h->pid >= 0);
+    if (h->pid == 0) {
+        for (int i = 0; env && env[i]; i++)
+            putenv(env[i]);
+        int fd = open(h->log, O_WRONLY | O_CREAT | O_APPEND, 0644);
+        if (fd >= 0) {
+            dup2(fd, 2);
+            dup2(fd, 1);
+        }
+        char *argv[16];
+        int k = 0;
+        argv[k++] = h->bin;
+        if (h->have_config) {
+            argv[k++] = "--config";
+            argv[k++] = h->config;
+        } else {
+            argv[k++] = "--no-config";
+        }
+        argv[k++] = "--socket";
+        argv[k++] = h->sock;
+        argv[k++] = "--storage";
+        argv[k++] = h->store;
+        argv[k++] = "--runtime-dir";
+        argv[k++] = h->run;
+        argv[k++] = "--no-fsync";
+        argv[k] = NULL;
+        execv(h->bin, argv);
+        _exit(127);
+    }
+    for (int i = 0; i < 200; i++) {
+        int fd = h_connect_raw(h->sock);
+        if (fd >= 0) {
+            close(fd);
+            return;
+        }
+        int st;
+        if (waitpid(h->pid, &st, WNOHANG) == h->pid) {
+            h->pid = 0;
+            fail_msg("scicapd exited at start (status %d); log in %s", st, h->log);
+        }
+        h_sleep_ms(50);
+    }
+    fail_msg("scicapd did not listen on %s within 10 s", h->sock);
+}
+
+static inline void harness_init(harness *h, const char *config_text)
+{
+    memset(h, 0, sizeof *h);
+    snprintf(h->dir, sizeof h->dir, "/tmp/scicapd-test-XXXXXX");
+    assert_non_null(mkdtemp(h->dir));
+    snprintf(h->sock, sizeof h->sock, "%s/control.sock", h->dir);
+    snprintf(h->store, sizeof h->store, "%s/store", h->dir);
+    snprintf(h->run, sizeof h->run, "%s/run", h->dir);
+    snprintf(h->config, sizeof h->config, "%s/scicapd.json", h->dir);
+    snprintf(h->log, sizeof h->log, "%s/scicapd.log", h->dir);
+    char self[1024];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    assert_true(n > 0);
+    self[n] = '\0';
+    snprintf(h->bin, sizeof h->bin, "%s/../../scicapd", dirname(self));
+    if (access(h->bin, X_OK) != 0)
+        fail_msg("no scicapd binary at %s (build it first)", h->bin);
+    if (config_text)
+        harness_write_config(h, config_text);
+}
+
+static inline void harness_start(harness *h, const char *config_text, char *const *env)
+{
+    harness_init(h, config_text);
+    harness_spawn(h, env);
+}
+
+/* Wait for the daemon to exit; returns its wait status. Fails after timeout_ms. */
+static inline int harness_wait(harness *h, int timeout_ms)
+{
+    int st = 0;
+    int64_t t0 = h_now_ms();
+    while (h->pid > 0) {
+        pid_t r = waitpid(h->pid, &st, WNOHANG);
+        if (r == h->pid) {
+            h->pid = 0;
+            return st;
+        }
+        if (h_now_ms() - t0 > timeout_ms) {
+            kill(h->pid, SIGKILL);
+            waitpid(h->pid, &st, 0);
+            h->pid = 0;
+            fail_msg("scicapd did not exit within %d ms", timeout_ms);
+        }
+        h_sleep_ms(20);
+    }
+    return st;
+}
+
+/* SIGTERM and a clean exit (status 0). */
+static inline void harness_stop(harness *h)
+{
+    if (h->pid <= 0)
+        return;
+    kill(h->pid, SIGTERM);
+    int st = harness_wait(h, 30000);
+    if (!WIFEXITED(st) || WEXITSTATUS(st) != 0)
+        fail_msg("scicapd ended with status 0x%x after SIGTERM; log in %s", st, h->log);
+}
+
+static inline void harness_kill9(harness *h)
+{
+    kill(h->pid, SIGKILL);
+    harness_wait(h, 10000);
+}
+
+static inline void harness_cleanup(harness *h)
+{
+    if (h->pid > 0) {
+        kill(h->pid, SIGKILL);
+        waitpid(h->pid, NULL, 0);
+        h->pid = 0;
+    }
+    scicapd_remove_tree(h->dir);
+}
+
+static inline void hconn_open(hconn *c, const harness *h)
+{
+    memset(c, 0, sizeof *c);
+    c->fd = h_connect_raw(h->sock);
+    if (c->fd < 0)
+        fail_msg("connect %s: %s", h->sock, strerror(errno));
+    c->next_id = 1;
+}
+
+static inline void hconn_close(hconn *c)
+{
+    if (c->fd >= 0)
+        close(c->fd);
+    c->fd = -1;
+}
+
+static inline void hconn_send_raw(hconn *c, const char *data, size_t n)
+{
+    size_t off = 0;
+    while (off < n) {
+        ssize_t w = send(c->fd, data + off, n - off, MSG_NOSIGNAL);
+        if (w < 0 && errno == EINTR)
+            continue;
+        if (w < 0)
+            fail_msg("send: %s", strerror(errno));
+        off += (size_t)w;
+    }
+}
+
+/* Next message within timeout_ms, or NULL on timeout / closed connection. */
+static inline json_t *hconn_read(hconn *c, int timeout_ms)
+{
+    int64_t t0 = h_now_ms();
+    for (;;) {
+        char *nl = memchr(c->buf, '\n', c->len);
+        if (nl) {
+            size_t n = (size_t)(nl - c->buf);
+            json_error_t je;
+            json_t *m = json_loadb(c->buf, n, 0, &je);
+            memmove(c->buf, nl + 1, c->len - n - 1);
+            c->len -= n + 1;
+            if (!m)
+                fail_msg("daemon sent invalid JSON: %s", je.text);
+            return m;
+        }
+        int left = timeout_ms - (int)(h_now_ms() - t0);
+        if (left <= 0)
+            return NULL;
+        struct pollfd p = {.fd = c->fd, .events = POLLIN};
+        if (poll(&p, 1, left) <= 0)
+            continue;
+        if (c->len == sizeof c->buf)
+            fail_msg("message longer than %zu bytes", sizeof c->buf);
+        ssize_t r = recv(c->fd, c->buf + c->len, sizeof c->buf - c->len, 0);
+        if (r <= 0)
+            return NULL;
+        c->len += (size_t)r;
+    }
+}
+
+/* Send {"v":1,"id":N,"cmd":cmd,"args":args} (args stolen, may be NULL); return the full reply message (events
+ * before it are skipped). */
+static inline json_t *hconn_call(hconn *c, const char *cmd, json_t *args)
+{
+    int id = c->next_id++;
+    json_t *req = json_pack("{s:i, s:i, s:s}", "v", 1, "id", id, "cmd", cmd);
+    if (args)
+        json_object_set_new(req, "args", args);
+    char *s = json_dumps(req, JSON_COMPACT);
+    json_decref(req);
+    hconn_send_raw(c, s, strlen(s));
+    hconn_send_raw(c, "\n", 1);
+    free(s);
+    for (;;) {
+        json_t *m = hconn_read(c, 30000);
+        if (!m)
+            fail_msg("no reply to %s within 30 s", cmd);
+        if (!json_object_get(m, "event") && json_integer_value(json_object_get(m, "id")) == id)
+            return m;
+        json_decref(m);
+    }
+}
+
+/* The "result" of a successful call (new reference); fails the test on an error reply. */
+static inline json_t *hconn_request(hconn *c, const char *cmd, json_t *args)
+{
+    json_t *m = hconn_call(c, cmd, args);
+    if (!json_is_true(json_object_get(m, "ok"))) {
+        char *s = json_dumps(m, JSON_COMPACT);
+        fail_msg("%s failed: %s", cmd, s);
+    }
+    json_t *r = json_incref(json_object_get(m, "result"));
+    json_decref(m);
+    return r;
+}
+
+/* The error code of a failed call ("" if it succeeded). Static storage per call site is avoided: copies. */
+static inline void hconn_expect_error(hconn *c, const char *cmd, json_t *args, const char *code)
+{
+    json_t *m = hconn_call(c, cmd, args);
+    const char *got = json_string_value(json_object_get(json_object_get(m, "error"), "code"));
+    if (json_is_true(json_object_get(m, "ok")) || !got || strcmp(got, code) != 0) {
+        char *s = json_dumps(m, JSON_COMPACT);
+        fail_msg("%s: expected error %s, got %s", cmd, code, s);
+    }
+    json_decref(m);
+}
+
+/* Wait for event `name` (optionally with data.<key> == value); returns it (new ref) or fails. */
+static inline json_t *hconn_wait_event(hconn *c, const char *name, int timeout_ms)
+{
+    int64_t t0 = h_now_ms();
+    for (;;) {
+        int left = timeout_ms - (int)(h_now_ms() - t0);
+        json_t *m = left > 0 ? hconn_read(c, left) : NULL;
+        if (!m)
+            fail_msg("no %s event within %d ms", name, timeout_ms);
+        const char *ev = json_string_value(json_object_get(m, "event"));
+        if (ev && strcmp(ev, name) == 0)
+            return m;
+        if (ev && strstr(ev, ".failed") && !strstr(name, ".failed")) {
+            char *s = json_dumps(m, JSON_COMPACT);
+            fail_msg("waiting for %s: %s", name, s);
+        }
+        json_decref(m);
+    }
+}
+
+static inline int h_exists(const char *fmt, const char *a, const char *b)
+{
+    char p[1024];
+    snprintf(p, sizeof p, fmt, a, b);
+    struct stat st;
+    return stat(p, &st) == 0;
+}
+
+#endif
