@@ -120,6 +120,27 @@ static void test_activations(void **s)
     check_act(NERF_ACT_SIGMOID, -12, 12);
 }
 
+/* The fused GELU pass (value and derivative, used by the block) against the double reference and its derivative
+ * by central differences, over [−8, 8] including 0 and the tails, and NaN propagation. */
+static void test_gelu_with_grad(void **s)
+{
+    (void)s;
+    enum { N = 1601 };
+    float x[N + 1], y[N + 1], g[N + 1];
+    for (int i = 0; i < N; i++) x[i] = -8.0f + 16.0f * (float)i / (N - 1);
+    x[N] = NAN;
+    nerf_act_gelu_with_grad(N + 1, x, y, g);
+    double ey = 0, eg = 0;
+    for (int i = 0; i < N; i++) {
+        double h = 1e-5, r = nerf_ref_gelu(x[i]), rg = (nerf_ref_gelu(x[i] + h) - nerf_ref_gelu(x[i] - h)) / (2 * h);
+        ey = fmax(ey, fabs(y[i] - r)), eg = fmax(eg, fabs(g[i] - rg));
+    }
+    printf("gelu with grad: max |error| value %.2g, derivative %.2g\n", ey, eg);
+    assert_true(ey < 1e-6);
+    assert_true(eg < 1e-6);
+    assert_true(isnan(y[N]) && isnan(g[N]));
+}
+
 /* trunc_exp: the backward is clamped at ±15 (finite for any input), the forward saturates at exp(88). */
 static void test_trunc_exp_clamp(void **s)
 {
@@ -565,7 +586,8 @@ int main(void)
         cmocka_unit_test(test_hashgrid_random),   cmocka_unit_test(test_hashgrid_borders),
         cmocka_unit_test(test_hashgrid_config_errors), cmocka_unit_test(test_attention),
         cmocka_unit_test(test_attention_large_logits),
-        cmocka_unit_test(test_attention_wide_heads), cmocka_unit_test(test_block),
+        cmocka_unit_test(test_attention_wide_heads),
+        cmocka_unit_test(test_gelu_with_grad), cmocka_unit_test(test_block),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
