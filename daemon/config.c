@@ -427,6 +427,9 @@ const scicapd_mask_set *scicapd_config_mask_set(const scicapd_config *c, const c
     return NULL;
 }
 
+/* json_equal says 0 when either side is NULL: two absent objects are equal here. */
+static int same_json(const json_t *a, const json_t *b) { return (!a && !b) || (a && b && json_equal(a, b)); }
+
 json_t *scicapd_config_restart_keys(const scicapd_config *a, const scicapd_config *b)
 {
     json_t *r = json_array();
@@ -437,7 +440,7 @@ json_t *scicapd_config_restart_keys(const scicapd_config *a, const scicapd_confi
         json_array_append_new(r, json_string("storage"));
     if (strcmp(a->dmd_backend, b->dmd_backend) || strcmp(a->camera_backend, b->camera_backend) ||
         strcmp(a->trigger_backend, b->trigger_backend) || strcmp(a->dmd_serial, b->dmd_serial) ||
-        !json_equal(a->camera_json, b->camera_json) || !json_equal(a->trigger_json, b->trigger_json))
+        !same_json(a->camera_json, b->camera_json) || !same_json(a->trigger_json, b->trigger_json))
         json_array_append_new(r, json_string("devices"));
     if (strcmp(a->scene_path, b->scene_path) || a->sim_counts_per_unit != b->sim_counts_per_unit ||
         a->sim_dark_counts != b->sim_dark_counts || a->sim_read_noise != b->sim_read_noise ||
