@@ -127,82 +127,116 @@ static inline __attribute__((always_inline)) void level_corners(const level *v, 
  * which points add into one gradient entry is still the point order, so results equal the point-major ones. */
 #define CLONES __attribute__((target_clones("avx2", "default")))
 
-CLONES void nerf_hashgrid_forward(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y,
-                                  int ldy)
+/* One level of the forward: y[i·ldy + l·F + f] for every point. */
+CLONES static void level_forward(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y,
+                                 int ldy, int l)
 {
-    const int L = g->cfg.n_levels, F = g->cfg.n_features;
+    const int F = g->cfg.n_features;
     const uint64_t T = (uint64_t)1 << g->cfg.log2_table;
-    for (int l = 0; l < L; l++) {
-        const level *v = &g->lv[l];
-        for (int i = 0; i < n; i++) {
-            corners c;
-            level_corners(v, T, x + 3 * (size_t)i, &c);
-            float *yi = y + (size_t)i * ldy + l * F;
-            if (F == 2) {
-                float a0 = 0.0f, a1 = 0.0f;
-                for (int k = 0; k < 8; k++) {
-                    const float *e = table + c.idx[k] * 2;
-                    a0 += c.w[k] * e[0];
-                    a1 += c.w[k] * e[1];
-                }
-                yi[0] = a0, yi[1] = a1;
-            } else {
-                float acc[8] = {0};
-                for (int k = 0; k < 8; k++) {
-                    const float *e = table + c.idx[k] * F;
-                    for (int f = 0; f < F; f++) acc[f] += c.w[k] * e[f];
-                }
-                for (int f = 0; f < F; f++) yi[f] = acc[f];
+    const level *v = &g->lv[l];
+    for (int i = 0; i < n; i++) {
+        corners c;
+        level_corners(v, T, x + 3 * (size_t)i, &c);
+        float *yi = y + (size_t)i * ldy + l * F;
+        if (F == 2) {
+            float a0 = 0.0f, a1 = 0.0f;
+            for (int k = 0; k < 8; k++) {
+                const float *e = table + c.idx[k] * 2;
+                a0 += c.w[k] * e[0];
+                a1 += c.w[k] * e[1];
+            }
+            yi[0] = a0, yi[1] = a1;
+        } else {
+            float acc[8] = {0};
+            for (int k = 0; k < 8; k++) {
+                const float *e = table + c.idx[k] * F;
+                for (int f = 0; f < F; f++) acc[f] += c.w[k] * e[f];
+            }
+            for (int f = 0; f < F; f++) yi[f] = acc[f];
+        }
+    }
+}
+
+/* One level of the table gradient: the entries of level l only, points in order. */
+CLONES static void level_backward_table(const nerf_hashgrid *g, int n, const float *x, const float *dy, int lddy,
+                                        float *dtable, int l)
+{
+    const int F = g->cfg.n_features;
+    const uint64_t T = (uint64_t)1 << g->cfg.log2_table;
+    const level *v = &g->lv[l];
+    for (int i = 0; i < n; i++) {
+        corners c;
+        level_corners(v, T, x + 3 * (size_t)i, &c);
+        const float *gl = dy + (size_t)i * lddy + l * F;
+        if (F == 2) {
+            const float g0 = gl[0], g1 = gl[1];
+            for (int k = 0; k < 8; k++) {
+                float *e = dtable + c.idx[k] * 2;
+                e[0] += c.w[k] * g0;
+                e[1] += c.w[k] * g1;
+            }
+        } else {
+            for (int k = 0; k < 8; k++) {
+                float *e = dtable + c.idx[k] * F;
+                for (int f = 0; f < F; f++) e[f] += c.w[k] * gl[f];
             }
         }
     }
 }
 
-CLONES void nerf_hashgrid_backward(const nerf_hashgrid *g, const float *table, int n, const float *x,
-                                   const float *dy, int lddy, float *dtable, float *dx)
+/* One level's contribution to the position gradient, added to dx. */
+CLONES static void level_backward_pos(const nerf_hashgrid *g, const float *table, int n, const float *x,
+                                      const float *dy, int lddy, float *dx, int l)
 {
-    const int L = g->cfg.n_levels, F = g->cfg.n_features;
+    const int F = g->cfg.n_features;
     const uint64_t T = (uint64_t)1 << g->cfg.log2_table;
-    if (dx) memset(dx, 0, 3 * (size_t)n * sizeof *dx);
-    for (int l = 0; l < L; l++) {
-        const level *v = &g->lv[l];
-        const float sc = (float)v->scale;
-        for (int i = 0; i < n; i++) {
-            corners c;
-            level_corners(v, T, x + 3 * (size_t)i, &c);
-            const float *gl = dy + (size_t)i * lddy + l * F;
-            if (dtable) {
-                if (F == 2) {
-                    const float g0 = gl[0], g1 = gl[1];
-                    for (int k = 0; k < 8; k++) {
-                        float *e = dtable + c.idx[k] * 2;
-                        e[0] += c.w[k] * g0;
-                        e[1] += c.w[k] * g1;
-                    }
-                } else {
-                    for (int k = 0; k < 8; k++) {
-                        float *e = dtable + c.idx[k] * F;
-                        for (int f = 0; f < F; f++) e[f] += c.w[k] * gl[f];
-                    }
-                }
-            }
-            if (dx) {
-                /* ∂y/∂p_d = Σ_k ±(product of the other two weights)·e_k; float sums over 8 corners, 16 levels */
-                float gl3[3] = {0, 0, 0};
-                const float fr[3][2] = {{1.0f - c.frac[0], c.frac[0]}, {1.0f - c.frac[1], c.frac[1]},
-                                        {1.0f - c.frac[2], c.frac[2]}};
-                for (int k = 0; k < 8; k++) {
-                    const float *e = table + c.idx[k] * F;
-                    float dot = 0.0f;
-                    for (int f = 0; f < F; f++) dot += e[f] * gl[f];
-                    const int b0 = k & 1, b1 = (k >> 1) & 1, b2 = k >> 2;
-                    gl3[0] += (b0 ? 1.0f : -1.0f) * fr[1][b1] * fr[2][b2] * dot;
-                    gl3[1] += (b1 ? 1.0f : -1.0f) * fr[0][b0] * fr[2][b2] * dot;
-                    gl3[2] += (b2 ? 1.0f : -1.0f) * fr[0][b0] * fr[1][b1] * dot;
-                }
-                for (int d = 0; d < 3; d++)
-                    if (c.inside[d]) dx[3 * (size_t)i + d] += sc * gl3[d];
-            }
+    const level *v = &g->lv[l];
+    const float sc = (float)v->scale;
+    for (int i = 0; i < n; i++) {
+        corners c;
+        level_corners(v, T, x + 3 * (size_t)i, &c);
+        const float *gl = dy + (size_t)i * lddy + l * F;
+        /* ∂y/∂p_d = Σ_k ±(product of the other two weights)·e_k; float sums over 8 corners */
+        float gl3[3] = {0, 0, 0};
+        const float fr[3][2] = {{1.0f - c.frac[0], c.frac[0]}, {1.0f - c.frac[1], c.frac[1]},
+                                {1.0f - c.frac[2], c.frac[2]}};
+        for (int k = 0; k < 8; k++) {
+            const float *e = table + c.idx[k] * F;
+            float dot = 0.0f;
+            for (int f = 0; f < F; f++) dot += e[f] * gl[f];
+            const int b0 = k & 1, b1 = (k >> 1) & 1, b2 = k >> 2;
+            gl3[0] += (b0 ? 1.0f : -1.0f) * fr[1][b1] * fr[2][b2] * dot;
+            gl3[1] += (b1 ? 1.0f : -1.0f) * fr[0][b0] * fr[2][b2] * dot;
+            gl3[2] += (b2 ? 1.0f : -1.0f) * fr[0][b0] * fr[1][b1] * dot;
         }
+        for (int d = 0; d < 3; d++)
+            if (c.inside[d]) dx[3 * (size_t)i + d] += sc * gl3[d];
     }
+}
+
+void nerf_hashgrid_forward(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y, int ldy)
+{
+    for (int l = 0; l < g->cfg.n_levels; l++) level_forward(g, table, n, x, y, ldy, l);
+}
+
+void nerf_hashgrid_forward_level(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y,
+                                 int ldy, int l)
+{
+    level_forward(g, table, n, x, y, ldy, l);
+}
+
+void nerf_hashgrid_backward(const nerf_hashgrid *g, const float *table, int n, const float *x, const float *dy,
+                            int lddy, float *dtable, float *dx)
+{
+    if (dx) memset(dx, 0, 3 * (size_t)n * sizeof *dx);
+    for (int l = 0; l < g->cfg.n_levels; l++) {
+        if (dtable) level_backward_table(g, n, x, dy, lddy, dtable, l);
+        if (dx) level_backward_pos(g, table, n, x, dy, lddy, dx, l);
+    }
+}
+
+void nerf_hashgrid_backward_level(const nerf_hashgrid *g, int n, const float *x, const float *dy, int lddy,
+                                  float *dtable, int l)
+{
+    level_backward_table(g, n, x, dy, lddy, dtable, l);
 }

@@ -34,7 +34,7 @@ struct nerf_rayformer_ws {
     nerf_block_saved sv[MAX_BLOCKS];
     float *act[2];
     float **scratch;   /* per thread */
-    float **tgrad;     /* per thread, [0] unused (the caller's grad) */
+    float *pgrad;      /* per patch: gradient of the parameters after the hash table (n_params − n_hash) */
     size_t scratch_floats;
 };
 
@@ -174,11 +174,10 @@ int nerf_rayformer_ws_new(nerf_rayformer_ws **out, const nerf_rayformer *n, int 
     size_t bs = nerf_block_scratch_floats(&n->bs, chunk), hs = head_scratch_floats(n, chunk);
     w->scratch_floats = (bs > hs ? bs : hs) + 16;
     size_t total = rows * per_row + (size_t)max_patches * n->R * 3 + (size_t)n_threads * w->scratch_floats +
-                   (size_t)(n_threads - 1) * n->n_params;
+                   (size_t)max_patches * (n->n_params - n->n_hash);
     w->mem = malloc(total * sizeof *w->mem);
     w->scratch = calloc((size_t)n_threads, sizeof *w->scratch);
-    w->tgrad = calloc((size_t)n_threads, sizeof *w->tgrad);
-    if (!w->mem || !w->scratch || !w->tgrad) {
+    if (!w->mem || !w->scratch) {
         nerf_rayformer_ws_free(w);
         return sci_error_set(err, -ENOMEM, "rayformer: workspace of %zu MiB for %d patches", total * 4 >> 20,
                              max_patches);
@@ -200,7 +199,7 @@ int nerf_rayformer_ws_new(nerf_rayformer_ws **out, const nerf_rayformer *n, int 
     }
     w->dir = m, m += (size_t)max_patches * n->R * 3;
     for (int t = 0; t < n_threads; t++) w->scratch[t] = m, m += w->scratch_floats;
-    for (int t = 1; t < n_threads; t++) w->tgrad[t] = m, m += n->n_params;
+    w->pgrad = m, m += (size_t)max_patches * (n->n_params - n->n_hash);
     *out = w;
     return 0;
 }
@@ -210,17 +209,10 @@ void nerf_rayformer_ws_free(nerf_rayformer_ws *w)
     if (!w) return;
     free(w->mem);
     free(w->scratch);
-    free(w->tgrad);
     free(w);
 }
 
 size_t nerf_rayformer_ws_bytes(const nerf_rayformer_ws *w) { return w->bytes; }
-
-static inline void patch_range(int n_patches, int nt, int t, int *p0, int *p1)
-{
-    *p0 = (int)((long)n_patches * t / nt);
-    *p1 = (int)((long)n_patches * (t + 1) / nt);
-}
 
 /* Forward of one patch (rows [row0, row0 + R·L)) on the calling thread, after the hash encoding of its rows. */
 static void patch_forward(const nerf_rayformer *n, const float *P, nerf_rayformer_ws *w, int p, const float *pos,
@@ -259,6 +251,9 @@ static void patch_forward(const nerf_rayformer *n, const float *P, nerf_rayforme
     memcpy(rgb_out + row0 * 3, w->rgb + row0 * 3, (size_t)rows * 3 * sizeof *rgb_out);
 }
 
+/* Points per dynamically scheduled chunk of the hash encoding (4 patches of the default network). */
+#define HASH_CHUNK 8192
+
 int nerf_rayformer_forward(const nerf_rayformer *n, const float *P, nerf_rayformer_ws *w, int n_patches,
                            const float *pos, const float *dir, float *sigma, float *rgb)
 {
@@ -267,25 +262,32 @@ int nerf_rayformer_forward(const nerf_rayformer *n, const float *P, nerf_rayform
     memcpy(w->dir, dir, (size_t)n_patches * n->R * 3 * sizeof *w->dir);
     nerf_blas_single_thread();
     const int nt = w->n_threads;
+    const long N = (long)n_patches * n->R * n->L;
+    const nerf_rayformer_config *cf = &n->cfg;
+    /* Dynamic schedules: a thread whose core is shared with another job takes fewer chunks instead of holding the
+     * other at the barrier. Nothing here reduces across chunks, so the bits do not depend on the schedule. */
 #pragma omp parallel num_threads(nt)
     {
-        int t = omp_get_thread_num(), p0, p1;
-        patch_range(n_patches, omp_get_num_threads(), t, &p0, &p1);
-        /* the hash encoding runs over the thread's whole range at once (level-major, see hashgrid.c) */
-        const size_t per = (size_t)n->R * n->L, r0 = (size_t)p0 * per, nr = (size_t)(p1 - p0) * per;
-        const nerf_rayformer_config *cf = &n->cfg;
-        float *u = w->u + r0 * 3;
-        for (size_t i = 0; i < nr; i++)
-            for (int d = 0; d < 3; d++)
-                u[3 * i + d] = (pos[(r0 + i) * 3 + d] - cf->aabb_min[d]) / (cf->aabb_max[d] - cf->aabb_min[d]);
-        if (nr) nerf_hashgrid_forward(n->grid, P, (int)nr, u, w->act[0] + r0 * n->C, n->C);
-        for (int p = p0; p < p1; p++) patch_forward(n, P, w, p, pos, sigma, rgb, w->scratch[t]);
+#pragma omp for schedule(dynamic, 1)
+        for (long c0 = 0; c0 < N; c0 += HASH_CHUNK) {
+            long cnt = N - c0 < HASH_CHUNK ? N - c0 : HASH_CHUNK;
+            float *u = w->u + c0 * 3;
+            for (long i = 0; i < cnt; i++)
+                for (int d = 0; d < 3; d++)
+                    u[3 * i + d] = (pos[(c0 + i) * 3 + d] - cf->aabb_min[d]) / (cf->aabb_max[d] - cf->aabb_min[d]);
+            nerf_hashgrid_forward(n->grid, P, (int)cnt, u, w->act[0] + c0 * n->C, n->C);
+        }
+#pragma omp for schedule(dynamic, 1)
+        for (int p = 0; p < n_patches; p++)
+            patch_forward(n, P, w, p, pos, sigma, rgb, w->scratch[omp_get_thread_num()]);
     }
     return 0;
 }
 
+/* Gd: this patch's gradient of the parameters after the hash table (offsets shifted by n_hash). */
+#define GD(off) (Gd + ((off) - n->n_hash))
 static void patch_backward(const nerf_rayformer *n, const float *P, nerf_rayformer_ws *w, int p,
-                           const float *d_sigma, const float *d_rgb, float *Gr, float *d_pos, float *d_dir,
+                           const float *d_sigma, const float *d_rgb, float *Gd, float *d_dir,
                            float *scr)
 {
     const int C = n->C, G = n->G, S = n->S, Hc = n->Hc, R = n->R, L = n->L, Ci = n->cin, rows = R * L;
@@ -299,14 +301,14 @@ static void patch_backward(const nerf_rayformer *n, const float *P, nerf_rayform
     nerf_act_backward(NERF_ACT_SIGMOID, (size_t)rows * 3, NULL, rgbs, drp, drp);
     if (Hc) {
         nerf_act_forward(NERF_ACT_RELU, (size_t)rows * Hc, c1pre, c1);
-        nerf_linear_backward(rows, Hc, 3, P + n->off_wc2, c1, Hc, drp, 3, dc1, Hc, 0, Gr + n->off_wc2,
-                             Gr + n->off_bc2);
+        nerf_linear_backward(rows, Hc, 3, P + n->off_wc2, c1, Hc, drp, 3, dc1, Hc, 0, GD(n->off_wc2),
+                             GD(n->off_bc2));
         nerf_act_backward(NERF_ACT_RELU, (size_t)rows * Hc, c1pre, NULL, dc1, dc1);
-        nerf_linear_backward(rows, Ci, Hc, P + n->off_wc1, cin, Ci, dc1, Hc, dcin, Ci, 0, Gr + n->off_wc1,
-                             Gr + n->off_bc1);
+        nerf_linear_backward(rows, Ci, Hc, P + n->off_wc1, cin, Ci, dc1, Hc, dcin, Ci, 0, GD(n->off_wc1),
+                             GD(n->off_bc1));
     } else {
-        nerf_linear_backward(rows, Ci, 3, P + n->off_wc2, cin, Ci, drp, 3, dcin, Ci, 0, Gr + n->off_wc2,
-                             Gr + n->off_bc2);
+        nerf_linear_backward(rows, Ci, 3, P + n->off_wc2, cin, Ci, drp, 3, dcin, Ci, 0, GD(n->off_wc2),
+                             GD(n->off_bc2));
     }
     for (int i = 0; i < rows; i++) {
         float s = hout[(size_t)i * (G + 1)] + cf->density_bias, ds = d_sigma ? d_sigma[row0 + i] : 0.0f;
@@ -327,53 +329,60 @@ static void patch_backward(const nerf_rayformer *n, const float *P, nerf_rayform
     }
     /* head and final LN; the block chain runs in place on act[0] as the gradient buffer */
     nerf_layernorm_apply(rows, C, P + n->off_lnf_g, P + n->off_lnf_b, w->xhatf + row0 * C, y, C);
-    nerf_linear_backward(rows, C, G + 1, P + n->off_wh, y, C, dhout, G + 1, dy, C, 0, Gr + n->off_wh,
-                         Gr + n->off_bh);
+    nerf_linear_backward(rows, C, G + 1, P + n->off_wh, y, C, dhout, G + 1, dy, C, 0, GD(n->off_wh),
+                         GD(n->off_bh));
     float *g = w->act[0] + row0 * C;
     nerf_layernorm_backward(rows, C, P + n->off_lnf_g, w->xhatf + row0 * C, w->rstdf + row0, dy, C, g, C, 0,
-                            Gr + n->off_lnf_g, Gr + n->off_lnf_b);
+                            GD(n->off_lnf_g), GD(n->off_lnf_b));
     for (int b = cf->n_blocks - 1; b >= 0; b--)
         nerf_block_backward(&n->bs, P + n->off_block[b], 1, row0, &w->sv[b], w->act[0], w->act[0],
-                            Gr + n->off_block[b], scr);
+                            GD(n->off_block[b]), scr);
 }
 
 int nerf_rayformer_backward(const nerf_rayformer *n, const float *P, nerf_rayformer_ws *w, const float *d_sigma,
                             const float *d_rgb, float *grad, float *d_pos, float *d_dir)
 {
-    if (w->n_patches < 1) return -EINVAL;
-    const int nt = w->n_threads, n_patches = w->n_patches;
-    const size_t np = n->n_params;
-    float *tg0 = grad;
-    float *sink = NULL;
-    if (!grad) return -EINVAL;
+    if (w->n_patches < 1 || !grad) return -EINVAL;
+    const int nt = w->n_threads, n_patches = w->n_patches, C = n->C;
+    const size_t nh = n->n_hash, nd = n->n_params - n->n_hash;
+    const long N = (long)n_patches * n->R * n->L;
+    const int levels = n->cfg.grid.n_levels;
     nerf_blas_single_thread();
+    /* Determinism without per-thread buffers, for any thread count and schedule: each patch writes its own
+     * gradient slice (the parameters after the table, ~75 KB), summed in patch order; the table gradient is split
+     * by level (levels own disjoint slices of the table) and each level takes the points in order. */
 #pragma omp parallel num_threads(nt)
     {
-        int t = omp_get_thread_num(), nth = omp_get_num_threads(), p0, p1;
-        float *Gr = t == 0 ? tg0 : w->tgrad[t];
-        memset(Gr, 0, np * sizeof *Gr);
-        patch_range(n_patches, nth, t, &p0, &p1);
-        for (int p = p1 - 1; p >= p0; p--) patch_backward(n, P, w, p, d_sigma, d_rgb, Gr, d_pos, d_dir, w->scratch[t]);
-        /* hash encoding over the whole range; act[0] holds ∂L/∂h₀ of every row */
-        const size_t per = (size_t)n->R * n->L, r0 = (size_t)p0 * per, nr = (size_t)(p1 - p0) * per;
-        const float *u = w->u + r0 * 3;
-        if (nr) nerf_hashgrid_backward(n->grid, P, (int)nr, u, w->act[0] + r0 * n->C, n->C, Gr,
-                                       d_pos ? d_pos + r0 * 3 : NULL);
-        if (d_pos)
-            for (size_t i = 0; i < nr; i++)
-                for (int d = 0; d < 3; d++) {
-                    float ud = u[3 * i + d], *dp = &d_pos[(r0 + i) * 3 + d];
-                    *dp = (ud >= 0.0f && ud <= 1.0f) ? *dp / (n->cfg.aabb_max[d] - n->cfg.aabb_min[d]) : 0.0f;
-                }
-#pragma omp barrier
-        /* fixed-order reduction: grad[j] = g0[j] + g1[j] + … (thread order), split by j */
+#pragma omp for schedule(dynamic, 1)
+        for (int p = 0; p < n_patches; p++) {
+            float *Gd = w->pgrad + (size_t)p * nd;
+            memset(Gd, 0, nd * sizeof *Gd);
+            patch_backward(n, P, w, p, d_sigma, d_rgb, Gd, d_dir, w->scratch[omp_get_thread_num()]);
+        }
 #pragma omp for schedule(static)
-        for (size_t j = 0; j < np; j++) {
-            float s = tg0[j];
-            for (int q = 1; q < nth; q++) s += w->tgrad[q][j];
-            tg0[j] = s;
+        for (size_t j = 0; j < nh; j += 4096) memset(grad + j, 0, (nh - j < 4096 ? nh - j : 4096) * sizeof *grad);
+#pragma omp for schedule(dynamic, 1)
+        for (int l = 0; l < levels; l++)
+            nerf_hashgrid_backward_level(n->grid, (int)N, w->u, w->act[0], C, grad, l);
+        if (d_pos) {
+#pragma omp for schedule(dynamic, 1)
+            for (long c0 = 0; c0 < N; c0 += HASH_CHUNK) {
+                long cnt = N - c0 < HASH_CHUNK ? N - c0 : HASH_CHUNK;
+                const float *u = w->u + c0 * 3;
+                nerf_hashgrid_backward(n->grid, P, (int)cnt, u, w->act[0] + c0 * C, C, NULL, d_pos + c0 * 3);
+                for (long i = 0; i < cnt; i++)
+                    for (int d = 0; d < 3; d++) {
+                        float ud = u[3 * i + d], *dp = &d_pos[(c0 + i) * 3 + d];
+                        *dp = (ud >= 0.0f && ud <= 1.0f) ? *dp / (n->cfg.aabb_max[d] - n->cfg.aabb_min[d]) : 0.0f;
+                    }
+            }
+        }
+#pragma omp for schedule(static)
+        for (size_t j = 0; j < nd; j++) {
+            float s = w->pgrad[j];
+            for (int p = 1; p < n_patches; p++) s += w->pgrad[(size_t)p * nd + j];
+            grad[nh + j] = s;
         }
     }
-    (void)sink;
     return 0;
 }
