@@ -1,4 +1,8 @@
 /* recon/nerf/hashgrid.c — multiresolution hash encoding (see hashgrid.h). */
+/* The clamps in level_cells must be if-converted to vectorise; this changes no value, it only lets gcc assume no FP
+ * trap is enabled (the project never enables one). */
+#pragma GCC optimize("no-trapping-math")
+
 #include "recon/nerf/hashgrid.h"
 
 #include <errno.h>
@@ -89,21 +93,28 @@ typedef struct corners {
     int inside[3];
 } corners;
 
-static inline __attribute__((always_inline)) void level_corners(const level *v, uint64_t T, const float *x,
-                                                                corners *c)
+/* Cells and fractions of m points at one level from their 3m coordinates (flat: every coordinate is treated
+ * alike), clamped to [0, 1], NaN → 0 (a safe index; the caller validated inputs). Vectorises. */
+static inline __attribute__((always_inline)) void level_cells(const level *v, int m3, const float *x,
+                                                              uint32_t *cell, float *frac)
 {
-    uint32_t cell[3];
-    for (int d = 0; d < 3; d++) {
-        float xd = x[d];
-        c->inside[d] = xd >= 0.0f && xd <= 1.0f;
+    const double sc = v->scale;
+    for (int k = 0; k < m3; k++) {
+        float xd = x[k];
         xd = xd < 0.0f ? 0.0f : (xd > 1.0f ? 1.0f : xd);
-        if (xd != xd) xd = 0.0f, c->inside[d] = 0; /* NaN: a safe index; the caller validated inputs */
-        double p = v->scale * (double)xd + 0.5;
-        double fl = (double)(uint32_t)p; /* p >= 0.5: truncation is floor, without a libm call */
-        cell[d] = (uint32_t)fl;
-        c->frac[d] = (float)(p - fl);
+        xd = xd != xd ? 0.0f : xd;
+        double p = sc * (double)xd + 0.5;
+        uint32_t c = (uint32_t)(int32_t)p; /* 0.5 <= p < 2^31: truncation is floor, without a libm call */
+        cell[k] = c;
+        frac[k] = (float)(p - (double)c);
     }
-    const float fx = c->frac[0], fy = c->frac[1], fz = c->frac[2];
+}
+
+/* Corner indices and weights from a point's cell and fractions. */
+static inline __attribute__((always_inline)) void corners_from(const level *v, uint64_t T, const uint32_t *cell,
+                                                               const float *frac, corners *c)
+{
+    const float fx = frac[0], fy = frac[1], fz = frac[2];
     const float wx[2] = {1.0f - fx, fx}, wy[2] = {1.0f - fy, fy}, wz[2] = {1.0f - fz, fz};
     uint64_t hx[2], hy[2], hz[2];
     if (v->dense) {
@@ -122,6 +133,17 @@ static inline __attribute__((always_inline)) void level_corners(const level *v, 
     for (int k = 0; k < 8; k++) c->w[k] = wx[k & 1] * wy[(k >> 1) & 1] * wz[k >> 2];
 }
 
+static inline __attribute__((always_inline)) void level_corners(const level *v, uint64_t T, const float *x,
+                                                                corners *c)
+{
+    uint32_t cell[3];
+    level_cells(v, 3, x, cell, c->frac);
+    for (int d = 0; d < 3; d++) c->inside[d] = x[d] >= 0.0f && x[d] <= 1.0f;
+    corners_from(v, T, cell, c->frac, c);
+}
+
+#define BLK 256 /* points per block of level_cells */
+
 /* Level-major loops: one level's table slice (at most T·F floats, 512 KiB for the RayFormer grid) stays in L2
  * while every point visits it; point-major order would sweep the whole table (8 MiB) per point. The order in
  * which points add into one gradient entry is still the point order, so results equal the point-major ones. */
@@ -134,9 +156,12 @@ CLONES static void level_forward(const nerf_hashgrid *g, const float *table, int
     const int F = g->cfg.n_features;
     const uint64_t T = (uint64_t)1 << g->cfg.log2_table;
     const level *v = &g->lv[l];
+    uint32_t cell[3 * BLK];
+    float frac[3 * BLK];
     for (int i = 0; i < n; i++) {
+        if (i % BLK == 0) level_cells(v, 3 * (n - i < BLK ? n - i : BLK), x + 3 * (size_t)i, cell, frac);
         corners c;
-        level_corners(v, T, x + 3 * (size_t)i, &c);
+        corners_from(v, T, cell + 3 * (i % BLK), frac + 3 * (i % BLK), &c);
         float *yi = y + (size_t)i * ldy + l * F;
         if (F == 2) {
             float a0 = 0.0f, a1 = 0.0f;
@@ -164,9 +189,12 @@ CLONES static void level_backward_table(const nerf_hashgrid *g, int n, const flo
     const int F = g->cfg.n_features;
     const uint64_t T = (uint64_t)1 << g->cfg.log2_table;
     const level *v = &g->lv[l];
+    uint32_t cell[3 * BLK];
+    float frac[3 * BLK];
     for (int i = 0; i < n; i++) {
+        if (i % BLK == 0) level_cells(v, 3 * (n - i < BLK ? n - i : BLK), x + 3 * (size_t)i, cell, frac);
         corners c;
-        level_corners(v, T, x + 3 * (size_t)i, &c);
+        corners_from(v, T, cell + 3 * (i % BLK), frac + 3 * (i % BLK), &c);
         const float *gl = dy + (size_t)i * lddy + l * F;
         if (F == 2) {
             const float g0 = gl[0], g1 = gl[1];
