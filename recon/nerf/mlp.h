@@ -104,7 +104,8 @@ size_t nerf_mlp_ws_bytes(const nerf_mlp_ws *ws);
 /* Saved floats per point (the memory that scales with the batch). */
 size_t nerf_mlp_saved_floats_per_point(const nerf_mlp *net);
 
-/* pos n×3, dir ceil(n/dir_every)×3 (unit vectors) → sigma (n), rgb (n×3); saves what the backward needs. */
+/* pos n×3, dir ceil(n/dir_every)×3 (unit vectors) → sigma (n), rgb (n×3); saves what the backward needs.
+ * dir is borrowed: it must stay valid and unchanged until the backward on this ws. */
 int nerf_mlp_forward(const nerf_mlp *net, const float *params, nerf_mlp_ws *ws, int n, const float *pos,
                      const float *dir, int dir_every, float *sigma, float *rgb);
 /* After a forward on the same ws: d_sigma (n), d_rgb (n×3) (either NULL = 0) → grad (param_count, overwritten),
