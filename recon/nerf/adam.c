@@ -65,7 +65,7 @@ void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin
          * each thread keeps the last one (two expm1 and a sqrt per parameter were a third of the step) */
         uint32_t t_last = 0;
         double k_last = 0.0;
-#pragma omp for schedule(static)
+#pragma omp for schedule(dynamic, 16384) /* elementwise: any schedule gives the same bits */
         for (size_t j = begin; j < end; j++) {
             double g = grad[j];
             if (lazy && g == 0.0) continue;
