@@ -102,7 +102,7 @@ check: deps
 
 demo: deps
 	@$(MAKE) --no-print-directory all
-	@BUILD=$(BUILD) cli/demo.sh
+	@BUILD=$(BUILD) cli/demo-daemon.sh
 
 bench: deps
 	@$(MAKE) --no-print-directory benches
@@ -112,9 +112,17 @@ install: all
 	install -d $(DESTDIR)$(PREFIX)/bin
 	install -m 755 $(BINS) $(DESTDIR)$(PREFIX)/bin/
 	install -d $(DESTDIR)$(PREFIX)/share/scicap/scenes
-	-install -m 644 etc/scenes/*.json $(DESTDIR)$(PREFIX)/share/scicap/scenes/ 2>/dev/null
+	install -m 644 etc/scenes/*.json etc/scenes/*.pgm $(DESTDIR)$(PREFIX)/share/scicap/scenes/
 	install -d $(DESTDIR)$(PREFIX)/share/man/man1
-	-install -m 644 docs/man/*.1 $(DESTDIR)$(PREFIX)/share/man/man1/ 2>/dev/null
+	install -m 644 docs/man/*.1 $(DESTDIR)$(PREFIX)/share/man/man1/
+	install -d $(DESTDIR)/etc/scicap $(DESTDIR)/lib/systemd/system $(DESTDIR)/usr/lib/sysusers.d \
+	  $(DESTDIR)/usr/lib/tmpfiles.d $(DESTDIR)/etc/udev/rules.d $(DESTDIR)$(PREFIX)/share/man/man8
+	[ -e $(DESTDIR)/etc/scicap/scicapd.json ] || install -m 644 etc/scicapd.json $(DESTDIR)/etc/scicap/scicapd.json
+	sed 's|/usr/local/bin|$(PREFIX)/bin|g' systemd/scicapd.service > $(DESTDIR)/lib/systemd/system/scicapd.service
+	install -m 644 systemd/scicapd.sysusers $(DESTDIR)/usr/lib/sysusers.d/scicapd.conf
+	install -m 644 systemd/scicapd.tmpfiles $(DESTDIR)/usr/lib/tmpfiles.d/scicapd.conf
+	install -m 644 systemd/70-scicap.rules $(DESTDIR)/etc/udev/rules.d/70-scicap.rules
+	install -m 644 docs/man/scicapd.8 $(DESTDIR)$(PREFIX)/share/man/man8/
 
 # Fuzzers: libFuzzer (clang) over the pure parsers; each tests/fuzz/fuzz_<x>.c is one target, built with the
 # base/ and drivers/ sources instrumented alongside it. FUZZ_SECONDS per target (default 60).

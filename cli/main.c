@@ -2,6 +2,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "cli/client.h"
 #include "cli/commands.h"
 
 typedef struct command {
@@ -13,6 +14,15 @@ typedef struct command {
 static const command commands[] = {
     {"sim", cli_sim_main, "simulate coded snapshots of a scene (video2d, static3d) with the effects it lists"},
     {"recon", cli_recon_main, "reconstruct the frames of SCI snapshots (GAP-TV, ADMM-TV)"},
+    {"status", cli_client_main, "daemon: state, devices, queues"},
+    {"devices", cli_client_main, "daemon: the devices it drives and their identities"},
+    {"capture", cli_client_main, "daemon: capture snapshots (--recon METHOD, --wait)"},
+    {"calibrate", cli_client_main, "daemon: dark frame and measured masks"},
+    {"jobs", cli_client_main, "daemon: queued and running jobs"},
+    {"cancel", cli_client_main, "daemon: cancel a job"},
+    {"watch", cli_client_main, "daemon: follow the event stream with a progress bar"},
+    {"reload", cli_client_main, "daemon: reload the configuration"},
+    {"shutdown", cli_client_main, "daemon: stop the daemon"},
     {"dmd", cli_dmd_main, "TI DLPC900 DMD: list, status, upload masks, start, stop (--emulate: no hardware)"},
 };
 

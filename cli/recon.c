@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "base/clock.h"
+#include "cli/client.h"
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "io/recon_store.h"
@@ -23,6 +24,7 @@ static void usage(FILE *f)
 {
     fprintf(f,
             "usage: scicap recon [OPTIONS] INPUT -o OUTDIR\n"
+            "       scicap recon --capture ID [--method M] [--wait]   (ask scicapd; see scicap status)\n"
             "\n"
             "Reconstruct the N frames of each SCI snapshot in INPUT: a benchmark .mat file (variables mask, meas,\n"
             "orig; values divided by 255) or a problem folder written by 'scicap sim' or by scicapd.\n"
@@ -122,6 +124,10 @@ static void print_metrics(const sci_problem *p, const sci_result *r)
 
 int cli_recon_main(int argc, char **argv)
 {
+    /* `scicap recon --capture ID` asks the daemon to reconstruct one of its captures. */
+    for (int i = 1; i < argc; i++)
+        if (strcmp(argv[i], "--capture") == 0 || strncmp(argv[i], "--capture=", 10) == 0)
+            return cli_client_recon(argc, argv);
     recon_opts o = {0};
     sci_gaptv_params_default(&o.gap);
     sci_admmtv_params_default(&o.admm);
