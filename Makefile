@@ -49,13 +49,14 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             libcmocka-dev libopenblas-dev libhidapi-dev libusb-1.0-0-dev libgpiod-dev gpiod libsystemd-dev \
             gnuplot-nox clang libclang-rt-14-dev
 
-.PHONY: all deps demo check bench fuzz install clean help tests benches
+.PHONY: all deps demo check check-vm bench fuzz install clean help tests benches
 all: $(BINS)
 
 help:
 	@echo "make deps      install missing Debian packages (apt-get)"
 	@echo "make demo      build and run the main job on its embedded default"
 	@echo "make check     build and run every test"
+	@echo "make check-vm  run the device tests against real kernel drivers under qemu"
 	@echo "make bench     run the benchmarks and print the figures (writes bench/results/)"
 	@echo "make install   install binaries, units, config, man pages (PREFIX, DESTDIR)"
 
@@ -103,6 +104,13 @@ check: deps
 demo: deps
 	@$(MAKE) --no-print-directory all
 	@BUILD=$(BUILD) cli/demo-daemon.sh
+
+# Kernel-level device tests under qemu (tests/vm/, README "Kernel-level tests"): the drivers against the real
+# V4L2 (vivid), hidraw (uhid) and GPIO (gpio-sim) subsystems. VM_CACHE keeps downloads and builds between runs.
+VM_CACHE ?= $(HOME)/.cache/scicap-vm
+check-vm: deps
+	@$(MAKE) --no-print-directory all tests
+	@BUILD=$(BUILD) VM_CACHE="$(VM_CACHE)" tests/vm/run
 
 bench: deps
 	@$(MAKE) --no-print-directory benches
