@@ -49,7 +49,7 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             libcmocka-dev libopenblas-dev libhidapi-dev libusb-1.0-0-dev libgpiod-dev gpiod libsystemd-dev \
             gnuplot-nox clang libclang-rt-14-dev
 
-.PHONY: all deps demo check check-vm bench fuzz install clean help tests benches
+.PHONY: all deps demo check check-vm bench bench-report fuzz install clean help tests benches
 all: $(BINS)
 
 help:
@@ -58,6 +58,7 @@ help:
 	@echo "make check     build and run every test"
 	@echo "make check-vm  run the device tests against real kernel drivers under qemu"
 	@echo "make bench     run the benchmarks and print the figures (writes bench/results/)"
+	@echo "make bench-report  accuracy against time for every method (bench/results.csv, report, plots)"
 	@echo "make install   install binaries, units, config, man pages (PREFIX, DESTDIR)"
 
 deps:
@@ -115,6 +116,13 @@ check-vm: deps
 bench: deps
 	@$(MAKE) --no-print-directory benches
 	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" bench/run $(BENCH_BIN)
+
+# The published accuracy-against-time report: every method over its cost knobs on the fixed suite; writes
+# bench/results.csv, bench/results/report.md and the plots, and copies the report into README.md.
+bench-report: deps
+	@$(MAKE) --no-print-directory all
+	$(BUILD)/scicap bench --full --data "$(SCICAP_DATA)"
+	@bench/update-readme
 
 install: all
 	install -d $(DESTDIR)$(PREFIX)/bin

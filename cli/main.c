@@ -23,6 +23,7 @@ static const command commands[] = {
     {"watch", cli_client_main, "daemon: follow the event stream with a progress bar"},
     {"reload", cli_client_main, "daemon: reload the configuration"},
     {"shutdown", cli_client_main, "daemon: stop the daemon"},
+    {"bench", cli_bench_main, "accuracy against time: every method over its cost knobs on a fixed suite"},
     {"dmd", cli_dmd_main, "TI DLPC900 DMD: list, status, upload masks, start, stop (--emulate: no hardware)"},
 };
 

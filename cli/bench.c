@@ -1,0 +1,575 @@
+/* scicap bench — what accuracy costs in time, for every reconstruction method, on a fixed suite.
+ *
+ * For each scene of the suite and each point of each method's grid of cost knobs, the point runs in a child
+ * process (this program, re-executed with --point), so its peak memory is its own: the parent reads the child's
+ * peak RSS and CPU time from wait4(2) and the solver's own wall time, CPU time and accuracy from the child's JSON
+ * line. The parent then marks each method's Pareto front (no cheaper point is as accurate), names the cheapest
+ * setting within 0.5 dB of the method's best, and writes:
+ *     bench/results.csv                      every point
+ *     <out>/report.md                         per scene: the fronts and the recommended settings
+ *     <out>/psnr_time_<scene>.png             PSNR against wall time, each method's points and front (gnuplot)
+ * Why a child per point: OpenMP's thread pool does not survive fork(), and peak RSS only grows within a process.
+ */
+#include <errno.h>
+#include <getopt.h>
+#include <jansson.h>
+#include <math.h>
+#include <omp.h>
+#include <spawn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "base/clock.h"
+#include "cli/commands.h"
+#include "io/problem_dir.h"
+#include "io/source.h"
+#include "recon/admmtv.h"
+#include "recon/gaptv.h"
+#include "recon/nerf/rayformer_solve.h"
+#include "sim/simulate.h"
+
+extern char **environ;
+
+typedef struct bench_scene {
+    char name[64];     /* short name used in files and tables */
+    char path[1024];   /* problem folder or .mat the points read */
+    char what[160];    /* description for the report */
+    int has_camera;    /* NeRF methods need one */
+} bench_scene;
+
+typedef struct bench_point {
+    int scene;
+    char method[16];
+    char setting[96];  /* e.g. "iters=100 tv_iters=5" */
+    json_t *params;    /* passed to the child */
+    /* results */
+    int ok;
+    char error[256];
+    double psnr, psnr1, ssim, wall_s, cpu_s, rss_mib;
+    int pareto, recommended;
+} bench_point;
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+            "usage: scicap bench [--quick | --full] [--out DIR] [--csv FILE] [--data DIR] [--methods LIST]\n"
+            "\n"
+            "Runs every reconstruction method over a grid of its cost knobs on a fixed suite — the drop40 benchmark\n"
+            "(.mat, snapshot 1) when present and the simulator's example scenes of each kind, with and without\n"
+            "noise — and records PSNR (both peak conventions), SSIM, wall time, CPU time and peak memory for each\n"
+            "point. Marks each method's Pareto front, names the cheapest setting within 0.5 dB of each method's best,\n"
+            "and writes the CSV, a Markdown report and PNG plots of PSNR against wall time (gnuplot).\n"
+            "\n"
+            "  --quick           a small grid that runs in about a minute (CI)\n"
+            "  --full            the full grid (default; `make bench-report`, under 30 minutes here)\n"
+            "  --out DIR         report and plots (default bench/results)\n"
+            "  --csv FILE        every point (default bench/results.csv)\n"
+            "  --data DIR        where drop40_cacti.mat is (default $SCICAP_DATA, else ../shared/data)\n"
+            "  --scenes DIR      example scenes (default etc/scenes)\n"
+            "  --methods LIST    comma-separated subset of gap-tv,admm-tv,rayformer\n"
+            "  -j, --threads N   OpenMP threads per point (default: all cores)\n"
+            "  -h, --help        this text\n");
+}
+
+/* --- the child: one point ------------------------------------------------------------------------------ */
+
+static int run_point(const char *spec)
+{
+    json_error_t je;
+    json_t *j = json_loads(spec, 0, &je);
+    const char *path = NULL, *method = NULL;
+    json_t *params = NULL;
+    if (!j || json_unpack_ex(j, &je, 0, "{s:s, s:s, s:o}", "path", &path, "method", &method, "params", &params) != 0) {
+        fprintf(stderr, "scicap bench --point: bad spec: %s\n", je.text);
+        return 2;
+    }
+    sci_problem **p = NULL;
+    int k = 0;
+    sci_error err = {0};
+    if (sci_source_read(path, &p, &k, &err) < 0) {
+        json_t *o = json_pack("{s:b, s:s}", "ok", 0, "error", err.msg);
+        char *s = json_dumps(o, JSON_COMPACT);
+        printf("%s\n", s);
+        free(s);
+        json_decref(o);
+        json_decref(j);
+        return 1;
+    }
+    sci_result r = {0};
+    int rc;
+    int iters = (int)json_integer_value(json_object_get(params, "iters"));
+    json_t *tvi = json_object_get(params, "tv_iters");
+    if (strcmp(method, "gap-tv") == 0) {
+        sci_gaptv_params q;
+        sci_gaptv_params_default(&q);
+        q.iters = iters;
+        if (tvi)
+            q.tv_iters = (int)json_integer_value(tvi);
+        q.metrics_every = q.ssim_every = 0;
+        rc = sci_gaptv_solve(p[0], &q, &r, NULL, NULL);
+    } else if (strcmp(method, "admm-tv") == 0) {
+        sci_admmtv_params q;
+        sci_admmtv_params_default(&q);
+        q.iters = iters;
+        if (tvi)
+            q.tv_iters = (int)json_integer_value(tvi);
+        q.metrics_every = q.ssim_every = 0;
+        rc = sci_admmtv_solve(p[0], &q, &r, NULL, NULL);
+    } else {
+        sci_rayformer_params q;
+        sci_rayformer_params_default(&q);
+        q.iters = iters;
+        json_t *v;
+        if ((v = json_object_get(params, "patch")))
+            q.patch = (int)json_integer_value(v);
+        if ((v = json_object_get(params, "samples")))
+            q.samples = (int)json_integer_value(v);
+        q.metrics_every = q.ssim_every = 0;
+        rc = sci_rayformer_solve(p[0], &q, &r, NULL, NULL);
+    }
+    json_t *out;
+    if (rc < 0 || r.trace.len == 0) {
+        out = json_pack("{s:b, s:s}", "ok", 0, "error", r.error.msg[0] ? r.error.msg : sci_strerror(rc));
+    } else {
+        const sci_trace_entry *e = &r.trace.e[r.trace.len - 1];
+        out = json_pack("{s:b, s:f, s:f, s:f, s:f, s:f}", "ok", 1, "psnr", e->psnr, "psnr1", e->psnr_peak1, "ssim",
+                        e->ssim, "wall_s", e->wall_s, "cpu_s", e->cpu_s);
+    }
+    char *s = json_dumps(out, JSON_COMPACT);
+    printf("%s\n", s);
+    free(s);
+    json_decref(out);
+    sci_result_free_contents(&r);
+    sci_problem_array_free(p, k);
+    json_decref(j);
+    return rc < 0 ? 1 : 0;
+}
+
+/* --- the parent ------------------------------------------------------------------------------------------ */
+
+/* Run one point in a child; fills the point's results. */
+static void spawn_point(const char *self, const bench_scene *sc, bench_point *pt, int threads)
+{
+    json_t *spec = json_pack("{s:s, s:s, s:O}", "path", sc->path, "method", pt->method, "params", pt->params);
+    char *specs = json_dumps(spec, JSON_COMPACT);
+    json_decref(spec);
+    int pipefd[2];
+    if (pipe(pipefd) != 0) {
+        snprintf(pt->error, sizeof pt->error, "pipe: %s", strerror(errno));
+        free(specs);
+        return;
+    }
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_adddup2(&fa, pipefd[1], 1);
+    posix_spawn_file_actions_addclose(&fa, pipefd[0]);
+    char thr[32];
+    snprintf(thr, sizeof thr, "%d", threads);
+    char *argv[] = {(char *)self, "bench", "--point", specs, "--threads", thr, NULL};
+    pid_t pid;
+    int rc = posix_spawn(&pid, self, &fa, NULL, argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    close(pipefd[1]);
+    free(specs);
+    if (rc != 0) {
+        snprintf(pt->error, sizeof pt->error, "spawn %s: %s", self, strerror(rc));
+        close(pipefd[0]);
+        return;
+    }
+    char buf[4096];
+    size_t len = 0;
+    ssize_t got;
+    while ((got = read(pipefd[0], buf + len, sizeof buf - 1 - len)) > 0)
+        len += (size_t)got;
+    buf[len] = 0;
+    close(pipefd[0]);
+    int status;
+    struct rusage ru;
+    while (wait4(pid, &status, 0, &ru) < 0 && errno == EINTR)
+        ;
+    pt->rss_mib = ru.ru_maxrss / 1024.0;
+    json_error_t je;
+    json_t *res = json_loads(buf, JSON_DISABLE_EOF_CHECK, &je);
+    if (!res || !json_is_true(json_object_get(res, "ok"))) {
+        const char *e = res ? json_string_value(json_object_get(res, "error")) : NULL;
+        snprintf(pt->error, sizeof pt->error, "%s", e ? e : "the point's process failed");
+    } else {
+        pt->ok = 1;
+        pt->psnr = json_number_value(json_object_get(res, "psnr"));
+        pt->psnr1 = json_number_value(json_object_get(res, "psnr1"));
+        pt->ssim = json_number_value(json_object_get(res, "ssim"));
+        pt->wall_s = json_number_value(json_object_get(res, "wall_s"));
+        pt->cpu_s = json_number_value(json_object_get(res, "cpu_s"));
+    }
+    json_decref(res);
+}
+
+static int add_point(bench_point **pts, int *n, int *cap, int scene, const char *method, json_t *params)
+{
+    if (*n == *cap) {
+        int nc = *cap ? *cap * 2 : 64;
+        bench_point *np = realloc(*pts, (size_t)nc * sizeof *np);
+        if (!np)
+            return -ENOMEM;
+        *pts = np;
+        *cap = nc;
+    }
+    bench_point *p = &(*pts)[(*n)++];
+    memset(p, 0, sizeof *p);
+    p->scene = scene;
+    snprintf(p->method, sizeof p->method, "%s", method);
+    p->params = params;
+    const char *key;
+    json_t *v;
+    size_t off = 0;
+    json_object_foreach(params, key, v) {
+        off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%lld", off ? " " : "", key,
+                                (long long)json_integer_value(v));
+        if (off >= sizeof p->setting)
+            break;
+    }
+    return 0;
+}
+
+/* Pareto front per (scene, method): sorted by wall time, a point is on the front when it beats the PSNR of every
+ * cheaper point. The recommended setting is the cheapest point within 0.5 dB of the method's best. */
+static void mark_fronts(bench_point *pts, int n, int nscenes)
+{
+    for (int s = 0; s < nscenes; s++)
+        for (int i = 0; i < n; i++) {
+            bench_point *a = &pts[i];
+            if (a->scene != s || !a->ok)
+                continue;
+            int dominated = 0;
+            double best = -INFINITY;
+            for (int j = 0; j < n; j++) {
+                bench_point *b = &pts[j];
+                if (b->scene != s || !b->ok || strcmp(a->method, b->method) != 0)
+                    continue;
+                best = fmax(best, b->psnr);
+                if (j != i && b->wall_s <= a->wall_s && b->psnr >= a->psnr &&
+                    (b->wall_s < a->wall_s || b->psnr > a->psnr))
+                    dominated = 1;
+            }
+            a->pareto = !dominated;
+            /* recommended: within 0.5 dB of best, and no cheaper point also within 0.5 dB */
+            if (a->psnr >= best - 0.5) {
+                int cheaper = 0;
+                for (int j = 0; j < n; j++) {
+                    bench_point *b = &pts[j];
+                    if (j != i && b->scene == s && b->ok && strcmp(a->method, b->method) == 0 &&
+                        b->psnr >= best - 0.5 && (b->wall_s < a->wall_s || (b->wall_s == a->wall_s && j < i)))
+                        cheaper = 1;
+                }
+                a->recommended = !cheaper;
+            }
+        }
+}
+
+static int cmp_time(const void *x, const void *y)
+{
+    const bench_point *a = *(bench_point *const *)x, *b = *(bench_point *const *)y;
+    return (a->wall_s > b->wall_s) - (a->wall_s < b->wall_s);
+}
+
+static int write_plot(const char *outdir, const bench_scene *sc, int s, bench_point *pts, int n,
+                      const char *const *methods, int nm)
+{
+    char dat[1200], gp[1200], png[1200];
+    snprintf(dat, sizeof dat, "%s/psnr_time_%s.dat", outdir, sc->name);
+    snprintf(gp, sizeof gp, "%s/psnr_time_%s.gp", outdir, sc->name);
+    snprintf(png, sizeof png, "%s/psnr_time_%s.png", outdir, sc->name);
+    FILE *f = fopen(dat, "w");
+    if (!f)
+        return -errno;
+    /* One gnuplot data block per method (all points), then one per method (front, by time). */
+    int blocks = 0;
+    int have[8] = {0};
+    for (int pass = 0; pass < 2; pass++)
+        for (int m = 0; m < nm; m++) {
+            bench_point *sel[512];
+            int k = 0;
+            for (int i = 0; i < n && k < 512; i++)
+                if (pts[i].scene == s && pts[i].ok && strcmp(pts[i].method, methods[m]) == 0 &&
+                    (pass == 0 || pts[i].pareto))
+                    sel[k++] = &pts[i];
+            qsort(sel, (size_t)k, sizeof sel[0], cmp_time);
+            fprintf(f, "# %s %s\n", methods[m], pass ? "front" : "all");
+            for (int i = 0; i < k; i++)
+                fprintf(f, "%.6f %.4f\n", sel[i]->wall_s, sel[i]->psnr);
+            if (k == 0)
+                fprintf(f, "NaN NaN\n");
+            fprintf(f, "\n\n");
+            have[m] |= k > 0;
+            blocks++;
+        }
+    fclose(f);
+    f = fopen(gp, "w");
+    if (!f)
+        return -errno;
+    fprintf(f, "set terminal pngcairo size 900,560 noenhanced\nset output '%s'\n", png);
+    fprintf(f, "set title '%s: PSNR against wall time (lines: Pareto fronts)'\n", sc->what);
+    fprintf(f, "set xlabel 'wall time (s), log scale'\nset ylabel 'PSNR (dB), peak = frame max'\n");
+    fprintf(f, "set logscale x\nset grid\nset key bottom right\n");
+    fprintf(f, "plot ");
+    int first = 1;
+    for (int m = 0; m < nm; m++) {
+        if (!have[m])
+            continue;
+        fprintf(f, "%s'%s' index %d with points pt 7 ps 0.8 lc %d title '%s', '%s' index %d with lines lw 2 lc %d notitle",
+                first ? "" : ", ", dat, m, m + 1, methods[m], dat, nm + m, m + 1);
+        first = 0;
+    }
+    fprintf(f, "\n");
+    fclose(f);
+    if (first)
+        return 0; /* nothing ran on this scene */
+    char cmd[2600];
+    snprintf(cmd, sizeof cmd, "gnuplot '%s' 2>&1", gp);
+    int rc = system(cmd);
+    unlink(gp);
+    unlink(dat);
+    (void)blocks;
+    return rc == 0 ? 0 : -EIO;
+}
+
+static int prepare_scene(bench_scene *sc, const char *scene_path, const char *name, const char *what,
+                         const char *tmpdir)
+{
+    sci_error err = {0};
+    sim_scene *s = NULL;
+    if (sim_scene_load_file(&s, scene_path, &err) < 0) {
+        fprintf(stderr, "scicap bench: %s\n", err.msg);
+        return -1;
+    }
+    sim_scene_set_snapshots(s, 1, NULL);
+    sci_problem **p = NULL;
+    int k = 0;
+    int rc = sim_run(s, &p, &k, NULL, NULL, NULL, &err);
+    sim_scene_free(s);
+    if (rc < 0) {
+        fprintf(stderr, "scicap bench: %s: %s\n", scene_path, err.msg);
+        return -1;
+    }
+    snprintf(sc->name, sizeof sc->name, "%s", name);
+    snprintf(sc->path, sizeof sc->path, "%s/%s", tmpdir, name);
+    snprintf(sc->what, sizeof sc->what, "%s (%dx%dx%d)", what, p[0]->mask->w, p[0]->mask->h, p[0]->mask->n);
+    sc->has_camera = p[0]->camera != NULL;
+    rc = sci_problem_dir_write(sc->path, p, k, NULL, 1, &err);
+    sci_problem_array_free(p, k);
+    if (rc < 0) {
+        fprintf(stderr, "scicap bench: %s\n", err.msg);
+        return -1;
+    }
+    return 0;
+}
+
+static int method_enabled(const char *list, const char *m)
+{
+    if (!list)
+        return 1;
+    size_t l = strlen(m);
+    for (const char *p = list; (p = strstr(p, m)); p += l)
+        if ((p == list || p[-1] == ',') && (p[l] == 0 || p[l] == ','))
+            return 1;
+    return 0;
+}
+
+int cli_bench_main(int argc, char **argv)
+{
+    int quick = 0, threads = 0;
+    const char *out = "bench/results", *csv = "bench/results.csv", *data = getenv("SCICAP_DATA"),
+               *scenes = "etc/scenes", *methods_arg = NULL, *point = NULL;
+    static const struct option longopts[] = {
+        {"quick", no_argument, 0, 'Q'},        {"full", no_argument, 0, 'F'},
+        {"out", required_argument, 0, 'o'},    {"csv", required_argument, 0, 'c'},
+        {"data", required_argument, 0, 'd'},   {"scenes", required_argument, 0, 's'},
+        {"methods", required_argument, 0, 'm'}, {"threads", required_argument, 0, 'j'},
+        {"point", required_argument, 0, 'P'},  {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0},
+    };
+    optind = 1;
+    int c;
+    while ((c = getopt_long(argc, argv, "o:c:d:s:m:j:h", longopts, NULL)) != -1) {
+        switch (c) {
+        case 'Q': quick = 1; break;
+        case 'F': quick = 0; break;
+        case 'o': out = optarg; break;
+        case 'c': csv = optarg; break;
+        case 'd': data = optarg; break;
+        case 's': scenes = optarg; break;
+        case 'm': methods_arg = optarg; break;
+        case 'j': threads = atoi(optarg); break;
+        case 'P': point = optarg; break;
+        case 'h': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    if (threads > 0)
+        omp_set_num_threads(threads);
+    if (point)
+        return run_point(point);
+    if (optind != argc) {
+        usage(stderr);
+        return 2;
+    }
+    if (!data || !*data)
+        data = "../shared/data";
+    if (threads <= 0)
+        threads = omp_get_max_threads();
+    char self[4096];
+    ssize_t sl = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (sl <= 0) {
+        fprintf(stderr, "scicap bench: cannot find my own executable: %s\n", strerror(errno));
+        return 1;
+    }
+    self[sl] = 0;
+    mkdir(out, 0755);
+    char tmpdir[] = "/tmp/scicap-bench-XXXXXX";
+    if (!mkdtemp(tmpdir)) {
+        fprintf(stderr, "scicap bench: mkdtemp: %s\n", strerror(errno));
+        return 1;
+    }
+
+    /* The suite. */
+    bench_scene sc[8];
+    int ns = 0;
+    char mat[2048];
+    snprintf(mat, sizeof mat, "%s/drop40_cacti.mat", data);
+    if (access(mat, R_OK) == 0) {
+        snprintf(sc[ns].name, sizeof sc[ns].name, "drop40");
+        snprintf(sc[ns].path, sizeof sc[ns].path, "%s", mat);
+        snprintf(sc[ns].what, sizeof sc[ns].what, "drop40 benchmark, snapshot 1 (256x256x8)");
+        sc[ns].has_camera = 0;
+        ns++;
+    } else {
+        fprintf(stderr, "scicap bench: NOTE: %s not found (set SCICAP_DATA or --data); the suite runs without it\n",
+                mat);
+    }
+    static const struct { const char *file, *name, *what; int quick; } suite[] = {
+        {"cacti_layers.json", "video2d", "video2d layers, no noise", 1},
+        {"cacti_sensor_noise.json", "video2d_noise", "video2d layers, sensor noise", 0},
+        {"static3d_corridor.json", "static3d", "static3d corridor, moving camera, no noise", 1},
+        {"static3d_noisy.json", "static3d_noise", "static3d, moving camera, shot and read noise", 0},
+    };
+    for (size_t i = 0; i < sizeof suite / sizeof suite[0]; i++) {
+        if (quick && !suite[i].quick)
+            continue;
+        char path[2048];
+        snprintf(path, sizeof path, "%s/%s", scenes, suite[i].file);
+        fprintf(stderr, "scicap bench: simulating %s\n", path);
+        if (prepare_scene(&sc[ns], path, suite[i].name, suite[i].what, tmpdir) == 0)
+            ns++;
+        else
+            return 1;
+    }
+
+    /* The grids. */
+    bench_point *pts = NULL;
+    int np = 0, cap = 0;
+    static const int it_full[] = {5, 10, 20, 50, 100, 200}, it_quick[] = {10, 50};
+    static const int tvi_full[] = {2, 5}, tvi_quick[] = {5};
+    static const int rf_full[] = {100, 300, 800}, rf_quick[] = {20};
+    const int *its = quick ? it_quick : it_full, *tvis = quick ? tvi_quick : tvi_full, *rfs = quick ? rf_quick : rf_full;
+    int nit = quick ? 2 : 6, ntvi = quick ? 1 : 2, nrf = quick ? 1 : 3;
+    const char *const methods[] = {"gap-tv", "admm-tv", "rayformer"};
+    for (int s = 0; s < ns; s++) {
+        for (int m = 0; m < 2; m++) {
+            if (!method_enabled(methods_arg, methods[m]))
+                continue;
+            for (int a = 0; a < nit; a++)
+                for (int b = 0; b < ntvi; b++)
+                    add_point(&pts, &np, &cap, s, methods[m],
+                              json_pack("{s:i, s:i}", "iters", its[a], "tv_iters", tvis[b]));
+        }
+        if (sc[s].has_camera && method_enabled(methods_arg, "rayformer"))
+            for (int a = 0; a < nrf; a++)
+                add_point(&pts, &np, &cap, s, "rayformer",
+                          json_pack("{s:i, s:i, s:i}", "iters", rfs[a], "patch", 8, "samples", 32));
+    }
+
+    fprintf(stderr, "scicap bench: %d points on %d scenes, %d threads each\n", np, ns, threads);
+    int64_t t0 = sci_clock_mono_ns();
+    int failed = 0;
+    for (int i = 0; i < np; i++) {
+        bench_point *p = &pts[i];
+        spawn_point(self, &sc[p->scene], p, threads);
+        double el = sci_clock_s(t0, sci_clock_mono_ns());
+        if (p->ok)
+            fprintf(stderr, "[%3d/%d] %-14s %-9s %-34s %7.2f dB  SSIM %.4f  %8.3f s  %6.1f MiB   (%.0f s elapsed)\n",
+                    i + 1, np, sc[p->scene].name, p->method, p->setting, p->psnr, p->ssim, p->wall_s, p->rss_mib, el);
+        else {
+            fprintf(stderr, "[%3d/%d] %-14s %-9s %-34s FAILED: %s\n", i + 1, np, sc[p->scene].name, p->method,
+                    p->setting, p->error);
+            failed++;
+        }
+    }
+    mark_fronts(pts, np, ns);
+
+    /* CSV */
+    FILE *f = fopen(csv, "w");
+    if (!f) {
+        fprintf(stderr, "scicap bench: %s: %s\n", csv, strerror(errno));
+        return 1;
+    }
+    fprintf(f, "scene,method,setting,psnr_db,psnr_peak1_db,ssim,wall_s,cpu_s,peak_rss_mib,pareto,recommended,threads\n");
+    for (int i = 0; i < np; i++) {
+        bench_point *p = &pts[i];
+        if (!p->ok)
+            continue;
+        fprintf(f, "%s,%s,%s,%.4f,%.4f,%.5f,%.6f,%.6f,%.1f,%d,%d,%d\n", sc[p->scene].name, p->method, p->setting,
+                p->psnr, p->psnr1, p->ssim, p->wall_s, p->cpu_s, p->rss_mib, p->pareto, p->recommended, threads);
+    }
+    fclose(f);
+
+    /* Report */
+    char mdpath[1200];
+    snprintf(mdpath, sizeof mdpath, "%s/report.md", out);
+    FILE *md = fopen(mdpath, "w");
+    if (!md) {
+        fprintf(stderr, "scicap bench: %s: %s\n", mdpath, strerror(errno));
+        return 1;
+    }
+    fprintf(md, "Produced by `scicap bench%s` (%d points, %.0f s, %d threads per point). PSNR: mean over frames, peak = "
+                "per-frame max of the truth; SSIM: Gaussian 11×11, σ 1.5; wall and CPU time: the solver's own; "
+                "memory: peak RSS of the point's process. Every point is in `bench/results.csv`.\n\n",
+            quick ? " --quick" : "", np, sci_clock_s(t0, sci_clock_mono_ns()), threads);
+    for (int s = 0; s < ns; s++) {
+        fprintf(md, "#### %s\n\n![PSNR against wall time: %s](%s/psnr_time_%s.png)\n\n", sc[s].what, sc[s].name,
+                out, sc[s].name);
+        fprintf(md, "| method | setting | PSNR dB | SSIM | wall s | CPU s | peak MiB | |\n|---|---|---:|---:|---:|---:|---:|---|\n");
+        for (int m = 0; m < 3; m++) {
+            bench_point *sel[512];
+            int k = 0;
+            for (int i = 0; i < np && k < 512; i++)
+                if (pts[i].scene == s && pts[i].ok && pts[i].pareto && strcmp(pts[i].method, methods[m]) == 0)
+                    sel[k++] = &pts[i];
+            qsort(sel, (size_t)k, sizeof sel[0], cmp_time);
+            for (int i = 0; i < k; i++)
+                fprintf(md, "| %s | %s | %.2f | %.4f | %.3f | %.3f | %.0f | %s |\n", sel[i]->method, sel[i]->setting,
+                        sel[i]->psnr, sel[i]->ssim, sel[i]->wall_s, sel[i]->cpu_s, sel[i]->rss_mib,
+                        sel[i]->recommended ? "**cheapest within 0.5 dB of best**" : "front");
+        }
+        fprintf(md, "\n");
+        int rc = write_plot(out, &sc[s], s, pts, np, methods, 3);
+        if (rc < 0)
+            fprintf(stderr, "scicap bench: plot for %s failed (is gnuplot installed?)\n", sc[s].name);
+    }
+    fprintf(md, "Only Pareto-front points are listed (no cheaper point of the same method is as accurate).\n");
+    fclose(md);
+    fprintf(stderr, "scicap bench: wrote %s, %s and the plots in %s/ (%d point(s) failed)\n", csv, mdpath, out,
+            failed);
+    char cmd[256];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
+    if (system(cmd) != 0)
+        fprintf(stderr, "scicap bench: could not remove %s\n", tmpdir);
+    for (int i = 0; i < np; i++)
+        json_decref(pts[i].params);
+    free(pts);
+    return failed ? 1 : 0;
+}

@@ -1,0 +1,83 @@
+/* The accuracy-against-time report pipeline, end to end on the quick suite: `scicap bench --quick` runs every
+ * method in child processes and must produce the CSV, the report and one plot per scene, with each method's
+ * Pareto front and exactly one recommended setting per (scene, method). Checks correctness of the report, not
+ * speed: the figures themselves come from `make bench-report` on a quiet machine. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+static void test_quick_report(void **state)
+{
+    const char *build = getenv("BUILD");
+    char dir[] = "/tmp/scicap-test-bench-XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd, "%s/scicap bench --quick --out %s --csv %s/results.csv 2>%s/log", build ? build : "build",
+             dir, dir, dir);
+    int rc = system(cmd);
+    if (rc != 0) {
+        snprintf(cmd, sizeof cmd, "cat %s/log", dir);
+        if (system(cmd) != 0)
+            fprintf(stderr, "(no log)\n");
+        fail_msg("scicap bench --quick failed (%d)", rc);
+    }
+    char path[2200];
+    snprintf(path, sizeof path, "%s/results.csv", dir);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    char line[1024];
+    assert_non_null(fgets(line, sizeof line, f));
+    assert_non_null(strstr(line, "scene,method,setting,psnr_db"));
+    /* scene, method -> count of recommended; scenes seen */
+    char keys[64][48];
+    int rec[64] = {0}, nk = 0, rows = 0, fronts = 0;
+    while (fgets(line, sizeof line, f)) {
+        char scene[32], method[16], setting[96];
+        double psnr, psnr1, ssim, wall, cpu, rss;
+        int pareto, recommended, threads;
+        int got = sscanf(line, "%31[^,],%15[^,],%95[^,],%lf,%lf,%lf,%lf,%lf,%lf,%d,%d,%d", scene, method, setting,
+                         &psnr, &psnr1, &ssim, &wall, &cpu, &rss, &pareto, &recommended, &threads);
+        assert_int_equal(got, 12);
+        assert_true(isfinite(psnr) && isfinite(ssim) && wall > 0 && rss > 1);
+        rows++;
+        fronts += pareto;
+        char key[48];
+        snprintf(key, sizeof key, "%s/%s", scene, method);
+        int k;
+        for (k = 0; k < nk && strcmp(keys[k], key) != 0; k++)
+            ;
+        if (k == nk && nk < 64)
+            snprintf(keys[nk++], sizeof keys[0], "%s", key);
+        if (k < 64)
+            rec[k] += recommended;
+    }
+    fclose(f);
+    printf("%d points, %d on fronts, %d scene/method pairs\n", rows, fronts, nk);
+    assert_true(rows >= 8);
+    assert_true(nk >= 4);
+    for (int k = 0; k < nk; k++)
+        if (rec[k] != 1)
+            fail_msg("%s has %d recommended settings, expected exactly 1", keys[k], rec[k]);
+    snprintf(path, sizeof path, "%s/report.md", dir);
+    assert_int_equal(access(path, R_OK), 0);
+    const char *plots[] = {"video2d", "static3d"};
+    for (int i = 0; i < 2; i++) {
+        snprintf(path, sizeof path, "%s/psnr_time_%s.png", dir, plots[i]);
+        if (access(path, R_OK) != 0)
+            fail_msg("missing plot %s", path);
+    }
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_quick_report)};
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
