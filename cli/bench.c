@@ -40,6 +40,7 @@ typedef struct bench_scene {
     char path[1024];   /* problem folder or .mat the points read */
     char what[160];    /* description for the report */
     int has_camera;    /* NeRF methods need one */
+    double voxels;     /* w·h·N: io/curves.h scales times by it */
 } bench_scene;
 
 typedef struct bench_point {
@@ -360,6 +361,7 @@ static int prepare_scene(bench_scene *sc, const char *scene_path, const char *na
     snprintf(sc->path, sizeof sc->path, "%s/%s", tmpdir, name);
     snprintf(sc->what, sizeof sc->what, "%s (%dx%dx%d)", what, p[0]->mask->w, p[0]->mask->h, p[0]->mask->n);
     sc->has_camera = p[0]->camera != NULL;
+    sc->voxels = (double)sci_cube_count(p[0]->mask);
     rc = sci_problem_dir_write(sc->path, p, k, NULL, 1, &err);
     sci_problem_array_free(p, k);
     if (rc < 0) {
@@ -442,10 +444,20 @@ int cli_bench_main(int argc, char **argv)
     char mat[2048];
     snprintf(mat, sizeof mat, "%s/drop40_cacti.mat", data);
     if (access(mat, R_OK) == 0) {
+        sci_problem **p = NULL;
+        int k = 0;
+        sci_error err = {0};
+        if (sci_source_read(mat, &p, &k, &err) < 0) {
+            fprintf(stderr, "scicap bench: %s\n", err.msg);
+            return 1;
+        }
         snprintf(sc[ns].name, sizeof sc[ns].name, "drop40");
         snprintf(sc[ns].path, sizeof sc[ns].path, "%s", mat);
-        snprintf(sc[ns].what, sizeof sc[ns].what, "drop40 benchmark, snapshot 1 (256x256x8)");
+        snprintf(sc[ns].what, sizeof sc[ns].what, "drop40 benchmark, snapshot 1 (%dx%dx%d)", p[0]->mask->w,
+                 p[0]->mask->h, p[0]->mask->n);
         sc[ns].has_camera = 0;
+        sc[ns].voxels = (double)sci_cube_count(p[0]->mask);
+        sci_problem_array_free(p, k);
         ns++;
     } else {
         fprintf(stderr, "scicap bench: NOTE: %s not found (set SCICAP_DATA or --data); the suite runs without it\n",
@@ -517,13 +529,15 @@ int cli_bench_main(int argc, char **argv)
         fprintf(stderr, "scicap bench: %s: %s\n", csv, strerror(errno));
         return 1;
     }
-    fprintf(f, "scene,method,setting,psnr_db,psnr_peak1_db,ssim,wall_s,cpu_s,peak_rss_mib,pareto,recommended,threads\n");
+    fprintf(f, "scene,method,setting,psnr_db,psnr_peak1_db,ssim,wall_s,cpu_s,peak_rss_mib,pareto,recommended,threads,"
+               "voxels,camera\n");
     for (int i = 0; i < np; i++) {
         bench_point *p = &pts[i];
         if (!p->ok)
             continue;
-        fprintf(f, "%s,%s,%s,%.4f,%.4f,%.5f,%.6f,%.6f,%.1f,%d,%d,%d\n", sc[p->scene].name, p->method, p->setting,
-                p->psnr, p->psnr1, p->ssim, p->wall_s, p->cpu_s, p->rss_mib, p->pareto, p->recommended, threads);
+        fprintf(f, "%s,%s,%s,%.4f,%.4f,%.5f,%.6f,%.6f,%.1f,%d,%d,%d,%.0f,%d\n", sc[p->scene].name, p->method,
+                p->setting, p->psnr, p->psnr1, p->ssim, p->wall_s, p->cpu_s, p->rss_mib, p->pareto, p->recommended,
+                threads, sc[p->scene].voxels, sc[p->scene].has_camera);
     }
     fclose(f);
 

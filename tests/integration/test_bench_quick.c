@@ -11,6 +11,9 @@
 #include <string.h>
 #include <unistd.h>
 #include <cmocka.h>
+#include <errno.h>
+
+#include "io/curves.h"
 
 static void test_quick_report(void **state)
 {
@@ -40,10 +43,13 @@ static void test_quick_report(void **state)
     while (fgets(line, sizeof line, f)) {
         char scene[32], method[16], setting[96];
         double psnr, psnr1, ssim, wall, cpu, rss;
-        int pareto, recommended, threads;
-        int got = sscanf(line, "%31[^,],%15[^,],%95[^,],%lf,%lf,%lf,%lf,%lf,%lf,%d,%d,%d", scene, method, setting,
-                         &psnr, &psnr1, &ssim, &wall, &cpu, &rss, &pareto, &recommended, &threads);
-        assert_int_equal(got, 12);
+        int pareto, recommended, threads, camera;
+        double voxels;
+        int got = sscanf(line, "%31[^,],%15[^,],%95[^,],%lf,%lf,%lf,%lf,%lf,%lf,%d,%d,%d,%lf,%d", scene, method,
+                         setting, &psnr, &psnr1, &ssim, &wall, &cpu, &rss, &pareto, &recommended, &threads, &voxels,
+                         &camera);
+        assert_int_equal(got, 14);
+        assert_true(voxels >= 128 * 128 * 8);
         assert_true(isfinite(psnr) && isfinite(ssim) && wall > 0 && rss > 1);
         rows++;
         fronts += pareto;
@@ -64,6 +70,27 @@ static void test_quick_report(void **state)
     for (int k = 0; k < nk; k++)
         if (rec[k] != 1)
             fail_msg("%s has %d recommended settings, expected exactly 1", keys[k], rec[k]);
+    /* The time-budget picker reads the same CSV: a generous budget picks the most accurate setting, a tiny one
+     * is refused with the cheapest named. */
+    sci_curves *cv;
+    sci_error err = {0};
+    snprintf(path, sizeof path, "%s/results.csv", dir);
+    if (sci_curves_load(&cv, path, &err) < 0)
+        fail_msg("%s", err.msg);
+    sci_curve_choice ch;
+    assert_int_equal(sci_curves_pick(cv, NULL, 0, 256 * 256 * 8, 1e6, &ch, &err), 0);
+    printf("1e6 s budget, no camera: %s %s, %.2f dB mean, %.3f s\n", ch.method, ch.setting, ch.mean_psnr,
+           ch.predicted_s);
+    sci_curve_choice tight;
+    assert_int_equal(sci_curves_pick(cv, NULL, 0, 256 * 256 * 8, 1e-9, &tight, &err), -ERANGE);
+    assert_non_null(strstr(err.msg, "cheapest"));
+    assert_true(tight.predicted_s <= ch.predicted_s);
+    assert_int_equal(sci_curves_pick(cv, "rayformer", 1, 128 * 128 * 8, 1e6, &ch, &err), 0);
+    assert_int_equal(sci_curves_pick(cv, "rayformer", 0, 128 * 128 * 8, 1e6, &ch, &err), -ENOENT);
+    json_t *js = sci_curves_setting_json("iters=100 tv_iters=5");
+    assert_int_equal(json_integer_value(json_object_get(js, "iters")), 100);
+    json_decref(js);
+    sci_curves_free(cv);
     snprintf(path, sizeof path, "%s/report.md", dir);
     assert_int_equal(access(path, R_OK), 0);
     const char *plots[] = {"video2d", "static3d"};

@@ -1,0 +1,44 @@
+/* io/curves.h — choosing a reconstruction setting by time budget, from the measured accuracy-against-time curves
+ * (bench/results.csv, written by `scicap bench`; installed as <prefix>/share/scicap/results.csv).
+ *
+ * The curves were measured on a fixed suite of scenes of known size. For a new problem of `voxels` = w·h·N, a
+ * point's time is predicted by scaling its wall time with voxels (the classical solvers and the NeRF renders are
+ * linear in it; training cost per step is not, which makes the prediction conservative for larger problems).
+ * Only scenes of the problem's kind count: with a camera (static3d) or without (video2d, benchmark data). A
+ * setting qualifies when it ran on every such scene; it fits the budget when its largest predicted time does;
+ * among those that fit, the one with the highest mean PSNR wins.
+ *
+ * Not thread-safe per object; read-only after load, so concurrent picks on one loaded object are fine.
+ */
+#ifndef SCICAP_IO_CURVES_H
+#define SCICAP_IO_CURVES_H
+
+#include <jansson.h>
+
+#include "base/error.h"
+
+typedef struct sci_curves sci_curves;
+
+typedef struct sci_curve_choice {
+    char method[16];
+    char setting[96];   /* "iters=100 tv_iters=5" */
+    double predicted_s; /* largest predicted wall time over the scenes of the kind */
+    double mean_psnr;   /* mean PSNR over those scenes, dB (peak = frame max) */
+    int scenes;         /* how many scenes the mean is over */
+} sci_curve_choice;
+
+/* Load the CSV. -errno with the path, SCI_EFORMAT with the line for a malformed file. */
+int sci_curves_load(sci_curves **out, const char *csv_path, sci_error *err);
+void sci_curves_free(sci_curves *c);
+
+/* Pick for a problem of `voxels` (w·h·N) with or without a camera, within `budget_s` seconds of solver time.
+ * `method` restricts the choice to one method (NULL: any). Returns 0 and fills *out; -ERANGE when nothing fits
+ * (the message names the cheapest setting and its predicted time, and *out holds it); -ENOENT when no setting of
+ * that method and kind was measured. */
+int sci_curves_pick(const sci_curves *c, const char *method, int has_camera, double voxels, double budget_s,
+                    sci_curve_choice *out, sci_error *err);
+
+/* The setting as a JSON object of integers ({"iters": 100, "tv_iters": 5}); new reference, NULL if malformed. */
+json_t *sci_curves_setting_json(const char *setting);
+
+#endif
