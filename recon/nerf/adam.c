@@ -53,6 +53,14 @@ void nerf_adam_reset(nerf_adam *a)
 }
 
 uint32_t nerf_adam_steps_of(const nerf_adam *a, size_t j) { return a->t[j]; }
+size_t nerf_adam_param_count(const nerf_adam *a) { return a->n; }
+
+void nerf_adam_buffers(nerf_adam *a, float **m, float **s, uint32_t **steps)
+{
+    *m = a->m;
+    *s = a->s;
+    *steps = a->t;
+}
 
 void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin, size_t end, double lr, int lazy,
                     int decay)

@@ -38,6 +38,10 @@ void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin
                     int decay);
 /* Step count of parameter j (tests, diagnostics). */
 uint32_t nerf_adam_steps_of(const nerf_adam *a, size_t j);
+/* The optimiser's state for checkpoints: n_params floats m and s (= sqrt(v)) and n_params step counts; borrowed,
+ * live as long as the object; writing them restores a state. */
+void nerf_adam_buffers(nerf_adam *a, float **m, float **s, uint32_t **steps);
+size_t nerf_adam_param_count(const nerf_adam *a);
 
 /* lr(step) = lr0 · decay_rate^(step / decay_steps) · warm-up factor, warm-up rising linearly from warmup_start
  * (fraction of lr0) at step 0 to 1 at warmup_steps. decay_steps <= 0: no decay; warmup_steps <= 0: no warm-up.

@@ -242,19 +242,46 @@ INLINE void group_backward(const grp *g, const int d, const float *qkv, int ldq,
             call_d(d);                                                                                           \
     } while (0)
 
+/* A switched-off path (ablation): o = v on its channels, lse = 0 (forward); dv = do, dq = dk = 0 (backward). */
+static void pass_forward(const nerf_i2r_shape *s, size_t p0, int path, const float *qkv, int ld_qkv, float *o,
+                         int ldo, float *lse)
+{
+    const int C = s->C, H = s->heads, half = C / 2, c0 = path * half;
+    const size_t rows = (size_t)s->R * s->L;
+    for (size_t i = p0; i < p0 + rows; i++) {
+        memcpy(o + i * ldo + c0, qkv + i * ld_qkv + 2 * C + c0, (size_t)half * sizeof *o);
+        for (int h = 0; h < H; h++) lse[i * 2 * H + path * H + h] = 0.0f;
+    }
+}
+
+static void pass_backward(const nerf_i2r_shape *s, size_t p0, int path, const float *dout, int lddo, float *dqkv,
+                          int ld_dqkv)
+{
+    const int C = s->C, half = C / 2, c0 = path * half;
+    const size_t rows = (size_t)s->R * s->L;
+    for (size_t i = p0; i < p0 + rows; i++) {
+        float *r = dqkv + i * ld_dqkv;
+        memset(r + c0, 0, (size_t)half * sizeof *r);
+        memset(r + C + c0, 0, (size_t)half * sizeof *r);
+        memcpy(r + 2 * C + c0, dout + i * lddo + c0, (size_t)half * sizeof *r);
+    }
+}
+
 CLONES void nerf_i2r_forward(const nerf_i2r_shape *s, int n_patches, const float *qkv, int ld_qkv, float *o,
                              int ldo, float *lse, float *scratch)
 {
     const int C = s->C, H = s->heads, L = s->L, R = s->R, d = C / (2 * H), half = C / 2;
     for (int pa = 0; pa < n_patches; pa++) {
         size_t p0 = (size_t)pa * R * L;
+        if (s->intra_off) pass_forward(s, p0, 0, qkv, ld_qkv, o, ldo, lse);
+        if (s->inter_off) pass_forward(s, p0, 1, qkv, ld_qkv, o, ldo, lse);
         for (int h = 0; h < H; h++) {
-            for (int r = 0; r < R; r++) { /* intra-ray: the L samples of ray r */
+            for (int r = 0; r < R && !s->intra_off; r++) { /* intra-ray: the L samples of ray r */
                 grp g = {.n = L, .d = d, .C = C, .c0 = h * d, .base = p0 + (size_t)r * L, .stride = 1};
 #define FWD_A(D) group_forward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, h, scratch)
                 DISPATCH_D(FWD_A);
             }
-            for (int t = 0; t < L; t++) { /* inter-ray: the R rays at sample t */
+            for (int t = 0; t < L && !s->inter_off; t++) { /* inter-ray: the R rays at sample t */
                 grp g = {.n = R, .d = d, .C = C, .c0 = half + h * d, .base = p0 + t, .stride = (size_t)L};
 #define FWD_B(D) group_forward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, H + h, scratch)
                 DISPATCH_D(FWD_B);
@@ -270,13 +297,15 @@ CLONES void nerf_i2r_backward(const nerf_i2r_shape *s, int n_patches, const floa
     const int C = s->C, H = s->heads, L = s->L, R = s->R, d = C / (2 * H), half = C / 2;
     for (int pa = 0; pa < n_patches; pa++) {
         size_t p0 = (size_t)pa * R * L;
+        if (s->intra_off) pass_backward(s, p0, 0, dout, lddo, dqkv, ld_dqkv);
+        if (s->inter_off) pass_backward(s, p0, 1, dout, lddo, dqkv, ld_dqkv);
         for (int h = 0; h < H; h++) {
-            for (int r = 0; r < R; r++) {
+            for (int r = 0; r < R && !s->intra_off; r++) {
                 grp g = {.n = L, .d = d, .C = C, .c0 = h * d, .base = p0 + (size_t)r * L, .stride = 1};
 #define BWD_A(D) group_backward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, h, dout, lddo, dqkv, ld_dqkv, scratch)
                 DISPATCH_D(BWD_A);
             }
-            for (int t = 0; t < L; t++) {
+            for (int t = 0; t < L && !s->inter_off; t++) {
                 grp g = {.n = R, .d = d, .C = C, .c0 = half + h * d, .base = p0 + t, .stride = (size_t)L};
 #define BWD_B(D)                                                                                                 \
     group_backward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, H + h, dout, lddo, dqkv, ld_dqkv, scratch)

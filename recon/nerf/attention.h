@@ -10,6 +10,9 @@
  *   the backward recomputes the probabilities from it (flash-attention style: O(n) memory, not O(n·L + n·R)),
  *   using D_i = dO_i·O_i for the softmax Jacobian, so logits of ±1e4 stay finite and exact.
  * The output o (rows × C, stride ldo) holds path A in channels [0, C/2) and path B in [C/2, C).
+ * Ablation (rayformer.tex, Table 2): a path switched off (intra_off / inter_off) passes its V channels through,
+ * o_i = v_i, as if each point attended only to itself; its lse entries are 0, and the backward gives dv = do and
+ * dq = dk = 0 there. The parameters stay the same, so a switched-off path is a per-point linear map.
  *
  * Runs on the calling thread over whole patches (the caller splits patches between threads); reentrant; needs
  * nerf_i2r_scratch_floats() floats of scratch per thread. Results do not depend on how patches are split.
@@ -20,10 +23,12 @@
 #include <stddef.h>
 
 typedef struct nerf_i2r_shape {
-    int C;     /* channels, even, C/2 divisible by heads */
-    int heads; /* heads per path */
-    int L;     /* samples per ray */
-    int R;     /* rays per patch (W·H) */
+    int C;         /* channels, even, C/2 divisible by heads */
+    int heads;     /* heads per path */
+    int L;         /* samples per ray */
+    int R;         /* rays per patch (W·H) */
+    int intra_off; /* 1: path A passes V through (o_i = v_i: each point attends only to itself) — ablation */
+    int inter_off; /* 1: path B passes V through — ablation */
 } nerf_i2r_shape;
 
 size_t nerf_i2r_scratch_floats(const nerf_i2r_shape *s);

@@ -31,6 +31,25 @@ void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const in
     }
 }
 
+void nerf_rays_camera_depths(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, const float *t,
+                             double far, float *pcam, float *dcam, float *delta)
+{
+    for (int r = 0; r < n_rays; r++) {
+        double d[3] = {(px[r] + 0.5 - cam->cx) / cam->fx, -(py[r] + 0.5 - cam->cy) / cam->fy, -1.0};
+        double norm = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        for (int c = 0; c < 3; c++)
+            dcam[3 * r + c] = (float)(d[c] / norm);
+        const float *tr = t + (size_t)r * L;
+        for (int s = 0; s < L; s++) {
+            size_t k = (size_t)r * L + s;
+            for (int c = 0; c < 3; c++)
+                pcam[3 * k + c] = (float)(d[c] * tr[s]);
+            double next = s + 1 < L ? tr[s + 1] : far;
+            delta[k] = (float)fmax(0.0, (next - tr[s]) * norm);
+        }
+    }
+}
+
 void nerf_rays_to_world(const double T[12], int n_rays, int L, const float *pcam, const float *dcam, float *pos,
                         float *dir)
 {

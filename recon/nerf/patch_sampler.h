@@ -19,6 +19,11 @@
  * directions), delta n_rays×L. jitter NULL: midpoints. */
 void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, double near,
                       double far, sci_rng *jitter, float *pcam, float *dcam, float *delta);
+/* Camera-frame points at given depths along −z: t (n_rays×L, non-decreasing along each ray, in [near, far]) →
+ * pcam (n_rays×L×3), dcam (n_rays×3) and delta (n_rays×L): δ_s = (t_{s+1} − t_s)·‖d‖, the last (far − t_{L−1})·‖d‖,
+ * clamped at 0. The depth of a point of nerf_rays_camera is −pcam_z. */
+void nerf_rays_camera_depths(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, const float *t,
+                             double far, float *pcam, float *dcam, float *delta);
 /* Pixels of a patch: px, py (pw·ph each) for the patch at (x0, y0). */
 void nerf_patch_pixels(int x0, int y0, int pw, int ph, int *px, int *py);
 /* World frame under camera-to-world pose T: pos = R·pcam + t (n_rays·L points), dir = R·dcam (n_rays). */

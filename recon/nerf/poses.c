@@ -15,6 +15,7 @@ struct nerf_poses {
     double *xi;          /* np parameters */
     double *state;       /* m, v, grad: 3·np */
     long step;
+    int hold_first;
 };
 
 int nerf_poses_new(nerf_poses **out, nerf_poses_mode mode, int n, const double (*init)[12], double perturb_rot_rad,
@@ -122,6 +123,10 @@ void nerf_poses_step(nerf_poses *p, double lr)
     p->step++;
     double c1 = 1 - pow(b1, (double)p->step), c2 = 1 - pow(b2, (double)p->step);
     for (int i = 0; i < p->np; i++) {
+        if (p->hold_first && i < 6) {
+            g[i] = 0;
+            continue;
+        }
         double gi = isfinite(g[i]) ? g[i] : 0;
         m[i] = b1 * m[i] + (1 - b1) * gi;
         v[i] = b2 * v[i] + (1 - b2) * gi * gi;
@@ -144,4 +149,27 @@ void nerf_poses_distance(const nerf_poses *p, const double (*ref)[12], double *r
     }
     *rot_rad = sr / p->n;
     *trans = st / p->n;
+}
+
+void nerf_poses_set_hold_first(nerf_poses *p, int hold) { p->hold_first = hold != 0; }
+
+void nerf_poses_relative_error(const nerf_poses *p, const double (*ref)[12], double *rot_rad, double *trans)
+{
+    double sr = 0, st = 0, P0[12], P0i[12], R0i[12];
+    nerf_poses_get(p, 0, P0);
+    nerf_se3_inv(P0, P0i);
+    nerf_se3_inv(ref[0], R0i);
+    for (int j = 1; j < p->n; j++) {
+        double Pj[12], Qp[12], Qr[12], Qri[12], D[12], xi[6];
+        nerf_poses_get(p, j, Pj);
+        nerf_se3_mul(P0i, Pj, Qp);
+        nerf_se3_mul(R0i, ref[j], Qr);
+        nerf_se3_inv(Qr, Qri);
+        nerf_se3_mul(Qri, Qp, D);
+        nerf_se3_log(D, xi);
+        sr += sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
+        st += sqrt(D[3] * D[3] + D[7] * D[7] + D[11] * D[11]);
+    }
+    *rot_rad = p->n > 1 ? sr / (p->n - 1) : 0;
+    *trans = p->n > 1 ? st / (p->n - 1) : 0;
 }

@@ -39,12 +39,19 @@ double *nerf_poses_params(nerf_poses *p);        /* the parameters (twists), par
 void nerf_poses_get(const nerf_poses *p, int j, double T[12]);
 /* Add ∂loss/∂T_j (12 entries) to the parameter gradient (no-op for KNOWN). */
 void nerf_poses_add_grad(nerf_poses *p, int j, const double g_T[12]);
-/* One Adam step (β 0.9, 0.999, ε 1e-8) with learning rate lr, then zero the gradient. */
+/* One Adam step (β 0.9, 0.999, ε 1e-8) with learning rate lr, then zero the gradient. Held parameters (below)
+ * neither move nor gather moments. */
 void nerf_poses_step(nerf_poses *p, double lr);
+/* Gauge: hold pose 1 fixed (its 6 twist components: ξ₁ of LINEAR, ξ_0 of PER_FRAME). Off by default. */
+void nerf_poses_set_hold_first(nerf_poses *p, int hold);
 /* Adam state for checkpoints: 3·param_count doubles (m, v, grad) plus the step count. */
 double *nerf_poses_state(nerf_poses *p, long **step);
 
 /* Mean rotation angle (radians) and translation distance between the poses and `ref` (n poses): how far they are. */
 void nerf_poses_distance(const nerf_poses *p, const double (*ref)[12], double *rot_rad, double *trans);
+/* The same for the motion relative to pose 1, blind to the gauge (a rigid motion of the whole trajectory): mean
+ * over j = 2 … N of the rotation angle and translation length of (R₁⁻¹R_j)⁻¹·(P₁⁻¹P_j), P the poses, R the
+ * reference. 0, 0 for N = 1. */
+void nerf_poses_relative_error(const nerf_poses *p, const double (*ref)[12], double *rot_rad, double *trans);
 
 #endif

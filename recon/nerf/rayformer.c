@@ -44,7 +44,7 @@ nerf_rayformer_config nerf_rayformer_config_default(void)
         .grid = {.n_levels = 16, .n_features = 2, .log2_table = 16, .base_res = 16, .finest_res = 1024},
         .width = 32, .n_blocks = 2, .heads = 2, .ffn_hidden = 64, .geo_dim = 15, .sh_degree = 4,
         .color_hidden = 32, .patch_w = 8, .patch_h = 8, .samples = 32,
-        .aabb_min = {-1, -1, -1}, .aabb_max = {1, 1, 1}, .density_bias = 0.0f,
+        .aabb_min = {-1, -1, -1}, .aabb_max = {1, 1, 1}, .density_bias = 0.0f, .intra_ray = 1, .inter_ray = 1,
     };
     return c;
 }
@@ -88,7 +88,8 @@ int nerf_rayformer_new(nerf_rayformer **out, const nerf_rayformer_config *cfg, s
     }
     n->C = c->width, n->G = c->geo_dim, n->S = nerf_sh_dim(c->sh_degree), n->Hc = c->color_hidden;
     n->R = c->patch_w * c->patch_h, n->L = c->samples, n->cin = n->G + n->S;
-    n->bs = (nerf_block_shape){.att = {.C = n->C, .heads = c->heads, .L = n->L, .R = n->R},
+    n->bs = (nerf_block_shape){.att = {.C = n->C, .heads = c->heads, .L = n->L, .R = n->R,
+                                       .intra_off = !c->intra_ray, .inter_off = !c->inter_ray},
                                .hidden = c->ffn_hidden};
     size_t k = nerf_hashgrid_param_count(n->grid);
     n->n_hash = k;

@@ -56,9 +56,11 @@ typedef struct nerf_rayformer_config {
     int samples;               /* L, samples per ray, 32 */
     float aabb_min[3], aabb_max[3];
     float density_bias;        /* added before trunc_exp */
+    int intra_ray, inter_ray;  /* 1: the attention path; 0: pass-through (o = V, per point) — the paper's ablation */
 } nerf_rayformer_config;
 
-/* The defaults named above; the grid: 16 levels × 2 features, 2^16 entries, resolution 16 … 1024; aabb [−1, 1]³. */
+/* The defaults named above; the grid: 16 levels × 2 features, 2^16 entries, resolution 16 … 1024; aabb [−1, 1]³;
+ * both attention paths on. */
 nerf_rayformer_config nerf_rayformer_config_default(void);
 
 typedef struct nerf_rayformer nerf_rayformer;

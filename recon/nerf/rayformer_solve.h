@@ -1,18 +1,25 @@
 /* recon/nerf/rayformer_solve.h — `scicap recon --method rayformer`: train a RayFormer radiance field (rayformer.h)
  * on one SCI snapshot of a static scene seen by a moving camera, then render the N frames (rayformer.tex).
  *
- * Each training step picks B patch locations (overlapping windows: any top-left pixel), renders each of them from
- * all N poses (N·B network patches), and minimises
- *     loss = (1/P)·Σ_p (Y_p − Σ_i M_i,p·C_i,p)² + λ·mean TV(C over the rendered patches)
- * with P = B·pw·ph measured pixels; C is the grey value = mean of the network's three colour channels (the problem
- * is monochrome). Adam on the network (hash table lazy), learning rate decayed exponentially from lr to lr_final.
- * Poses: known (problem->camera, fixed), or optimised jointly (start/end on SE(3), or per frame; poses.h).
- * At the end the N frames are rendered window-wise (non-overlapping patches; the last row and column of patches
- * shifted inside the image) at sample midpoints into result->frames.
+ * The training loop is the shared NeRF trainer (trainer.h): B patch locations per step (overlapping windows: any
+ * top-left pixel), each rendered from all N poses (N·B network patches), loss
+ *     (1/P)·Σ_p (Y_p − Σ_i M_i,p·C_i,p)² + λ·mean TV(C over the rendered patches),
+ * C the grey value = mean of the network's three colour channels (the problem is monochrome); Adam on the network
+ * (hash table lazy), lr decayed exponentially from lr to lr_final. Poses: known (problem->camera, fixed), or
+ * optimised jointly (start/end on SE(3), or per frame; poses.h). At the end the N frames are rendered window-wise
+ * (non-overlapping patches) at sample midpoints into result->frames.
  *
- * Trace: every step gets loss and the residual ‖Y − Ŷ‖/‖Y‖ *over the trained patches*; every metrics_every steps (and
- * at the last) the full N frames are rendered for PSNR/SSIM; that intermediate render is excluded from wall time
- * like the tracer's own metrics; the final render counts.
+ * The paper's ablation, each step switched on its own (sci_rayformer_params_ablation gives the ladder):
+ *   patch_sampling  0: every "patch" is patch² scattered random pixels (the random-ray baseline)
+ *   inter_ray       0: the inter-ray attention path passes V through (attention.h)
+ *   intra_ray       0: the intra-ray path passes V through
+ *   tv_weight       0: no TV term (TV needs patch sampling: it is ignored without it)
+ * Presets (sci_rayformer_params_preset): "fast", "balanced", "best" — cost and accuracy in bench/results/.
+ *
+ * Trace: every step gets loss and the residual ‖Y − Ŷ‖ over the trained pixels relative to the RMS of the whole
+ * snapshot; every metrics_every steps (and at the last) the full N frames are rendered for PSNR/SSIM; that
+ * intermediate render is excluded from wall time like the tracer's own metrics; the final render counts.
+ * Checkpoints and resume: trainer.h (blobs; the caller stores them).
  * Contract as gaptv.h: validates, fills result->frames and trace, returns 0, SCI_ECANCELED (frames = the model
  * rendered at that point), SCI_EDIVERGED (no frames), or an error with its message in result->error. Needs
  * problem->camera. Blocks; OpenMP; deterministic for a given seed and thread count.
@@ -21,6 +28,7 @@
 #define SCICAP_RECON_NERF_RAYFORMER_SOLVE_H
 
 #include "recon/nerf/poses.h"
+#include "recon/nerf/trainer.h"
 #include "recon/problem.h"
 
 typedef struct sci_rayformer_params {
@@ -35,18 +43,37 @@ typedef struct sci_rayformer_params {
     double tv_weight;            /* λ of the TV term (0: off) */
     double tv_eps;               /* Charbonnier ε of the TV term (0: plain |d|) */
     int patch_sampling;          /* 1: patches; 0: scattered random rays in groups of patch² (ablation baseline) */
+    int inter_ray, intra_ray;    /* 1: the attention path; 0: pass-through (ablation) */
     nerf_poses_mode pose_mode;   /* KNOWN: problem->camera poses; LINEAR / PER_FRAME: optimised */
     int pose_init_identity;      /* optimised poses start from the identity (SCINeRF) instead of the camera's */
     double pose_perturb_rot_rad; /* perturbation added to the initial twists (U(±a) per component) */
     double pose_perturb_trans;   /* scene units */
-    double pose_lr;              /* pose Adam learning rate */
+    double pose_lr;              /* pose Adam learning rate, decayed exponentially to pose_lr_final */
+    double pose_lr_final;
+    int pose_warmup;             /* pose lr ramps up from 0 over this many steps (0: none) */
+    int pose_hold_first;         /* gauge: pose 1 stays where it starts */
     int metrics_every;           /* full render for PSNR every k steps (0: only at the end) */
     int ssim_every;              /* SSIM on those renders every k steps (0: only at the end) */
     unsigned long long seed;
     int threads;                 /* OpenMP threads for the network, 0: omp_get_max_threads() */
+    int checkpoint_every;        /* hand a checkpoint to checkpoint_fn every k steps and at the end (0: only on
+                                    cancel) */
+    nerf_checkpoint_fn checkpoint_fn; /* NULL: no checkpoints */
+    void *checkpoint_user;
+    const void *resume;          /* borrowed checkpoint blob to continue from (same problem and network), or NULL */
+    size_t resume_bytes;
 } sci_rayformer_params;
 
+/* The defaults: the "balanced" preset. */
 void sci_rayformer_params_default(sci_rayformer_params *p);
+/* Overwrite the cost/accuracy fields (iters, patch, patches_per_step, samples, hash table, lr) with a preset:
+ * "fast" (a 128×128×8 scene in a few minutes on 2 cores), "balanced", "best". -EINVAL for an unknown name. */
+int sci_rayformer_params_preset(sci_rayformer_params *p, const char *name);
+/* The paper's ablation ladder (Table 2), step 0 … 4: baseline (random rays, no attention, no TV), + patch
+ * sampling, + inter-ray attention, + intra-ray attention, + TV (= the full method). Sets patch_sampling,
+ * inter_ray, intra_ray and tv_weight (to tv_weight_full at step 4, 0 before); -EINVAL outside 0 … 4. */
+int sci_rayformer_params_ablation(sci_rayformer_params *p, int step, double tv_weight_full);
+extern const char *const sci_rayformer_ablation_names[5]; /* "baseline", "+patch", "+inter", "+intra", "+tv" */
 /* -EINVAL with a message naming the parameter and its value. */
 int sci_rayformer_params_check(const sci_rayformer_params *p, sci_error *err);
 

@@ -102,9 +102,13 @@ void nerf_ref_i2r_forward(const nerf_i2r_shape *s, int n_patches, const double *
     for (int pa = 0; pa < n_patches; pa++) {
         size_t p0 = (size_t)pa * R * L;
         for (int h = 0; h < H; h++) {
-            for (int r = 0; r < R; r++) ref_group(L, d, p0 + (size_t)r * L, 1, h * d, C, qkv, o);
-            for (int t = 0; t < L; t++) ref_group(R, d, p0 + t, (size_t)L, C / 2 + h * d, C, qkv, o);
+            for (int r = 0; r < R && !s->intra_off; r++) ref_group(L, d, p0 + (size_t)r * L, 1, h * d, C, qkv, o);
+            for (int t = 0; t < L && !s->inter_off; t++)
+                ref_group(R, d, p0 + t, (size_t)L, C / 2 + h * d, C, qkv, o);
         }
+        for (size_t i = p0; i < p0 + (size_t)R * L; i++) /* switched-off paths pass V through */
+            for (int c = 0; c < C; c++)
+                if (c < C / 2 ? s->intra_off : s->inter_off) o[i * C + c] = qkv[i * 3 * C + 2 * C + c];
     }
 }
 
@@ -136,7 +140,9 @@ void nerf_ref_rayformer_forward(const nerf_rayformer *net, const double *P, int 
     const int C = cf->width, G = cf->geo_dim, S = nerf_sh_dim(cf->sh_degree), Hc = cf->color_hidden;
     const int R = cf->patch_w * cf->patch_h, L = cf->samples, Ci = G + S;
     const size_t n = (size_t)n_patches * R * L;
-    nerf_block_shape bs = {.att = {.C = C, .heads = cf->heads, .L = L, .R = R}, .hidden = cf->ffn_hidden};
+    nerf_block_shape bs = {.att = {.C = C, .heads = cf->heads, .L = L, .R = R, .intra_off = !cf->intra_ray,
+                                   .inter_off = !cf->inter_ray},
+                           .hidden = cf->ffn_hidden};
     double *u = malloc(n * 3 * sizeof *u), *a = malloc(n * C * sizeof *a), *b = malloc(n * C * sizeof *b);
     double *ho = malloc(n * (G + 1) * sizeof *ho), *ci = malloc(n * Ci * sizeof *ci);
     double *c1 = malloc(n * (Hc ? Hc : 1) * sizeof *c1), *rp = malloc(n * 3 * sizeof *rp);

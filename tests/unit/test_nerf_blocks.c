@@ -541,6 +541,27 @@ static void test_attention_large_logits(void **s)
     att_check(100.0, "logits ±1e4");
 }
 
+/* Ablation switches: a switched-off path passes V through exactly (o = v), its Q and K get no gradient, and the
+ * other path is unchanged; each combination passes the gradient check. */
+static void test_attention_pass_through(void **s)
+{
+    (void)s;
+    for (int mode = 1; mode <= 3; mode++) {
+        nerf_i2r_shape sh = {.C = 8, .heads = 2, .L = 5, .R = 6, .intra_off = mode & 1, .inter_off = mode >> 1};
+        const int N = 2 * 30, C = 8;
+        float *qkv = malloc((size_t)N * 3 * C * 4), *o = malloc((size_t)N * C * 4), *lse = malloc((size_t)N * 4 * 4);
+        float *scr = malloc(nerf_i2r_scratch_floats(&sh) * 4);
+        for (int i = 0; i < N * 3 * C; i++) qkv[i] = (float)unif(-1, 1);
+        nerf_i2r_forward(&sh, 2, qkv, 3 * C, o, C, lse, scr);
+        for (int i = 0; i < N; i++)
+            for (int c = 0; c < C; c++)
+                if (c < C / 2 ? sh.intra_off : sh.inter_off) assert_true(o[i * C + c] == qkv[i * 3 * C + 2 * C + c]);
+        free(qkv), free(o), free(lse), free(scr);
+        static const char *const what[] = {"", "intra off", "inter off", "both off"};
+        att_check_shape(sh, 2, 1.0, what[mode]);
+    }
+}
+
 static double block_loss(void *c)
 {
     attctx *k = c;
@@ -595,7 +616,7 @@ int main(void)
         cmocka_unit_test(test_hashgrid_random),   cmocka_unit_test(test_hashgrid_borders),
         cmocka_unit_test(test_hashgrid_config_errors), cmocka_unit_test(test_attention),
         cmocka_unit_test(test_attention_large_logits),
-        cmocka_unit_test(test_attention_wide_heads),
+        cmocka_unit_test(test_attention_wide_heads), cmocka_unit_test(test_attention_pass_through),
         cmocka_unit_test(test_gelu_with_grad), cmocka_unit_test(test_block),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -85,12 +85,11 @@ static double fd(double *v, const nerf_rayformer *net, double *P, const problem 
     return (lp - lm) / (2 * h);
 }
 
-static void test_rayformer_gradcheck(void **state)
+static void gradcheck(const nerf_rayformer_config *cfg_in, const char *what)
 {
-    (void)state;
     sci_rng rng;
     sci_rng_seed(&rng, test_seed(), 1);
-    nerf_rayformer_config cfg = small_config();
+    nerf_rayformer_config cfg = *cfg_in;
     nerf_rayformer *net;
     sci_error err = {0};
     assert_int_equal(nerf_rayformer_new(&net, &cfg, &err), 0);
@@ -149,8 +148,8 @@ static void test_rayformer_gradcheck(void **state)
         num += (ddir[i] - g) * (ddir[i] - g), den += g * g;
     }
     double e_dir = sqrt(num / den);
-    printf("gradcheck: %d parameters rel err %.3g; positions %.3g; directions %.3g (bound 1e-4)\n", checked, e_par,
-           e_pos, e_dir);
+    printf("gradcheck (%s): %d parameters rel err %.3g; positions %.3g; directions %.3g (bound 1e-4)\n", what,
+           checked, e_par, e_pos, e_dir);
     assert_true(e_par < 1e-4);
     assert_true(e_pos < 1e-4);
     assert_true(e_dir < 1e-4);
@@ -159,6 +158,25 @@ static void test_rayformer_gradcheck(void **state)
     free_problem(&pr);
     nerf_rayformer_ws_free(ws);
     nerf_rayformer_free(net);
+}
+
+static void test_rayformer_gradcheck(void **state)
+{
+    (void)state;
+    nerf_rayformer_config c = small_config();
+    gradcheck(&c, "both paths");
+}
+
+/* The ablation switches: with one attention path passed through, the network is still exactly differentiable. */
+static void test_rayformer_gradcheck_ablation(void **state)
+{
+    (void)state;
+    nerf_rayformer_config c = small_config();
+    c.intra_ray = 0;
+    gradcheck(&c, "intra-ray off");
+    c = small_config();
+    c.inter_ray = 0;
+    gradcheck(&c, "inter-ray off");
 }
 
 /* Same seed: bitwise identical outputs and gradients (full-size 8×8×32 patches), on 2 threads and on 3 (patches and
@@ -227,6 +245,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rayformer_gradcheck),
+        cmocka_unit_test(test_rayformer_gradcheck_ablation),
         cmocka_unit_test(test_rayformer_deterministic),
         cmocka_unit_test(test_rayformer_config_errors),
     };

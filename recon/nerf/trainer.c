@@ -1,0 +1,784 @@
+/* recon/nerf/trainer.c — the NeRF-family training loop (see trainer.h). */
+#include "recon/nerf/trainer.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/clock.h"
+#include "base/rng.h"
+#include "recon/nerf/adam.h"
+#include "recon/nerf/loss.h"
+#include "recon/nerf/patch_sampler.h"
+#include "recon/nerf/render.h"
+#include "recon/nerf/se3.h"
+#include "recon/tracer.h"
+
+int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
+{
+    const char *m = c->method ? c->method : "nerf";
+    if (c->iters < 1 || c->iters > 10000000)
+        return sci_error_set(err, -EINVAL, "%s: iters must be in [1, 1e7] (got %d)", m, c->iters);
+    if (c->group_w < 1 || c->group_h < 1 || c->group_w * c->group_h > 4096)
+        return sci_error_set(err, -EINVAL, "%s: ray group %dx%d out of range", m, c->group_w, c->group_h);
+    if (c->groups_per_step < 1 || c->groups_per_step > 4096)
+        return sci_error_set(err, -EINVAL, "%s: groups per step must be in [1, 4096] (got %d)", m,
+                             c->groups_per_step);
+    if (c->samples < 2 || c->samples > 1024 || c->fine_samples < 0 || c->fine_samples > 1024)
+        return sci_error_set(err, -EINVAL, "%s: samples %d / fine samples %d out of range ([2, 1024], [0, 1024])",
+                             m, c->samples, c->fine_samples);
+    if (!(c->lr > 0) || !(c->lr < 10) || !(c->lr_final > 0) || !(c->lr_final < 10))
+        return sci_error_set(err, -EINVAL, "%s: lr and lr-final must be in (0, 10) (got %g, %g)", m, c->lr,
+                             c->lr_final);
+    if (!(c->adam_beta2 >= 0 && c->adam_beta2 < 1) || !(c->adam_eps > 0) || !isfinite(c->adam_eps))
+        return sci_error_set(err, -EINVAL, "%s: Adam beta2 %g must be in [0, 1), eps %g > 0", m, c->adam_beta2,
+                             c->adam_eps);
+    if (!(c->tv_weight >= 0) || !isfinite(c->tv_weight) || !(c->tv_eps >= 0) || !isfinite(c->tv_eps))
+        return sci_error_set(err, -EINVAL, "%s: tv-weight and tv-eps must be finite and >= 0 (got %g, %g)", m,
+                             c->tv_weight, c->tv_eps);
+    if (c->pose_mode != NERF_POSES_KNOWN && c->pose_mode != NERF_POSES_LINEAR &&
+        c->pose_mode != NERF_POSES_PER_FRAME)
+        return sci_error_set(err, -EINVAL, "%s: unknown pose mode %d", m, (int)c->pose_mode);
+    if (!(c->pose_lr >= 0) || !isfinite(c->pose_lr) || !(c->pose_lr_final >= 0) || !isfinite(c->pose_lr_final))
+        return sci_error_set(err, -EINVAL, "%s: pose-lr %g / pose-lr-final %g must be finite and >= 0", m,
+                             c->pose_lr, c->pose_lr_final);
+    if (!(c->pose_perturb_rot_rad >= 0) || !(c->pose_perturb_rot_rad <= 1) || !(c->pose_perturb_trans >= 0) ||
+        !isfinite(c->pose_perturb_trans))
+        return sci_error_set(err, -EINVAL, "%s: pose perturbation out of range (rotation %g rad in [0, 1], %g)", m,
+                             c->pose_perturb_rot_rad, c->pose_perturb_trans);
+    if (c->pose_warmup < 0 || c->metrics_every < 0 || c->ssim_every < 0 || c->checkpoint_every < 0)
+        return sci_error_set(err, -EINVAL, "%s: pose-warmup, metrics and checkpoint intervals must be >= 0", m);
+    return 0;
+}
+
+/* The poses a run starts from. */
+static int make_poses(const sci_problem *pb, const nerf_train_config *c, nerf_poses **out, sci_error *err)
+{
+    const sci_camera *cam = pb->camera;
+    int rc = nerf_poses_new(out, c->pose_mode, cam->n, c->pose_init_identity ? NULL : (const double(*)[12])cam->pose,
+                            c->pose_perturb_rot_rad, c->pose_perturb_trans, c->seed, err);
+    if (rc == 0)
+        nerf_poses_set_hold_first(*out, c->pose_hold_first);
+    return rc;
+}
+
+int nerf_train_scene_box(const sci_problem *pb, const nerf_train_config *c, float lo[3], float hi[3],
+                         sci_error *err)
+{
+    const sci_camera *cam = pb->camera;
+    nerf_poses *p;
+    int rc = make_poses(pb, c, &p, err);
+    if (rc < 0)
+        return rc;
+    double(*cur)[12] = malloc((size_t)cam->n * sizeof *cur);
+    if (!cur) {
+        nerf_poses_free(p);
+        return sci_error_set(err, -ENOMEM, "%s: out of memory", c->method);
+    }
+    for (int j = 0; j < cam->n; j++)
+        nerf_poses_get(p, j, cur[j]);
+    nerf_rays_bounds(cam, pb->mask->w, pb->mask->h, (const double(*)[12])cur, cam->n, cam->near_m, cam->far_m,
+                     c->pose_mode == NERF_POSES_KNOWN ? 0.02 : 0.15, lo, hi);
+    free(cur);
+    nerf_poses_free(p);
+    return 0;
+}
+
+/* ------------------------------------------------------------------ run state */
+
+/* One rendering pass (coarse, or fine): its model, optimiser and buffers for up to G groups. The camera-frame
+ * samples of the coarse pass depend only on the pixel (indexed by location b); those of the fine pass depend on
+ * the pose through the coarse weights (indexed by group q). */
+typedef struct pass {
+    const nerf_model *m;
+    nerf_adam *adam;
+    float *params, *grad;
+    int L, per_group;
+    float *t, *pcam, *delta;              /* camera frame: G·R·L (t: fine only) */
+    float *pos, *sigma, *rgb;             /* G·R·L */
+    float *color, *grey, *dC, *d_color;   /* G·R */
+    float *d_sigma, *d_rgb, *d_pos, *d_dir;
+} pass;
+
+typedef struct run {
+    const sci_problem *pb;
+    const nerf_train_config *c;
+    int w, h, n, R, B, G, n_pass;
+    double near, far, y_rms;
+    nerf_poses *poses;
+    pass ps[2];
+    int *px, *py;
+    float *dcam, *dir, *Y, *M;
+    double (*T)[12];
+    double *imp_cdf, *imp_u; /* importance sampling scratch: Lc, Lf */
+    float *imp_tc, *imp_tf;
+    sci_rng rng;
+    int64_t wall0_ns, cpu0_ns; /* elapsed time carried over from a checkpoint */
+} run;
+
+static void pass_free(pass *p)
+{
+    nerf_adam_free(p->adam);
+    void *b[] = {p->params, p->grad,  p->t,       p->pcam,    p->delta, p->pos,   p->sigma, p->rgb,
+                 p->color,  p->grey,  p->dC,      p->d_color, p->d_sigma, p->d_rgb, p->d_pos, p->d_dir};
+    for (size_t i = 0; i < sizeof b / sizeof b[0]; i++)
+        free(b[i]);
+}
+
+static void run_free(run *r)
+{
+    for (int k = 0; k < 2; k++)
+        pass_free(&r->ps[k]);
+    nerf_poses_free(r->poses);
+    void *b[] = {r->px, r->py, r->dcam, r->dir, r->Y, r->M, r->T, r->imp_cdf, r->imp_u, r->imp_tc, r->imp_tf};
+    for (size_t i = 0; i < sizeof b / sizeof b[0]; i++)
+        free(b[i]);
+}
+
+static int pass_init(run *r, pass *p, const nerf_model *m, int L, int per_group, int pose_grads, sci_error *err)
+{
+    const nerf_train_config *c = r->c;
+    p->m = m;
+    p->L = L;
+    p->per_group = per_group;
+    nerf_adam_config acfg = {.beta1 = 0.9, .beta2 = c->adam_beta2, .eps = c->adam_eps, .weight_decay = 0};
+    int rc = nerf_adam_new(&p->adam, m->n_params, &acfg, err);
+    if (rc < 0)
+        return rc;
+    const size_t rays = (size_t)r->G * r->R, pts = rays * L;
+    p->params = malloc(m->n_params * sizeof(float));
+    p->grad = malloc(m->n_params * sizeof(float));
+    p->t = per_group ? malloc(pts * sizeof(float)) : NULL;
+    p->pcam = malloc(pts * 3 * sizeof(float));
+    p->delta = malloc(pts * sizeof(float));
+    p->pos = malloc(pts * 3 * sizeof(float));
+    p->sigma = malloc(pts * sizeof(float));
+    p->rgb = malloc(pts * 3 * sizeof(float));
+    p->color = malloc(rays * 3 * sizeof(float));
+    p->grey = malloc(rays * sizeof(float));
+    p->dC = malloc(rays * sizeof(float));
+    p->d_color = malloc(rays * 3 * sizeof(float));
+    p->d_sigma = malloc(pts * sizeof(float));
+    p->d_rgb = malloc(pts * 3 * sizeof(float));
+    p->d_pos = pose_grads ? malloc(pts * 3 * sizeof(float)) : NULL;
+    p->d_dir = pose_grads ? malloc(rays * 3 * sizeof(float)) : NULL;
+    if (!p->params || !p->grad || (per_group && !p->t) || !p->pcam || !p->delta || !p->pos || !p->sigma ||
+        !p->rgb || !p->color || !p->grey || !p->dC || !p->d_color || !p->d_sigma || !p->d_rgb ||
+        (pose_grads && (!p->d_pos || !p->d_dir)))
+        return sci_error_set(err, -ENOMEM, "%s: out of memory for a batch of %d groups × %d rays × %d samples",
+                             c->method, r->G, r->R, L);
+    m->ops->init(m->self, p->params, c->seed + (per_group ? 0x9e3779b9u : 0));
+    return 0;
+}
+
+static int run_init(run *r, const sci_problem *pb, const nerf_train_config *c, const nerf_model *coarse,
+                    const nerf_model *fine, sci_error *err)
+{
+    r->pb = pb;
+    r->c = c;
+    r->w = pb->mask->w;
+    r->h = pb->mask->h;
+    r->n = pb->mask->n;
+    r->R = c->group_w * c->group_h;
+    r->B = c->groups_per_step;
+    r->G = r->B * r->n;
+    r->near = pb->camera->near_m;
+    r->far = pb->camera->far_m;
+    r->n_pass = fine ? 2 : 1;
+    sci_rng_seed(&r->rng, c->seed, 0x6a7);
+    double ysq = 0;
+    const size_t fs = (size_t)r->w * r->h;
+    for (size_t k = 0; k < fs; k++)
+        ysq += (double)pb->meas->data[k] * pb->meas->data[k];
+    r->y_rms = sqrt(ysq / (double)fs);
+    int rc;
+    if ((rc = make_poses(pb, c, &r->poses, err)) < 0)
+        return rc;
+    const int pose_grads = nerf_poses_param_count(r->poses) > 0;
+    if ((rc = pass_init(r, &r->ps[0], coarse, c->samples, 0, pose_grads, err)) < 0)
+        return rc;
+    if (fine && (rc = pass_init(r, &r->ps[1], fine, c->samples + c->fine_samples, 1, pose_grads, err)) < 0)
+        return rc;
+    const size_t rays = (size_t)r->G * r->R;
+    r->px = malloc(rays * sizeof(int));
+    r->py = malloc(rays * sizeof(int));
+    r->dcam = malloc(rays * 3 * sizeof(float));
+    r->dir = malloc(rays * 3 * sizeof(float));
+    r->Y = malloc((size_t)r->B * r->R * sizeof(float));
+    r->M = malloc(rays * sizeof(float));
+    r->T = malloc((size_t)r->n * sizeof *r->T);
+    r->imp_cdf = malloc((size_t)c->samples * sizeof(double));
+    r->imp_u = malloc((size_t)(c->fine_samples + 1) * sizeof(double));
+    r->imp_tc = malloc((size_t)c->samples * sizeof(float));
+    r->imp_tf = malloc((size_t)(c->fine_samples + 1) * sizeof(float));
+    if (!r->px || !r->py || !r->dcam || !r->dir || !r->Y || !r->M || !r->T || !r->imp_cdf || !r->imp_u ||
+        !r->imp_tc || !r->imp_tf)
+        return sci_error_set(err, -ENOMEM, "%s: out of memory", c->method);
+    return 0;
+}
+
+/* ------------------------------------------------------------------ passes */
+
+static inline size_t cam_slot(const pass *p, int n_loc, int i, int b) { return p->per_group ? (size_t)i * n_loc + b : (size_t)b; }
+
+/* World transform, model forward and rendering of n_loc locations seen from n_pose poses (group q = i·n_loc + b);
+ * the camera-frame samples are in p->pcam / p->delta, the directions in r->dcam. */
+static int pass_forward(run *r, pass *p, int n_loc, int n_pose, const double (*T)[12])
+{
+    const int R = r->R, L = p->L;
+    const size_t gp = (size_t)R * L;
+    for (int i = 0; i < n_pose; i++)
+        for (int b = 0; b < n_loc; b++) {
+            size_t q = (size_t)i * n_loc + b, s = cam_slot(p, n_loc, i, b);
+            nerf_rays_to_world(T[i], R, L, p->pcam + s * gp * 3, r->dcam + (size_t)b * R * 3, p->pos + q * gp * 3,
+                               r->dir + q * R * 3);
+        }
+    const int ng = n_loc * n_pose;
+    int rc = p->m->ops->forward(p->m->self, p->params, ng, L, p->pos, r->dir, p->sigma, p->rgb);
+    if (rc < 0)
+        return rc;
+#pragma omp parallel for schedule(static)
+    for (int q = 0; q < ng; q++) {
+        int b = q % n_loc, i = q / n_loc;
+        nerf_render_rays rr = {.n_rays = R,
+                               .L = L,
+                               .sigma = p->sigma + (size_t)q * gp,
+                               .rgb = p->rgb + (size_t)q * gp * 3,
+                               .delta = p->delta + cam_slot(p, n_loc, i, b) * gp,
+                               .t_stop = NERF_RENDER_T_STOP};
+        nerf_render_forward(&rr, p->color + (size_t)q * R * 3, NULL, NULL, NULL);
+    }
+    const size_t nr = (size_t)ng * R;
+    for (size_t k = 0; k < nr; k++)
+        p->grey[k] = (p->color[3 * k] + p->color[3 * k + 1] + p->color[3 * k + 2]) * (1.0f / 3);
+    return 0;
+}
+
+/* Importance samples for the fine pass from the coarse pass's weights: per group q and ray, the coarse depths
+ * (midpoint bins) and Lf draws by inverse CDF (stratified u, jittered when rng is given), merged and sorted with
+ * the coarse depths into fine->t; then the fine camera-frame samples. Locations' pixels are r->px/py. */
+static void importance(run *r, int n_loc, int n_pose, sci_rng *rng)
+{
+    pass *pc = &r->ps[0], *pf = &r->ps[1];
+    const int R = r->R, Lc = pc->L, Lf = r->c->fine_samples, L = pf->L;
+    const int ng = n_loc * n_pose;
+    double *cdf = r->imp_cdf, *u = r->imp_u;
+    float *tc = r->imp_tc, *tf = r->imp_tf;
+    for (int q = 0; q < ng; q++) {
+        int b = q % n_loc;
+        for (int k = 0; k < R; k++) {
+            size_t ray = (size_t)q * R + k, cr = (size_t)b * R + k;
+            const float *sg = pc->sigma + ray * Lc, *dl = pc->delta + cr * Lc;
+            float *t = pf->t + ray * L;
+            for (int s = 0; s < Lc; s++)
+                tc[s] = -pc->pcam[(cr * Lc + s) * 3 + 2]; /* depth along −z */
+            /* weights w_s = T_s α_s; bins between coarse midpoints carry the interior weights (nerf-pytorch) */
+            double logT = 0, tot = 0;
+            cdf[0] = 0;
+            for (int s = 0; s < Lc; s++) {
+                double tau = (double)sg[s] * dl[s], a = -expm1(-tau), wgt = exp(logT) * a;
+                logT -= tau;
+                if (s >= 1 && s <= Lc - 2) {
+                    tot += wgt + 1e-5;
+                    cdf[s] = tot; /* cdf over edges 1 … Lc−2 */
+                }
+            }
+            int nf = 0;
+            if (Lf > 0 && Lc >= 3) {
+                for (int j = 0; j < Lf; j++)
+                    u[j] = (j + (rng ? sci_rng_uniform(rng) : 0.5)) / Lf * tot;
+                /* edges e_s = (tc[s−1] + tc[s])/2 for s = 1 … Lc−1; segment s (1 … Lc−2) spans [e_s, e_{s+1}]
+                 * with mass cdf[s] − cdf[s−1] (cdf[0] = 0) */
+                int s = 1;
+                for (int j = 0; j < Lf; j++) {
+                    while (s < Lc - 2 && cdf[s] < u[j])
+                        s++;
+                    double lo = s > 1 ? cdf[s - 1] : 0, hi = cdf[s], f = hi > lo ? (u[j] - lo) / (hi - lo) : 0.5;
+                    f = f < 0 ? 0 : f > 1 ? 1 : f;
+                    double e0 = 0.5 * (tc[s - 1] + tc[s]), e1 = 0.5 * (tc[s] + tc[s + 1]);
+                    tf[nf++] = (float)(e0 + f * (e1 - e0));
+                }
+            }
+            /* merge (both sorted) */
+            int a = 0, c2 = 0, o = 0;
+            while (a < Lc || c2 < nf)
+                t[o++] = (c2 >= nf || (a < Lc && tc[a] <= tf[c2])) ? tc[a++] : tf[c2++];
+            while (o < L) /* only if the sampling was skipped */
+                t[o] = t[o - 1], o++;
+        }
+    }
+    for (int q = 0; q < ng; q++) {
+        int b = q % n_loc;
+        nerf_rays_camera_depths(r->pb->camera, R, r->px + (size_t)b * R, r->py + (size_t)b * R, L,
+                                pf->t + (size_t)q * R * L, r->far, pf->pcam + (size_t)q * R * L * 3,
+                                r->dcam /* rewritten with the same values */ + (size_t)b * R * 3,
+                                pf->delta + (size_t)q * R * L);
+    }
+}
+
+/* Measurement loss of a pass over the step's B locations × N poses (+ TV when asked): fills p->dC, returns the
+ * loss; *data = Σ r². */
+static double pass_loss(run *r, pass *p, int with_tv, double *data)
+{
+    const nerf_train_config *c = r->c;
+    const int N = r->n, ng = r->G;
+    const size_t P = (size_t)r->B * r->R, nr = (size_t)ng * r->R;
+    memset(p->dC, 0, nr * sizeof(float));
+    *data = nerf_loss_measurement((int)P, N, 1, r->Y, r->M, p->grey, p->dC);
+    const float inv_p = (float)(1.0 / (double)P);
+    for (size_t k = 0; k < nr; k++)
+        p->dC[k] *= inv_p;
+    double loss = *data / (double)P;
+    if (with_tv && c->tv_weight > 0 && c->patch_sampling)
+        loss += nerf_loss_tv(ng, c->group_w, c->group_h, 1, p->grey, c->tv_eps, c->tv_weight / (double)nr, p->dC);
+    return loss;
+}
+
+static int pass_backward(run *r, pass *p, int pose_grads)
+{
+    const int R = r->R, L = p->L, ng = r->G;
+    const size_t gp = (size_t)R * L, nr = (size_t)ng * R;
+    for (size_t k = 0; k < nr; k++)
+        p->d_color[3 * k] = p->d_color[3 * k + 1] = p->d_color[3 * k + 2] = p->dC[k] * (1.0f / 3);
+#pragma omp parallel for schedule(static)
+    for (int q = 0; q < ng; q++) {
+        int b = q % r->B, i = q / r->B;
+        nerf_render_rays rr = {.n_rays = R,
+                               .L = L,
+                               .sigma = p->sigma + (size_t)q * gp,
+                               .rgb = p->rgb + (size_t)q * gp * 3,
+                               .delta = p->delta + cam_slot(p, r->B, i, b) * gp,
+                               .t_stop = NERF_RENDER_T_STOP};
+        nerf_render_backward(&rr, p->d_color + (size_t)q * R * 3, NULL, NULL, p->d_sigma + (size_t)q * gp,
+                             p->d_rgb + (size_t)q * gp * 3, NULL);
+    }
+    int rc = p->m->ops->backward(p->m->self, p->params, p->d_sigma, p->d_rgb, p->grad, pose_grads ? p->d_pos : NULL,
+                                 pose_grads ? p->d_dir : NULL);
+    if (rc < 0)
+        return rc;
+    if (pose_grads)
+        for (int i = 0; i < r->n; i++) {
+            double g_T[12] = {0};
+            for (int b = 0; b < r->B; b++) {
+                size_t q = (size_t)i * r->B + b, s = cam_slot(p, r->B, i, b);
+                nerf_se3_grad_from_points(R * L, p->pcam + s * gp * 3, p->d_pos + q * gp * 3, 0, g_T);
+                nerf_se3_grad_from_points(R, r->dcam + (size_t)b * R * 3, p->d_dir + q * R * 3, 1, g_T);
+            }
+            nerf_poses_add_grad(r->poses, i, g_T);
+        }
+    return 0;
+}
+
+static double lr_at(double lr0, double lr1, int it, int iters)
+{
+    return lr0 * pow(lr1 / lr0, (double)(it - 1) / fmax(1, iters - 1));
+}
+
+static int train_step(run *r, int it, double *loss_out, double *residual)
+{
+    const nerf_train_config *c = r->c;
+    const int R = r->R, B = r->B, N = r->n, w = r->w;
+    const size_t P = (size_t)B * R, fs = (size_t)w * r->h;
+    for (int b = 0; b < B; b++) {
+        int *px = r->px + (size_t)b * R, *py = r->py + (size_t)b * R;
+        if (c->patch_sampling) {
+            int x0 = (int)sci_rng_below(&r->rng, (uint64_t)(w - c->group_w + 1));
+            int y0 = (int)sci_rng_below(&r->rng, (uint64_t)(r->h - c->group_h + 1));
+            nerf_patch_pixels(x0, y0, c->group_w, c->group_h, px, py);
+        } else {
+            for (int k = 0; k < R; k++) {
+                px[k] = (int)sci_rng_below(&r->rng, (uint64_t)w);
+                py[k] = (int)sci_rng_below(&r->rng, (uint64_t)r->h);
+            }
+        }
+    }
+    pass *pc = &r->ps[0], *pf = &r->ps[1], *last = &r->ps[r->n_pass - 1];
+    nerf_rays_camera(r->pb->camera, (int)P, r->px, r->py, pc->L, r->near, r->far, &r->rng, pc->pcam, r->dcam,
+                     pc->delta);
+    for (size_t k = 0; k < P; k++) {
+        size_t pix = (size_t)r->py[k] * w + r->px[k];
+        r->Y[k] = r->pb->meas->data[pix];
+        for (int i = 0; i < N; i++)
+            r->M[(size_t)i * P + k] = r->pb->mask->data[(size_t)i * fs + pix];
+    }
+    for (int i = 0; i < N; i++)
+        nerf_poses_get(r->poses, i, r->T[i]);
+    int rc = pass_forward(r, pc, B, N, (const double(*)[12])r->T);
+    if (rc == 0 && r->n_pass == 2) {
+        importance(r, B, N, &r->rng);
+        rc = pass_forward(r, pf, B, N, (const double(*)[12])r->T);
+    }
+    if (rc < 0)
+        return rc;
+    double data, loss = pass_loss(r, last, 1, &data);
+    if (r->n_pass == 2) {
+        double dc;
+        loss += pass_loss(r, pc, 0, &dc);
+    }
+    *loss_out = loss;
+    *residual = sqrt(data / (double)P) / fmax(r->y_rms, 1e-30);
+    const int pose_grads = nerf_poses_param_count(r->poses) > 0;
+    const double lr = lr_at(c->lr, c->lr_final, it, c->iters);
+    for (int k = 0; k < r->n_pass; k++) {
+        pass *p = &r->ps[k];
+        if ((rc = pass_backward(r, p, pose_grads)) < 0)
+            return rc;
+        nerf_adam_step(p->adam, p->params, p->grad, 0, p->m->n_hash, lr, 1, 0);
+        nerf_adam_step(p->adam, p->params, p->grad, p->m->n_hash, p->m->n_params, lr, 0, 0);
+    }
+    if (pose_grads) {
+        double plr = c->pose_lr > 0 ? lr_at(c->pose_lr, c->pose_lr_final > 0 ? c->pose_lr_final : c->pose_lr, it,
+                                            c->iters)
+                                    : 0;
+        if (c->pose_warmup > 0 && it < c->pose_warmup)
+            plr *= (double)it / c->pose_warmup;
+        nerf_poses_step(r->poses, plr);
+    }
+    return 0;
+}
+
+/* Render all N frames window-wise into x (w×h×N). */
+static int render_all(run *r, sci_cube *x)
+{
+    const nerf_train_config *c = r->c;
+    const int pw = c->group_w, ph = c->group_h, R = r->R;
+    const int nx = (r->w + pw - 1) / pw, ny = (r->h + ph - 1) / ph, tiles = nx * ny;
+    const int chunk = r->G;
+    pass *pc = &r->ps[0], *last = &r->ps[r->n_pass - 1];
+    for (int i = 0; i < r->n; i++) {
+        double T[1][12];
+        nerf_poses_get(r->poses, i, T[0]);
+        for (int t0 = 0; t0 < tiles; t0 += chunk) {
+            int cnt = tiles - t0 < chunk ? tiles - t0 : chunk;
+            for (int b = 0; b < cnt; b++) {
+                int tx = (t0 + b) % nx, ty = (t0 + b) / nx;
+                int x0 = tx * pw, y0 = ty * ph;
+                if (x0 > r->w - pw)
+                    x0 = r->w - pw;
+                if (y0 > r->h - ph)
+                    y0 = r->h - ph;
+                nerf_patch_pixels(x0, y0, pw, ph, r->px + (size_t)b * R, r->py + (size_t)b * R);
+            }
+            nerf_rays_camera(r->pb->camera, cnt * R, r->px, r->py, pc->L, r->near, r->far, NULL, pc->pcam, r->dcam,
+                             pc->delta);
+            int rc = pass_forward(r, pc, cnt, 1, (const double(*)[12])T);
+            if (rc == 0 && r->n_pass == 2) {
+                importance(r, cnt, 1, NULL);
+                rc = pass_forward(r, &r->ps[1], cnt, 1, (const double(*)[12])T);
+            }
+            if (rc < 0)
+                return rc;
+            float *frame = sci_cube_frame(x, i);
+            for (int k = 0; k < cnt * R; k++)
+                frame[(size_t)r->py[k] * r->w + r->px[k]] = last->grey[k];
+        }
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------ checkpoints */
+
+#define CKPT_MAGIC "SCINERF"
+#define CKPT_VERSION 1u
+
+typedef struct ckpt_header {
+    char magic[8];
+    uint32_t version, reserved;
+    char method[16];
+    int32_t w, h, n, iter;
+    uint64_t n_params[2], n_pose_params;
+    uint64_t rng[4];
+    double wall_s, cpu_s;
+} ckpt_header;
+
+static uint64_t fnv1a(const unsigned char *p, size_t n)
+{
+    uint64_t h = 1469598103934665603ull;
+    for (size_t i = 0; i < n; i++)
+        h = (h ^ p[i]) * 1099511628211ull;
+    return h;
+}
+
+static size_t ckpt_bytes(const run *r)
+{
+    size_t b = sizeof(ckpt_header);
+    for (int k = 0; k < r->n_pass; k++)
+        b += r->ps[k].m->n_params * (3 * sizeof(float) + sizeof(uint32_t));
+    size_t np = (size_t)nerf_poses_param_count(r->poses);
+    return b + np * 4 * sizeof(double) + sizeof(int64_t) + sizeof(uint64_t);
+}
+
+static unsigned char *put(unsigned char *o, const void *src, size_t n)
+{
+    memcpy(o, src, n);
+    return o + n;
+}
+
+static int ckpt_save(run *r, int iter, double wall_s, double cpu_s, unsigned char **out, size_t *bytes)
+{
+    size_t n = ckpt_bytes(r);
+    unsigned char *buf = malloc(n), *o = buf;
+    if (!buf)
+        return -ENOMEM;
+    ckpt_header h = {.magic = CKPT_MAGIC, .version = CKPT_VERSION, .w = r->w, .h = r->h, .n = r->n, .iter = iter,
+                     .n_pose_params = (uint64_t)nerf_poses_param_count(r->poses), .wall_s = wall_s, .cpu_s = cpu_s};
+    snprintf(h.method, sizeof h.method, "%s", r->c->method);
+    for (int k = 0; k < r->n_pass; k++)
+        h.n_params[k] = r->ps[k].m->n_params;
+    memcpy(h.rng, r->rng.s, sizeof h.rng);
+    o = put(o, &h, sizeof h);
+    for (int k = 0; k < r->n_pass; k++) {
+        pass *p = &r->ps[k];
+        float *m, *s;
+        uint32_t *t;
+        nerf_adam_buffers(p->adam, &m, &s, &t);
+        size_t np = p->m->n_params;
+        o = put(o, p->params, np * sizeof(float));
+        o = put(o, m, np * sizeof(float));
+        o = put(o, s, np * sizeof(float));
+        o = put(o, t, np * sizeof(uint32_t));
+    }
+    size_t npp = (size_t)nerf_poses_param_count(r->poses);
+    long *step;
+    double *st = nerf_poses_state(r->poses, &step);
+    int64_t step64 = *step;
+    o = put(o, nerf_poses_params(r->poses), npp * sizeof(double));
+    o = put(o, st, 3 * npp * sizeof(double));
+    o = put(o, &step64, sizeof step64);
+    uint64_t sum = fnv1a(buf, (size_t)(o - buf));
+    o = put(o, &sum, sizeof sum);
+    *out = buf;
+    *bytes = n;
+    return 0;
+}
+
+static int ckpt_header_check(const void *blob, size_t bytes, ckpt_header *h, sci_error *err)
+{
+    if (!blob || bytes < sizeof *h + sizeof(uint64_t))
+        return sci_error_set(err, SCI_EFORMAT, "checkpoint: %zu bytes is too short for a checkpoint", bytes);
+    memcpy(h, blob, sizeof *h);
+    if (memcmp(h->magic, CKPT_MAGIC, sizeof CKPT_MAGIC) != 0)
+        return sci_error_set(err, SCI_EFORMAT, "checkpoint: not a scicap NeRF checkpoint (bad magic)");
+    if (h->version != CKPT_VERSION)
+        return sci_error_set(err, SCI_EFORMAT, "checkpoint: version %u, this build reads %u", h->version,
+                             CKPT_VERSION);
+    uint64_t sum;
+    memcpy(&sum, (const unsigned char *)blob + bytes - sizeof sum, sizeof sum);
+    if (sum != fnv1a(blob, bytes - sizeof sum))
+        return sci_error_set(err, SCI_EFORMAT, "checkpoint: checksum mismatch (truncated or corrupted)");
+    h->method[sizeof h->method - 1] = 0;
+    return 0;
+}
+
+int nerf_checkpoint_peek(const void *blob, size_t bytes, int *iter, char method[16], sci_error *err)
+{
+    ckpt_header h;
+    int rc = ckpt_header_check(blob, bytes, &h, err);
+    if (rc < 0)
+        return rc;
+    if (iter)
+        *iter = h.iter;
+    if (method)
+        memcpy(method, h.method, sizeof h.method);
+    return 0;
+}
+
+static int all_finite_f(const float *v, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(v[i]))
+            return 0;
+    return 1;
+}
+
+/* Restore the run from a blob; returns the iteration it was taken after (>= 0) or an error. */
+static int ckpt_load(run *r, const void *blob, size_t bytes, sci_error *err)
+{
+    ckpt_header h;
+    int rc = ckpt_header_check(blob, bytes, &h, err);
+    if (rc < 0)
+        return rc;
+    const char *m = r->c->method;
+    if (strcmp(h.method, m) != 0)
+        return sci_error_set(err, SCI_EFORMAT, "checkpoint: written by method '%s', this run is '%s'", h.method, m);
+    if (h.w != r->w || h.h != r->h || h.n != r->n)
+        return sci_error_set(err, SCI_ESHAPE, "checkpoint: problem %dx%dx%d, this one is %dx%dx%d", h.w, h.h, h.n,
+                             r->w, r->h, r->n);
+    for (int k = 0; k < 2; k++) {
+        uint64_t want = k < r->n_pass ? r->ps[k].m->n_params : 0;
+        if (h.n_params[k] != want)
+            return sci_error_set(err, SCI_ESHAPE,
+                                 "checkpoint: %s model has %llu parameters, this configuration %llu",
+                                 k ? "fine" : "coarse", (unsigned long long)h.n_params[k], (unsigned long long)want);
+    }
+    if (h.n_pose_params != (uint64_t)nerf_poses_param_count(r->poses))
+        return sci_error_set(err, SCI_ESHAPE, "checkpoint: %llu pose parameters, this pose mode has %d",
+                             (unsigned long long)h.n_pose_params, nerf_poses_param_count(r->poses));
+    if (bytes != ckpt_bytes(r))
+        return sci_error_set(err, SCI_EFORMAT, "checkpoint: %zu bytes, expected %zu", bytes, ckpt_bytes(r));
+    if (h.iter < 0 || h.iter > 10000000 || !isfinite(h.wall_s) || !isfinite(h.cpu_s))
+        return sci_error_set(err, SCI_EFORMAT, "checkpoint: iteration %d or times out of range", h.iter);
+    const unsigned char *in = (const unsigned char *)blob + sizeof h;
+    for (int k = 0; k < r->n_pass; k++) {
+        pass *p = &r->ps[k];
+        float *mm, *s;
+        uint32_t *t;
+        nerf_adam_buffers(p->adam, &mm, &s, &t);
+        size_t np = p->m->n_params;
+        memcpy(p->params, in, np * sizeof(float)), in += np * sizeof(float);
+        memcpy(mm, in, np * sizeof(float)), in += np * sizeof(float);
+        memcpy(s, in, np * sizeof(float)), in += np * sizeof(float);
+        memcpy(t, in, np * sizeof(uint32_t)), in += np * sizeof(uint32_t);
+        if (!all_finite_f(p->params, np) || !all_finite_f(mm, np) || !all_finite_f(s, np))
+            return sci_error_set(err, SCI_ENONFINITE, "checkpoint: non-finite %s model parameters or moments",
+                                 k ? "fine" : "coarse");
+    }
+    size_t npp = (size_t)nerf_poses_param_count(r->poses);
+    long *step;
+    double *st = nerf_poses_state(r->poses, &step), *xi = nerf_poses_params(r->poses);
+    int64_t step64;
+    memcpy(xi, in, npp * sizeof(double)), in += npp * sizeof(double);
+    memcpy(st, in, 3 * npp * sizeof(double)), in += 3 * npp * sizeof(double);
+    memcpy(&step64, in, sizeof step64);
+    for (size_t i = 0; i < 4 * npp; i++)
+        if (!isfinite(i < npp ? xi[i] : st[i - npp]))
+            return sci_error_set(err, SCI_ENONFINITE, "checkpoint: non-finite pose parameters");
+    *step = (long)step64;
+    memcpy(r->rng.s, h.rng, sizeof h.rng);
+    r->wall0_ns = (int64_t)(h.wall_s * 1e9);
+    r->cpu0_ns = (int64_t)(h.cpu_s * 1e9);
+    return h.iter;
+}
+
+static int emit_checkpoint(run *r, const sci_tracer *tr, int iter, sci_error *err)
+{
+    const nerf_train_config *c = r->c;
+    if (!c->checkpoint_fn)
+        return 0;
+    int64_t now = sci_clock_mono_ns(), cpu = sci_clock_cpu_ns();
+    double wall_s = (double)(now - tr->t0_ns - tr->skip_ns) * 1e-9;
+    double cpu_s = (double)(cpu - tr->cpu0_ns - tr->skip_cpu_ns) * 1e-9;
+    unsigned char *blob;
+    size_t n;
+    int rc = ckpt_save(r, iter, wall_s, cpu_s, &blob, &n);
+    if (rc < 0)
+        return sci_error_set(err, rc, "%s: checkpoint at step %d: out of memory", c->method, iter);
+    rc = c->checkpoint_fn(blob, n, iter, c->checkpoint_user);
+    free(blob);
+    if (rc != 0)
+        return sci_error_set(err, rc < 0 ? rc : -EIO, "%s: checkpoint at step %d was not stored (%s)", c->method,
+                             iter, sci_strerror(rc < 0 ? rc : -EIO));
+    return 0;
+}
+
+/* ------------------------------------------------------------------ the loop */
+
+int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf_model *coarse,
+                   const nerf_model *fine, sci_result *result, sci_progress_fn progress, void *user,
+                   double (*poses_out)[12])
+{
+    sci_error *err = &result->error;
+    int rc = nerf_train_config_check(c, err);
+    if (rc == 0)
+        rc = sci_problem_validate(pb, err);
+    if (rc < 0)
+        return rc;
+    const sci_camera *cam = pb->camera;
+    if (!cam || cam->n != pb->mask->n)
+        return sci_error_set(err, -EINVAL, "%s: %s: needs a camera with one pose per frame", c->method, pb->name);
+    if (pb->mask->w < c->group_w || pb->mask->h < c->group_h)
+        return sci_error_set(err, SCI_ESHAPE, "%s: %s: image %dx%d is smaller than the %dx%d window", c->method,
+                             pb->name, pb->mask->w, pb->mask->h, c->group_w, c->group_h);
+    if (!(cam->far_m > cam->near_m) || !(cam->near_m >= 0))
+        return sci_error_set(err, -EINVAL, "%s: %s: camera near/far %g/%g", c->method, pb->name, cam->near_m,
+                             cam->far_m);
+    if ((c->fine_samples > 0) != (fine != NULL))
+        return sci_error_set(err, -EINVAL, "%s: fine samples (%d) need a fine model and the reverse", c->method,
+                             c->fine_samples);
+    const int G = c->groups_per_step * pb->mask->n;
+    if (coarse->max_groups < G || (fine && fine->max_groups < G))
+        return sci_error_set(err, -EINVAL, "%s: model takes %d groups per call, the step needs %d", c->method,
+                             coarse->max_groups, G);
+
+    run r = {0};
+    sci_cube *x = NULL;
+    int start = 0;
+    if ((rc = run_init(&r, pb, c, coarse, fine, err)) < 0 ||
+        (rc = sci_cube_new(&x, pb->mask->w, pb->mask->h, pb->mask->n, err)) < 0)
+        goto out;
+    if (c->resume && (rc = start = ckpt_load(&r, c->resume, c->resume_bytes, err)) < 0)
+        goto out;
+    rc = 0;
+    if (start >= c->iters) {
+        rc = sci_error_set(err, -EINVAL, "%s: checkpoint is at step %d, nothing left of %d steps", c->method, start,
+                           c->iters);
+        goto out;
+    }
+
+    sci_tracer tr;
+    sci_tracer_start(&tr, pb, result, progress, user, c->iters, c->metrics_every, c->ssim_every);
+    tr.t0_ns -= r.wall0_ns; /* a resumed run's trace continues the clock of the one it resumes */
+    tr.cpu0_ns -= r.cpu0_ns;
+    int rendered = 0, it = start;
+    for (it = start + 1; it <= c->iters; it++) {
+        double loss, res;
+        if ((rc = train_step(&r, it, &loss, &res)) < 0) {
+            sci_error_set(err, rc, "%s: step %d failed (%s)", c->method, it, sci_strerror(rc));
+            goto out;
+        }
+        int last = it == c->iters;
+        int metrics = pb->truth && c->metrics_every > 0 && it % c->metrics_every == 0;
+        rendered = 0;
+        if (last || metrics) {
+            int64_t t0 = sci_clock_mono_ns(), c0 = sci_clock_cpu_ns();
+            if ((rc = render_all(&r, x)) < 0) {
+                sci_error_set(err, rc, "%s: render failed (%s)", c->method, sci_strerror(rc));
+                goto out;
+            }
+            rendered = 1;
+            if (!last) { /* intermediate renders are trace metrics, not method time */
+                tr.skip_ns += sci_clock_mono_ns() - t0;
+                tr.skip_cpu_ns += sci_clock_cpu_ns() - c0;
+            }
+        }
+        if ((rc = sci_tracer_record(&tr, it, rendered ? x : NULL, res, loss)) != 0)
+            break;
+        if (c->checkpoint_every > 0 && (it % c->checkpoint_every == 0 || last)) {
+            int64_t t0 = sci_clock_mono_ns(), c0 = sci_clock_cpu_ns();
+            rc = emit_checkpoint(&r, &tr, it, err);
+            tr.skip_ns += sci_clock_mono_ns() - t0;
+            tr.skip_cpu_ns += sci_clock_cpu_ns() - c0;
+            if (rc < 0)
+                goto out;
+        }
+    }
+    if (rc == SCI_ECANCELED) {
+        sci_error saved = *err;
+        int rc2 = emit_checkpoint(&r, &tr, it, err);
+        if (rc2 < 0) {
+            rc = rc2;
+            goto out;
+        }
+        *err = saved;
+        if (!rendered) {
+            int rc3 = render_all(&r, x);
+            if (rc3 < 0) {
+                rc = sci_error_set(err, rc3, "%s: render failed (%s)", c->method, sci_strerror(rc3));
+                goto out;
+            }
+        }
+    }
+    if (poses_out && rc != SCI_EDIVERGED)
+        for (int j = 0; j < r.n; j++)
+            nerf_poses_get(r.poses, j, poses_out[j]);
+    if (rc != SCI_EDIVERGED) {
+        result->frames = x;
+        x = NULL;
+    }
+out:
+    sci_cube_free(x);
+    run_free(&r);
+    return rc;
+}

@@ -1,0 +1,121 @@
+/* recon/nerf/trainer.h — the training loop shared by the NeRF-family SCI solvers (rayformer_solve.h,
+ * scinerf_solve.h): ray sampling, volume rendering, the SCI measurement loss, Adam, pose optimisation,
+ * the trace, checkpoints and the final window-wise render. The radiance field itself is a model behind callbacks.
+ *
+ * One training step:
+ *   1. pick B pixel groups of R = gw·gh rays: overlapping windows (patch sampling: any top-left pixel) or R
+ *      scattered random pixels per group (random-ray sampling; the groups are then only a batch shape);
+ *   2. camera-frame rays with L stratified (jittered) depths in [near, far]; each group is seen from all N poses
+ *      → N·B model groups (the same pixels in every frame, as SCI needs: Y = Σᵢ Mᵢ ⊙ Cᵢ);
+ *   3. model forward → σ, rgb → volume rendering (render.h) → grey = mean of the three channels;
+ *      optional second (fine) pass: Lf importance samples from the coarse weights (inverse CDF, no gradient
+ *      through the sampling), the fine model on the Lc + Lf sorted depths (SCINeRF);
+ *   4. loss = (1/P)·Σ_p (Y_p − Σᵢ M_i,p·C_i,p)² (+ the same for the coarse pass when there is a fine one)
+ *      + λ·TV(C over the rendered windows)/(N·B·R) — TV only with patch sampling (scattered rays have no
+ *      neighbours);
+ *   5. backward through rendering and the model(s) → Adam (hash table lazy), lr decayed exponentially from lr
+ *      to lr_final; optimised poses: per-point position/direction gradients → ∂loss/∂Tᵢ → twists (poses.h) →
+ *      pose Adam with its own warm-up and decay.
+ * Inference renders every frame window-wise (non-overlapping gw×gh windows; the last row and column shifted
+ * inside the image) at sample midpoints (deterministic importance samples).
+ *
+ * Gauge (pose optimisation): a scene and camera poses fitted together from one snapshot are defined only up to
+ * a rigid motion (and scale) of everything; `pose_hold_first` pins pose 1 (its twist gets no update), which fixes
+ * the rigid part. Compare poses with nerf_poses_relative_error, which is blind to the gauge.
+ *
+ * Checkpoints (the trainer's whole state: iteration, parameters, Adam moments and step counts, pose twists and
+ * their Adam, the sampling RNG, elapsed time) are byte blobs: recon/ writes no files. checkpoint_fn gets one
+ * every checkpoint_every steps and when the run is canceled; `resume` starts from one. A resumed run continues
+ * the same step sequence: with the same parameters and thread count it ends bitwise equal to an uninterrupted
+ * run. The blob is validated (magic, version, method, sizes, checksum, finite values) before use.
+ * Layout (little-endian, native float/double): header {magic "SCINERF\0", u32 version, u32 reserved,
+ * char method[16], i32 w, h, n, iter, u64 n_params[2], u64 n_pose_params, u64 rng[4], f64 wall_s, cpu_s},
+ * then for each model: params (f32), Adam m, s (f32), steps (u32); pose twists, pose Adam m, v, grad (f64),
+ * pose step (i64); then a u64 FNV-1a checksum of everything before it.
+ *
+ * Errors: 0, SCI_ECANCELED (frames = the model rendered at that point), SCI_EDIVERGED (no frames),
+ * -EINVAL / SCI_EFORMAT (bad checkpoint) / -ENOMEM with the message in result->error.
+ * Blocks; OpenMP inside the models and the rendering; deterministic for a given seed and thread count.
+ */
+#ifndef SCICAP_RECON_NERF_TRAINER_H
+#define SCICAP_RECON_NERF_TRAINER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "recon/nerf/poses.h"
+#include "recon/problem.h"
+
+/* A radiance field as the trainer sees it. A call evaluates n_groups groups of R rays × L samples each: point
+ * (g·R + r)·L + s, pos (n_groups·R·L × 3, world), dir (n_groups·R × 3, unit, world, borrowed until the backward)
+ * → sigma (n_groups·R·L), rgb (×3). The backward follows the last forward: d_sigma, d_rgb → grad (n_params,
+ * overwritten), d_pos, d_dir (each NULL to skip). Return 0 or a negative code. */
+typedef struct nerf_model_ops {
+    void (*init)(void *self, float *params, uint64_t seed);
+    int (*forward)(void *self, const float *params, int n_groups, int L, const float *pos, const float *dir,
+                   float *sigma, float *rgb);
+    int (*backward)(void *self, const float *params, const float *d_sigma, const float *d_rgb, float *grad,
+                    float *d_pos, float *d_dir);
+} nerf_model_ops;
+
+typedef struct nerf_model {
+    const nerf_model_ops *ops;
+    void *self;       /* borrowed: the solver owns the network and its workspace */
+    size_t n_params;  /* floats */
+    size_t n_hash;    /* the first n_hash parameters are a hash table (lazy Adam) */
+    int max_groups;   /* largest n_groups per call (at least N·B) */
+} nerf_model;
+
+/* Called with a checkpoint blob (borrowed for the call) after step `iter`. Nonzero return: the run stops with
+ * that code (e.g. a failed write), message in result->error. */
+typedef int (*nerf_checkpoint_fn)(const void *blob, size_t bytes, int iter, void *user);
+
+typedef struct nerf_train_config {
+    const char *method;           /* "rayformer", "scinerf": messages and checkpoints */
+    int iters;                    /* training steps */
+    int group_w, group_h;         /* rays per group: the window (patch sampling) or the batch shape */
+    int groups_per_step;          /* B, each seen from all N poses */
+    int patch_sampling;           /* 1: overlapping windows; 0: scattered random pixels */
+    int samples;                  /* L (coarse) stratified samples per ray */
+    int fine_samples;             /* importance samples of the fine pass (needs a fine model), 0: none */
+    double lr, lr_final;          /* network Adam, exponential decay over the run */
+    double adam_beta2, adam_eps;  /* network Adam β2, ε (β1 = 0.9) */
+    double tv_weight, tv_eps;     /* λ and the Charbonnier ε of the TV term (patch sampling only) */
+    nerf_poses_mode pose_mode;    /* KNOWN: problem->camera poses; LINEAR / PER_FRAME: optimised */
+    int pose_init_identity;       /* start from the identity (SCINeRF) rather than the camera's poses */
+    double pose_perturb_rot_rad;  /* U(±a) added to each rotation component of the initial twists */
+    double pose_perturb_trans;    /* U(±a) on each translation component, scene units */
+    int pose_hold_first;          /* pin pose 1 (gauge) */
+    double pose_lr, pose_lr_final;/* pose Adam, exponential decay */
+    int pose_warmup;              /* pose lr ramps linearly from 0 over this many steps (0: none) */
+    int metrics_every;            /* full render for PSNR every k steps (0: only at the end) */
+    int ssim_every;               /* SSIM on those renders every k steps (0: only at the end) */
+    uint64_t seed;
+    int checkpoint_every;         /* 0: only at cancel (if checkpoint_fn) */
+    nerf_checkpoint_fn checkpoint_fn;
+    void *checkpoint_user;
+    const void *resume;           /* borrowed checkpoint blob to start from, or NULL */
+    size_t resume_bytes;
+} nerf_train_config;
+
+/* -EINVAL naming the field and its value. */
+int nerf_train_config_check(const nerf_train_config *c, sci_error *err);
+
+/* The box every sample may fall in: the frustums between near and far of the initial poses, padded (more when
+ * poses are optimised). Poses as the trainer will start them (identity + perturbation, or the camera's). */
+int nerf_train_scene_box(const sci_problem *pb, const nerf_train_config *c, float lo[3], float hi[3],
+                         sci_error *err);
+
+/* Train `coarse` (and `fine`, or NULL) on the problem and render the frames into result (solver contract of
+ * problem.h). The models' n_params, n_hash and max_groups must fit the config (max_groups >= N·B; the fine model
+ * is called with L = samples + fine_samples). poses_out (N × 12, or NULL) gets the final poses on success and
+ * cancel. */
+int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf_model *coarse,
+                   const nerf_model *fine, sci_result *result, sci_progress_fn progress, void *user,
+                   double (*poses_out)[12]);
+
+/* Checkpoint facts without resuming: the step it was taken after and the method. 0, or SCI_EFORMAT naming what is
+ * wrong (magic, version, truncated, checksum). */
+int nerf_checkpoint_peek(const void *blob, size_t bytes, int *iter, char method[16], sci_error *err);
+
+#endif
