@@ -11,10 +11,11 @@
 #include <time.h>
 
 #include "base/clock.h"
-#include "daemon/simbench.h"
+#include "daemon/devices.h"
 #include "drivers/capture.h"
 
 #define MAX_CALIB 64
+#define RETRY_NS 5000000000LL /* a device that failed to open is tried again this often while idle */
 
 typedef struct calib_entry {
     char key[96];            /* "dark" or "masks-<set>" */
@@ -32,23 +33,24 @@ typedef struct mask_cache {
 
 struct scicapd_acquire {
     scicapd_acquire_env env;
-    scicapd_simbench *sim;      /* the simulated bench (only backend built so far) */
+    scicapd_devices *dev;       /* DMD, camera, trigger per backend (daemon/devices.h) */
+    /* per job, from dev (valid while the thread runs a job: devices change only between jobs) */
+    scicapd_simbench *sim;      /* NULL on a real camera */
     dmd *dmd;
     camera *cam;
     trigger *trig;
     dmd_identity dmd_id;
-    char backends[3][16];
     double counts_per_unit, dark_level;
     pthread_t thread;
     int running;
     atomic_int stop;
     _Atomic int64_t heartbeat_ns;
-    atomic_int dmd_connected;
     /* faults, under mu */
     pthread_mutex_t mu;
     scicapd_simulate_args faults[16];
     int nfaults;
     long delay_ms;
+    scicapd_config *pending;    /* a reloaded configuration for the devices (applied between jobs) */
     /* thread-only state */
     char uploaded[SCICAPD_NAME_MAX]; /* mask set on the DMD ("" after a reconnect) */
     dmd_timing timing;
@@ -71,20 +73,21 @@ static void on_dmd_event(void *user, dmd_event ev, const char *serial)
     scicapd_acquire *a = user;
     a->uploaded[0] = '\0';
     a->timing_valid = 0;
-    atomic_store(&a->dmd_connected, ev == DMD_EVENT_CONNECTED);
     sci_log_write(a->env.log, SCI_LOG_WARNING, "DMD %s %s", serial ? serial : "",
                   ev == DMD_EVENT_CONNECTED ? "connected" : "disconnected");
     post(a, NULL, ev == DMD_EVENT_CONNECTED ? "device.connected" : "device.disconnected",
          json_pack("{s:s, s:s}", "device", "dmd", "serial", serial ? serial : ""));
 }
 
+static void set_scale(scicapd_acquire *a, const scicapd_config *cfg)
+{
+    a->counts_per_unit = cfg->counts_per_unit > 0 ? cfg->counts_per_unit : cfg->sim_counts_per_unit;
+    a->dark_level = cfg->sim_dark_counts;
+}
+
 int scicapd_acquire_new(scicapd_acquire **out, const scicapd_config *cfg, const scicapd_acquire_env *env,
                         sci_error *err)
 {
-    if (strcmp(cfg->dmd_backend, "sim") || strcmp(cfg->camera_backend, "sim") || strcmp(cfg->trigger_backend, "sim"))
-        return sci_error_set(err, -ENOTSUP, "devices: dmd \"%s\", camera \"%s\", trigger \"%s\": this scicapd drives "
-                             "the simulated bench (all three \"sim\"); the hardware backends are not wired into the "
-                             "daemon yet", cfg->dmd_backend, cfg->camera_backend, cfg->trigger_backend);
     scicapd_acquire *a = calloc(1, sizeof *a);
     if (!a || !(a->snap = calloc(1, sizeof *a->snap))) {
         free(a);
@@ -92,26 +95,28 @@ int scicapd_acquire_new(scicapd_acquire **out, const scicapd_config *cfg, const 
     }
     a->env = *env;
     pthread_mutex_init(&a->mu, NULL);
-    int rc = scicapd_simbench_open(&a->sim, cfg, env->log, on_dmd_event, a, err);
+    /* device errors do not fail the start: they are kept, shown and retried (daemon/devices.h) */
+    int rc = scicapd_devices_open(&a->dev, cfg, env->log, on_dmd_event, a, err);
     if (rc < 0) {
         scicapd_acquire_free(a);
         return rc;
     }
-    a->dmd = scicapd_simbench_dmd(a->sim);
-    a->cam = scicapd_simbench_camera(a->sim);
-    a->trig = scicapd_simbench_trigger(a->sim);
-    if ((rc = dmd_identify(a->dmd, &a->dmd_id, err)) < 0) {
-        scicapd_acquire_free(a);
-        return rc;
-    }
-    atomic_store(&a->dmd_connected, 1);
-    snprintf(a->backends[0], 16, "%s", cfg->dmd_backend);
-    snprintf(a->backends[1], 16, "%s", cfg->camera_backend);
-    snprintf(a->backends[2], 16, "%s", cfg->trigger_backend);
-    a->counts_per_unit = cfg->counts_per_unit > 0 ? cfg->counts_per_unit : cfg->sim_counts_per_unit;
-    a->dark_level = cfg->sim_dark_counts;
+    set_scale(a, cfg);
     atomic_store(&a->heartbeat_ns, sci_clock_mono_ns());
     *out = a;
+    return 0;
+}
+
+int scicapd_acquire_reconfigure(scicapd_acquire *a, const scicapd_config *cfg, sci_error *err)
+{
+    scicapd_config *c;
+    int rc = scicapd_config_copy(&c, cfg, err);
+    if (rc < 0)
+        return rc;
+    pthread_mutex_lock(&a->mu);
+    scicapd_config_free(a->pending);
+    a->pending = c;
+    pthread_mutex_unlock(&a->mu);
     return 0;
 }
 
@@ -119,7 +124,8 @@ void scicapd_acquire_free(scicapd_acquire *a)
 {
     if (!a)
         return;
-    scicapd_simbench_close(a->sim);
+    scicapd_devices_close(a->dev);
+    scicapd_config_free(a->pending);
     for (int i = 0; i < a->nmasks; i++)
         sci_cube_free(a->masks[i].masks);
     for (int i = 0; i < a->ncalib; i++) {
@@ -133,29 +139,16 @@ void scicapd_acquire_free(scicapd_acquire *a)
 }
 
 int64_t scicapd_acquire_heartbeat_ns(scicapd_acquire *a) { return atomic_load(&a->heartbeat_ns); }
-int scicapd_acquire_dmd_connected(scicapd_acquire *a) { return atomic_load(&a->dmd_connected); }
+int scicapd_acquire_dmd_connected(scicapd_acquire *a) { return scicapd_devices_dmd_connected(a->dev); }
 
-json_t *scicapd_acquire_devices_json(scicapd_acquire *a)
-{
-    camera_identity ci;
-    camera_format cf;
-    trigger_identity ti;
-    camera_identity_get(a->cam, &ci);
-    camera_format_get(a->cam, &cf);
-    trigger_identity_get(a->trig, &ti);
-    return json_pack("{s:{s:s, s:s, s:s, s:s, s:i, s:i, s:i, s:b}, s:{s:s, s:o, s:i, s:i, s:i}, s:{s:s, s:o}}",
-                     "dmd", "backend", a->backends[0], "model", a->dmd_id.model, "serial", a->dmd_id.serial,
-                     "firmware", a->dmd_id.firmware, "width", a->dmd_id.width, "height", a->dmd_id.height,
-                     "max_masks", a->dmd_id.max_masks, "connected", atomic_load(&a->dmd_connected), "camera",
-                     "backend", a->backends[1], "identity", camera_identity_json(&ci), "width", (int)cf.width,
-                     "height", (int)cf.height, "bits", cf.bits_per_sample, "trigger", "backend", a->backends[2],
-                     "identity", trigger_identity_json(&ti));
-}
+json_t *scicapd_acquire_devices_json(scicapd_acquire *a) { return scicapd_devices_json(a->dev); }
 
 int scicapd_acquire_fault(scicapd_acquire *a, const scicapd_simulate_args *f, sci_error *err)
 {
-    if (!a->sim)
-        return sci_error_set(err, -ENOTSUP, "simulate: faults can only be injected on the simulated bench");
+    if (!scicapd_devices_fault_supported(a->dev, f->fault))
+        return sci_error_set(err, -ENOTSUP, "simulate: this fault can only be injected into simulated devices "
+                             "(DMD faults need the \"sim\" DMD or the DLPC900 emulator; camera and trigger faults "
+                             "the simulated camera and trigger)");
     pthread_mutex_lock(&a->mu);
     int rc = 0;
     if (a->nfaults == 16)
@@ -176,13 +169,10 @@ static void apply_faults(scicapd_acquire *a)
     pthread_mutex_unlock(&a->mu);
     for (int i = 0; i < n; i++) {
         sci_log_write(a->env.log, SCI_LOG_NOTICE, "simulate: fault %d (n = %ld)", (int)f[i].fault, f[i].n);
-        switch (f[i].fault) {
-        case SCICAPD_FAULT_DMD_UNPLUG: scicapd_simbench_dmd_unplug(a->sim, f[i].n); break;
-        case SCICAPD_FAULT_DMD_REPLUG: scicapd_simbench_dmd_replug(a->sim); break;
-        case SCICAPD_FAULT_CAMERA_STALL: scicapd_simbench_camera_stall(a->sim, (int)f[i].n); break;
-        case SCICAPD_FAULT_TRIGGER_MISS: scicapd_simbench_trigger_miss(a->sim, (int)f[i].n); break;
-        case SCICAPD_FAULT_ACQUIRE_DELAY: a->delay_ms = f[i].n; break;
-        }
+        if (f[i].fault == SCICAPD_FAULT_ACQUIRE_DELAY)
+            a->delay_ms = f[i].n;
+        else
+            scicapd_devices_fault_apply(a->dev, f[i].fault, f[i].n);
     }
 }
 
@@ -262,6 +252,9 @@ static int program(scicapd_acquire *a, const char *set_name, const sci_cube *mas
                    uint32_t dark_us, enum sync_mode mode, sci_error *err)
 {
     int rc;
+    if (pattern_us < (uint32_t)a->dmd_id.min_exposure_us)
+        return sci_error_set(err, -EINVAL, "pattern_us %u is below the minimum exposure of DMD %s %s (%d µs)",
+                             pattern_us, a->dmd_id.model, a->dmd_id.serial, a->dmd_id.min_exposure_us);
     if (strcmp(a->uploaded, set_name) != 0) {
         a->uploaded[0] = '\0';
         if ((rc = dmd_upload(a->dmd, masks, err)) < 0)
@@ -269,8 +262,10 @@ static int program(scicapd_acquire *a, const char *set_name, const sci_cube *mas
         snprintf(a->uploaded, sizeof a->uploaded, "%s", set_name);
         a->timing_valid = 0;
     }
+    /* host and camera master: the DMD waits for its trigger input (our pulse, or the camera's strobe) */
     dmd_timing t = {.exposure_us = pattern_us, .dark_us = dark_us, .passes = 1,
-                    .trigger = mode == SYNC_MODE_HOST_MASTER ? DMD_TRIGGER_EXTERNAL : DMD_TRIGGER_INTERNAL};
+                    .trigger = mode == SYNC_MODE_DMD_MASTER ? DMD_TRIGGER_INTERNAL : DMD_TRIGGER_EXTERNAL};
+    scicapd_devices_timing_defaults(a->dev, &t);
     if (!a->timing_valid || a->timing.exposure_us != t.exposure_us || a->timing.dark_us != t.dark_us ||
         a->timing.trigger != t.trigger) {
         if ((rc = dmd_set_timing(a->dmd, &t, err)) < 0)
@@ -296,10 +291,18 @@ static int take(scicapd_acquire *a, int n, uint32_t exposure_us, enum sync_mode 
     capture_params p = capture_params_default();
     p.mode = mode;
     p.timeline = plan;
-    p.dmd_latency_ns = scicapd_simbench_dmd_latency_ns(a->sim);
-    p.readout_ns = 100000;
+    p.dmd_latency_ns = scicapd_devices_dmd_latency_ns(a->dev);
+    p.readout_ns = scicapd_devices_readout_ns(a->dev);
     p.frame_timeout_ns = (int64_t)e * 1000 + 500000000;
-    if (mode == SYNC_MODE_HOST_MASTER) {
+    if (mode == SYNC_MODE_CAMERA_MASTER) {
+        /* A free-running camera has frames waiting: drain them before arming, so that the first strobe after
+         * the arm belongs to an exposure capture_snapshot_take keeps (draining takes time on the simulator). */
+        sci_error e0 = {0};
+        for (int k = 0; k < 4 * CAMERA_MAX_BUFFERS && camera_wait_frame(a->cam, 0, &a->snap->frame, &e0) == 0; k++)
+            ;
+    }
+    if (mode != SYNC_MODE_DMD_MASTER) {
+        /* armed: the sequence starts at the trigger input's edge */
         if (!dark && (rc = dmd_start(a->dmd, err)) < 0)
             goto out;
     } else {
@@ -362,13 +365,23 @@ static int package(scicapd_acquire *a, scicapd_job *j, int index, const sci_cube
     calib_entry *dark = calib_get(a, "dark"), *cm = calib_get(a, key);
     if (dark && !sci_cube_same_shape(dark->data, s->raw))
         dark = NULL;
-    if (cm && !sci_cube_same_shape(cm->data, ideal))
-        cm = NULL;
+    if (cm && (cm->data->w != s->raw->w || cm->data->h != s->raw->h || cm->data->n != ideal->n))
+        cm = NULL; /* measured masks are at the sensor's size, one per mask of the set */
     double cpu = cm && cm->counts_per_unit > 0 ? cm->counts_per_unit : a->counts_per_unit;
     double level = dark ? 0 : a->dark_level;
     for (size_t i = 0; i < sci_cube_count(s->raw); i++)
         p->meas->data[i] = (float)((s->raw->data[i] - (dark ? dark->data->data[i] : level)) / cpu);
-    if ((rc = sci_cube_clone(&p->mask, cm ? cm->data : ideal, err)) < 0)
+    if (cm)
+        rc = sci_cube_clone(&p->mask, cm->data, err);
+    else if (ideal->w == s->raw->w && ideal->h == s->raw->h)
+        rc = sci_cube_clone(&p->mask, ideal, err); /* a mirror per pixel: the DMD masks are the sensor's */
+    else if (a->sim)
+        rc = scicapd_simbench_crop(a->sim, ideal, &p->mask, err); /* the simulated camera's window */
+    else
+        rc = sci_error_set(err, SCI_ESHAPE, "the DMD is %d×%d and the camera %d×%d: without measured masks the "
+                           "snapshot cannot be reconstructed; run `scicap calibrate --masks --mask-set %s` first",
+                           ideal->w, ideal->h, s->raw->w, s->raw->h, c->mask_set.name);
+    if (rc < 0)
         goto fail;
     if (dark && (rc = sci_cube_clone(&s->dark, dark->data, err)) < 0)
         goto fail;
@@ -417,6 +430,23 @@ fail:
     return rc;
 }
 
+/* The devices for this job: all three open, or an error naming the one that is not. */
+static int bind_devices(scicapd_acquire *a, enum sync_mode mode, sci_error *err)
+{
+    int rc = scicapd_devices_ready(a->dev, err);
+    if (rc < 0)
+        return rc;
+    a->sim = scicapd_devices_sim(a->dev);
+    /* the simulated camera free-runs in camera master, waits for its trigger otherwise */
+    if (a->sim && (rc = scicapd_simbench_set_free_run(a->sim, mode == SYNC_MODE_CAMERA_MASTER, err)) < 0)
+        return rc;
+    a->dmd = scicapd_devices_dmd(a->dev);
+    a->cam = scicapd_devices_camera(a->dev);
+    a->trig = scicapd_devices_trigger(a->dev);
+    a->dmd_id = *scicapd_devices_dmd_identity(a->dev);
+    return 0;
+}
+
 static void run_capture(scicapd_acquire *a, scicapd_job *j)
 {
     const scicapd_capture_args *c = &j->capture;
@@ -424,11 +454,12 @@ static void run_capture(scicapd_acquire *a, scicapd_job *j)
     scicapd_job_set_state(a->env.jobs, j, SCICAPD_JOB_RUNNING, NULL);
     scicapd_job_set_progress(a->env.jobs, j, 0, c->count, NAN);
     post(a, j, "capture.started", json_pack("{s:s, s:i}", "mask_set", c->mask_set.name, "count", c->count));
-    const sci_cube *masks = mask_set_cube(a, &c->mask_set, &err);
-    int rc = masks ? 0 : err.code;
+    int rc = bind_devices(a, c->sync, &err);
+    const sci_cube *masks = rc < 0 ? NULL : mask_set_cube(a, &c->mask_set, &err);
+    rc = masks ? 0 : err.code;
     uint32_t exposure = c->exposure_us ? c->exposure_us
                                        : scicapd_auto_exposure_us(c->mask_set.frames, c->pattern_us, c->dark_us,
-                                                                  (uint32_t)(scicapd_simbench_dmd_latency_ns(a->sim) / 1000));
+                                                                  (uint32_t)(scicapd_devices_dmd_latency_ns(a->dev) / 1000));
     int i;
     for (i = 0; rc == 0 && i < c->count; i++) {
         if (atomic_load(&j->cancel) || atomic_load(&a->stop))
@@ -454,6 +485,7 @@ static void run_capture(scicapd_acquire *a, scicapd_job *j)
             nanosleep(&ts, NULL);
         }
         s->job = scicapd_jobs_find(a->env.jobs, j->id); /* the writer's reference */
+        scicapd_store_reserve_id(a->env.store, s);       /* ids in acquisition order, whichever writer stores it */
         if (scicapd_queue_push_wait(a->env.out, s) < 0) {
             scicapd_snapshot_free(a->env.jobs, s);
             rc = sci_error_set(&err, -EPIPE, "storage writer stopped");
@@ -498,10 +530,12 @@ static void run_calibrate(scicapd_acquire *a, scicapd_job *j)
     json_t *rec = NULL;
     sci_cube *acc = NULL, *result = NULL;
     camera_format cf;
+    uint32_t lat = (uint32_t)(scicapd_devices_dmd_latency_ns(a->dev) / 1000);
+    const sci_cube *masks = NULL;
+    if ((rc = bind_devices(a, SYNC_MODE_HOST_MASTER, &err)) < 0)
+        goto done;
     camera_format_get(a->cam, &cf);
-    uint32_t lat = (uint32_t)(scicapd_simbench_dmd_latency_ns(a->sim) / 1000);
-    const sci_cube *masks = mask_set_cube(a, &c->mask_set, &err);
-    if (!masks) {
+    if (!(masks = mask_set_cube(a, &c->mask_set, &err))) {
         rc = err.code;
         goto done;
     }
@@ -541,7 +575,11 @@ static void run_calibrate(scicapd_acquire *a, scicapd_job *j)
         sci_cube *one;
         if ((rc = sci_cube_new(&one, masks->w, masks->h, 1, &err)) < 0)
             goto done;
-        scicapd_simbench_set_target(a->sim, SCICAPD_TARGET_WHITE);
+        if (a->sim)
+            scicapd_simbench_set_target(a->sim, SCICAPD_TARGET_WHITE);
+        else
+            sci_log_write(a->env.log, SCI_LOG_NOTICE, "calibrate masks: expecting a uniform white target in front "
+                          "of the camera");
         double white_sum = 0, white_n = 0;
         for (int k = 0; k < masks->n && rc == 0; k++) {
             if (atomic_load(&j->cancel) || atomic_load(&a->stop)) {
@@ -557,18 +595,24 @@ static void run_calibrate(scicapd_acquire *a, scicapd_job *j)
                 (rc = average(a, 1, c->average, e, 0, acc, &err)) < 0)
                 break;
             float *dst = sci_cube_frame(result, k);
-            const float *ideal = sci_cube_frame(masks, k);
+            /* the white level from the pixels the mask opens: known when a mirror maps to a pixel, else the
+             * pixels brighter than half the brightest */
+            const float *ideal = masks->w == acc->w && masks->h == acc->h ? sci_cube_frame(masks, k) : NULL;
+            float hi = 0;
             for (size_t i = 0; i < sci_cube_frame_size(acc); i++) {
                 dst[i] = acc->data[i] - (dark ? dark->data->data[i] : (float)a->dark_level);
-                if (ideal[i] >= 0.5f) {
+                hi = dst[i] > hi ? dst[i] : hi;
+            }
+            for (size_t i = 0; i < sci_cube_frame_size(acc); i++)
+                if (ideal ? ideal[i] >= 0.5f : dst[i] > 0.5f * hi) {
                     white_sum += dst[i];
                     white_n++;
                 }
-            }
             scicapd_job_set_progress(a->env.jobs, j, k + 1, masks->n, NAN);
             post(a, j, "calibrate.progress", json_pack("{s:i, s:i}", "mask", k + 1, "of", masks->n));
         }
-        scicapd_simbench_set_target(a->sim, SCICAPD_TARGET_SCENE);
+        if (a->sim)
+            scicapd_simbench_set_target(a->sim, SCICAPD_TARGET_SCENE);
         a->uploaded[0] = '\0';
         sci_cube_free(one);
         if (rc < 0)
@@ -607,6 +651,36 @@ done:
     sci_cube_free(result);
 }
 
+static void forget_masks(scicapd_acquire *a)
+{
+    for (int i = 0; i < a->nmasks; i++)
+        sci_cube_free(a->masks[i].masks);
+    a->nmasks = 0;
+    a->uploaded[0] = '\0';
+    a->timing_valid = 0;
+}
+
+/* A reloaded configuration: re-open the devices if their settings changed, else retry the missing ones now. */
+static void apply_config(scicapd_acquire *a)
+{
+    pthread_mutex_lock(&a->mu);
+    scicapd_config *c = a->pending;
+    a->pending = NULL;
+    pthread_mutex_unlock(&a->mu);
+    if (!c)
+        return;
+    sci_error err = {0};
+    set_scale(a, c);
+    if (scicapd_devices_differ(a->dev, c)) {
+        forget_masks(a); /* the DMD may have another size */
+        if (scicapd_devices_reconfigure(a->dev, c, &err) < 0)
+            sci_log_write(a->env.log, SCI_LOG_ERR, "devices: %s", err.msg);
+    } else {
+        scicapd_devices_retry(a->dev, 0, 1);
+    }
+    scicapd_config_free(c);
+}
+
 static void *acquire_main(void *arg)
 {
     scicapd_acquire *a = arg;
@@ -614,8 +688,12 @@ static void *acquire_main(void *arg)
         atomic_store(&a->heartbeat_ns, sci_clock_mono_ns());
         scicapd_job *j = scicapd_queue_pop(a->env.in, 200000000);
         apply_faults(a);
+        apply_config(a);
         sci_error err = {0};
-        dmd_poll(a->dmd, 0, &err);
+        scicapd_devices_retry(a->dev, RETRY_NS, 0);
+        dmd *dm = scicapd_devices_dmd(a->dev);
+        if (dm)
+            dmd_poll(dm, 0, &err);
         if (!j)
             continue;
         if (atomic_load(&j->cancel)) {

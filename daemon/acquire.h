@@ -5,9 +5,11 @@
  * stop the DMD, check the sync report (a broken sync is stored but flagged, never hidden), convert counts to the
  * reconstruction's scale with the current calibration, and hand the snapshot to the writer queue. It never
  * waits for a reconstruction. Calibrate jobs record a dark frame, or each mask of a set shown on a white target.
- * While idle it polls the DMD for hotplug and applies injected faults (simulated bench only).
- * Events go to the mailbox; job state to the job table. Devices are opened by scicapd_acquire_new (so a bad
- * device fails the start, before READY) and used only by the thread afterwards.
+ * While idle it polls the DMD for hotplug, applies injected faults (simulated devices only), re-opens devices
+ * after a reload and retries devices that failed to open (daemon/devices.h).
+ * Events go to the mailbox; job state to the job table. Devices are opened by scicapd_acquire_new (a device that
+ * fails to open is reported, not fatal: the daemon serves and says which device is missing) and used only by
+ * the thread afterwards.
  */
 #ifndef SCICAP_DAEMON_ACQUIRE_H
 #define SCICAP_DAEMON_ACQUIRE_H
@@ -33,10 +35,13 @@ typedef struct scicapd_acquire_env {
     const sci_log *log;
 } scicapd_acquire_env;
 
-/* Open the devices named in cfg (copied what is needed). Errors name the device. */
+/* Open the devices named in cfg (copied what is needed). Fails only for -ENOMEM. */
 int scicapd_acquire_new(scicapd_acquire **out, const scicapd_config *cfg, const scicapd_acquire_env *env,
                         sci_error *err);
 int scicapd_acquire_start(scicapd_acquire *a, sci_error *err);
+/* A reloaded configuration (copied): the thread re-opens the devices between jobs when their settings changed,
+ * and retries devices that failed to open in any case. Event-loop thread. -ENOMEM. */
+int scicapd_acquire_reconfigure(scicapd_acquire *a, const scicapd_config *cfg, sci_error *err);
 /* Ask the thread to end after the current snapshot and wait for it. The caller closes env->in first so that no
  * new job arrives; jobs still queued are canceled. */
 void scicapd_acquire_stop(scicapd_acquire *a);

@@ -7,6 +7,8 @@
 #include <string.h>
 
 #include "base/json.h"
+#include "drivers/camera.h"
+#include "drivers/trigger.h"
 
 static void defaults(scicapd_config *c)
 {
@@ -20,6 +22,9 @@ static void defaults(scicapd_config *c)
     snprintf(c->storage_root, sizeof c->storage_root, "/var/lib/scicapd");
     snprintf(c->runtime_dir, sizeof c->runtime_dir, "/run/scicapd");
     c->fsync = 1;
+    c->writers = 2;
+    c->previews = 1;
+    c->camera_readout_us = 100;
     strcpy(c->dmd_backend, "sim");
     strcpy(c->camera_backend, "sim");
     strcpy(c->trigger_backend, "sim");
@@ -145,9 +150,11 @@ static int parse_control(const sci_json_doc *doc, const json_t *o, scicapd_confi
 
 static int parse_storage(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
-    static const char *const keys[] = {"root", "runtime_dir", "fsync", NULL};
+    static const char *const keys[] = {"root", "runtime_dir", "fsync", "writers", "previews", NULL};
     int rc;
     if ((rc = sci_json_check_keys(doc, o, "storage", keys, err)) < 0 ||
+        (rc = get_int(doc, o, "storage", "writers", 1, 16, &c->writers, err)) < 0 ||
+        (rc = sci_json_get_bool(doc, o, "storage", "previews", 0, &c->previews, err)) < 0 ||
         (rc = get_str(doc, o, "storage", "root", c->storage_root, sizeof c->storage_root - 64, err)) < 0 ||
         (rc = get_str(doc, o, "storage", "runtime_dir", c->runtime_dir, sizeof c->runtime_dir, err)) < 0 ||
         (rc = sci_json_get_bool(doc, o, "storage", "fsync", 0, &c->fsync, err)) < 0)
@@ -157,9 +164,10 @@ static int parse_storage(const sci_json_doc *doc, const json_t *o, scicapd_confi
     return 0;
 }
 
-/* "dmd": {"backend": "sim", "serial": "..."}; "camera"/"trigger": {"backend": ..., backend keys...}. */
+/* "dmd": {"backend": "sim", "serial": "..."}; "camera"/"trigger": {"backend": ..., backend keys...}. `strip`
+ * names the daemon's own keys, left out of the copy in *rest. */
 static int parse_device(const sci_json_doc *doc, const json_t *dev, const char *name, const char *const *backends,
-                        char *backend, size_t bn, json_t **rest, sci_error *err)
+                        char *backend, size_t bn, const char *const *strip, json_t **rest, sci_error *err)
 {
     const json_t *o;
     char path[64];
@@ -177,8 +185,48 @@ static int parse_device(const sci_json_doc *doc, const json_t *dev, const char *
         if (!copy)
             return sci_error_set(err, -ENOMEM, "config: out of memory");
         json_object_del(copy, "backend");
+        for (int i = 0; strip && strip[i]; i++)
+            json_object_del(copy, strip[i]);
         json_decref(*rest);
         *rest = copy;
+    }
+    return 0;
+}
+
+/* A driver's own validation (camera_config_from_json, trigger_config_from_json) reports "where.key: reason";
+ * re-issue it with the file position of that key. */
+static int driver_fail(const sci_json_doc *doc, const sci_error *e2, sci_error *err)
+{
+    char path[256];
+    const char *sep = strstr(e2->msg, ": ");
+    size_t n = sep ? (size_t)(sep - e2->msg) : 0;
+    if (!sep || n >= sizeof path)
+        return sci_json_fail(doc, err, "devices", "%s", e2->msg);
+    memcpy(path, e2->msg, n);
+    path[n] = '\0';
+    return sci_json_fail(doc, err, path, "%s", sep + 2);
+}
+
+static int parse_dmd(const sci_json_doc *doc, const json_t *d, scicapd_config *c, sci_error *err)
+{
+    static const char *const dkeys[] = {"backend", "serial", "emulator", "timeout_ms", "trigger_delay_us",
+                                        "trigger_falling", NULL};
+    int rc;
+    if ((rc = sci_json_check_keys(doc, d, "devices.dmd", dkeys, err)) < 0 ||
+        (rc = get_str(doc, d, "devices.dmd", "serial", c->dmd_serial, sizeof c->dmd_serial, err)) < 0 ||
+        (rc = sci_json_get_bool(doc, d, "devices.dmd", "emulator", 0, &c->dmd_emulator, err)) < 0 ||
+        (rc = get_int(doc, d, "devices.dmd", "timeout_ms", 1, 60000, &c->dmd_timeout_ms, err)) < 0 ||
+        (rc = get_u32(doc, d, "devices.dmd", "trigger_delay_us", 0, 65535, &c->dmd_trigger_delay_us, err)) < 0 ||
+        (rc = sci_json_get_bool(doc, d, "devices.dmd", "trigger_falling", 0, &c->dmd_trigger_falling, err)) < 0)
+        return rc;
+    if (strcmp(c->dmd_backend, "dlpc900") != 0) {
+        static const char *const hw[] = {"emulator", "timeout_ms", "trigger_delay_us", "trigger_falling", NULL};
+        for (int i = 0; hw[i]; i++)
+            if (json_object_get(d, hw[i])) {
+                char p[128];
+                return sci_json_fail(doc, err, sci_json_path_key(p, sizeof p, "devices.dmd", hw[i]),
+                                     "only for the \"dlpc900\" backend (the \"sim\" DMD is always emulated)");
+            }
     }
     return 0;
 }
@@ -187,27 +235,54 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
 {
     static const char *const keys[] = {"dmd", "camera", "trigger", NULL};
     static const char *const dmds[] = {"sim", "dlpc900", NULL};
-    /* v4l2 and gpiod are accepted here; the device layer says when a backend is not built in. */
     static const char *const cams[] = {"sim", "v4l2", NULL};
     static const char *const trigs[] = {"sim", "gpiod", NULL};
+    static const char *const cam_strip[] = {"readout_us", NULL};
     int rc;
     if ((rc = sci_json_check_keys(doc, o, "devices", keys, err)) < 0 ||
-        (rc = parse_device(doc, o, "dmd", dmds, c->dmd_backend, sizeof c->dmd_backend, NULL, err)) < 0 ||
-        (rc = parse_device(doc, o, "camera", cams, c->camera_backend, sizeof c->camera_backend, &c->camera_json,
-                           err)) < 0 ||
-        (rc = parse_device(doc, o, "trigger", trigs, c->trigger_backend, sizeof c->trigger_backend,
+        (rc = parse_device(doc, o, "dmd", dmds, c->dmd_backend, sizeof c->dmd_backend, NULL, NULL, err)) < 0 ||
+        (rc = parse_device(doc, o, "camera", cams, c->camera_backend, sizeof c->camera_backend, cam_strip,
+                           &c->camera_json, err)) < 0 ||
+        (rc = parse_device(doc, o, "trigger", trigs, c->trigger_backend, sizeof c->trigger_backend, NULL,
                            &c->trigger_json, err)) < 0)
         return rc;
     const json_t *d = json_object_get(o, "dmd");
-    if (d) {
-        static const char *const dkeys[] = {"backend", "serial", NULL};
-        if ((rc = sci_json_check_keys(doc, d, "devices.dmd", dkeys, err)) < 0 ||
-            (rc = get_str(doc, d, "devices.dmd", "serial", c->dmd_serial, sizeof c->dmd_serial, err)) < 0)
-            return rc;
-    }
-    if (strcmp(c->camera_backend, "sim") == 0 && c->camera_json && json_object_size(c->camera_json) > 0)
+    if (d && (rc = parse_dmd(doc, d, c, err)) < 0)
+        return rc;
+    const json_t *cam = json_object_get(o, "camera");
+    if (cam && (rc = get_u32(doc, cam, "devices.camera", "readout_us", 0, 1000000, &c->camera_readout_us, err)) < 0)
+        return rc;
+    int sim_cam = strcmp(c->camera_backend, "sim") == 0, sim_trig = strcmp(c->trigger_backend, "sim") == 0;
+    if (sim_cam && c->camera_json && json_object_size(c->camera_json) > 0)
         return sci_json_fail(doc, err, "devices.camera", "the sim camera takes no settings besides \"backend\" "
                              "(its size is the scene's)");
+    if (sim_trig && c->trigger_json && json_object_size(c->trigger_json) > 0)
+        return sci_json_fail(doc, err, "devices.trigger", "the sim trigger takes no settings besides \"backend\"");
+    if (sim_cam != sim_trig)
+        return sci_json_fail(doc, err, json_object_get(o, "trigger") ? "devices.trigger.backend" : "devices.camera.backend",
+                             "camera \"%s\" with trigger \"%s\": the trigger output starts the camera and the "
+                             "camera's strobe comes back to a trigger input, so both are simulated (\"sim\") or "
+                             "both real (\"v4l2\" with \"gpiod\"); the DMD may be either",
+                             c->camera_backend, c->trigger_backend);
+    /* The drivers' own validation, at load time, so that a typo is found by --check-config and by reload. */
+    sci_error e2 = {0};
+    if (!sim_cam) {
+        camera_config cc;
+        if (camera_config_from_json(c->camera_json, "devices.camera", &cc, &e2) < 0)
+            return driver_fail(doc, &e2, err);
+        if (!cc.device && !cc.card && !cc.bus_info)
+            return sci_json_fail(doc, err, "devices.camera", "the v4l2 camera needs \"device\" (best a "
+                                 "/dev/v4l/by-id/... path), or \"card\" and/or \"bus_info\" to find it");
+    }
+    if (!sim_trig) {
+        trigger_config tc;
+        if (trigger_config_from_json(c->trigger_json, "devices.trigger", &tc,
+                                     &e2) < 0)
+            return driver_fail(doc, &e2, err);
+        if (tc.output.offset < 0 && !tc.output.name)
+            return sci_json_fail(doc, err, "devices.trigger", "the gpiod trigger needs \"output\" (the line that "
+                                 "starts the DMD and the camera)");
+    }
     return 0;
 }
 
@@ -374,9 +449,6 @@ static int parse_doc(const sci_json_doc *doc, scicapd_config *c, sci_error *err)
         return sci_json_fail(doc, err, json_object_get(json_object_get(root, "capture"), "mask_set")
                                            ? "capture.mask_set" : "mask_sets",
                              "the default mask set \"%s\" is not defined in mask_sets", c->capture_mask_set);
-    if (c->sync_mode == SYNC_MODE_CAMERA_MASTER && strcmp(c->camera_backend, "sim") == 0)
-        return sci_json_fail(doc, err, "capture.sync_mode", "camera-master needs a free-running camera; the "
-                             "simulated bench supports host-master and dmd-master");
     return 0;
 }
 
@@ -430,6 +502,36 @@ const scicapd_mask_set *scicapd_config_mask_set(const scicapd_config *c, const c
 /* json_equal says 0 when either side is NULL: two absent objects are equal here. */
 static int same_json(const json_t *a, const json_t *b) { return (!a && !b) || (a && b && json_equal(a, b)); }
 
+int scicapd_config_devices_differ(const scicapd_config *a, const scicapd_config *b)
+{
+    return strcmp(a->dmd_backend, b->dmd_backend) || strcmp(a->camera_backend, b->camera_backend) ||
+           strcmp(a->trigger_backend, b->trigger_backend) || strcmp(a->dmd_serial, b->dmd_serial) ||
+           a->dmd_emulator != b->dmd_emulator || a->dmd_timeout_ms != b->dmd_timeout_ms ||
+           a->dmd_trigger_delay_us != b->dmd_trigger_delay_us || a->dmd_trigger_falling != b->dmd_trigger_falling ||
+           a->camera_readout_us != b->camera_readout_us || !same_json(a->camera_json, b->camera_json) ||
+           !same_json(a->trigger_json, b->trigger_json) || strcmp(a->scene_path, b->scene_path) ||
+           a->sim_counts_per_unit != b->sim_counts_per_unit || a->sim_dark_counts != b->sim_dark_counts ||
+           a->sim_read_noise != b->sim_read_noise || a->sim_seed != b->sim_seed ||
+           a->sim_dmd_latency_us != b->sim_dmd_latency_us;
+}
+
+int scicapd_config_copy(scicapd_config **out, const scicapd_config *c, sci_error *err)
+{
+    scicapd_config *n = malloc(sizeof *n);
+    if (!n)
+        return sci_error_set(err, -ENOMEM, "config: out of memory");
+    *n = *c;
+    n->camera_json = c->camera_json ? json_deep_copy(c->camera_json) : NULL;
+    n->trigger_json = c->trigger_json ? json_deep_copy(c->trigger_json) : NULL;
+    if ((c->camera_json && !n->camera_json) || (c->trigger_json && !n->trigger_json)) {
+        scicapd_config_free(n);
+        return sci_error_set(err, -ENOMEM, "config: out of memory");
+    }
+    *out = n;
+    return 0;
+}
+
+/* Devices and the simulator are re-opened by the acquisition thread at reload (between jobs): no restart. */
 json_t *scicapd_config_restart_keys(const scicapd_config *a, const scicapd_config *b)
 {
     json_t *r = json_array();
@@ -438,14 +540,8 @@ json_t *scicapd_config_restart_keys(const scicapd_config *a, const scicapd_confi
         json_array_append_new(r, json_string("control.socket"));
     if (strcmp(a->storage_root, b->storage_root) || strcmp(a->runtime_dir, b->runtime_dir))
         json_array_append_new(r, json_string("storage"));
-    if (strcmp(a->dmd_backend, b->dmd_backend) || strcmp(a->camera_backend, b->camera_backend) ||
-        strcmp(a->trigger_backend, b->trigger_backend) || strcmp(a->dmd_serial, b->dmd_serial) ||
-        !same_json(a->camera_json, b->camera_json) || !same_json(a->trigger_json, b->trigger_json))
-        json_array_append_new(r, json_string("devices"));
-    if (strcmp(a->scene_path, b->scene_path) || a->sim_counts_per_unit != b->sim_counts_per_unit ||
-        a->sim_dark_counts != b->sim_dark_counts || a->sim_read_noise != b->sim_read_noise ||
-        a->sim_seed != b->sim_seed || a->sim_dmd_latency_us != b->sim_dmd_latency_us)
-        json_array_append_new(r, json_string("simulator"));
+    if (a->writers != b->writers)
+        json_array_append_new(r, json_string("storage.writers"));
     if (a->workers != b->workers || a->recon_threads != b->recon_threads)
         json_array_append_new(r, json_string("reconstruction.workers"));
     return r;
@@ -458,11 +554,12 @@ json_t *scicapd_config_to_json(const scicapd_config *c)
     json_t *sets = json_array();
     for (int i = 0; i < c->mask_set_count; i++)
         json_array_append_new(sets, json_string(c->mask_sets[i].name));
-    return json_pack("{s:s, s:{s:s, s:s, s:s, s:i, s:I}, s:{s:s, s:s, s:b}, s:{s:s, s:s, s:s}, s:s, s:o,"
+    return json_pack("{s:s, s:{s:s, s:s, s:s, s:i, s:I}, s:{s:s, s:s, s:b, s:i, s:b}, s:{s:s, s:s, s:s}, s:s, s:o,"
                      " s:{s:s, s:I, s:I, s:I, s:s}, s:{s:s, s:s, s:b, s:i, s:i}, s:{s:i, s:i}}",
                      "path", c->path, "control", "socket", c->socket_path, "mode", mode, "group", c->socket_group,
                      "max_clients", c->max_clients, "max_line_bytes", (json_int_t)c->max_line_bytes, "storage",
-                     "root", c->storage_root, "runtime_dir", c->runtime_dir, "fsync", c->fsync, "devices", "dmd",
+                     "root", c->storage_root, "runtime_dir", c->runtime_dir, "fsync", c->fsync, "writers",
+                     c->writers, "previews", c->previews, "devices", "dmd",
                      c->dmd_backend, "camera", c->camera_backend, "trigger", c->trigger_backend, "scene",
                      c->scene_path[0] ? c->scene_path : "(embedded default)", "mask_sets", sets, "capture",
                      "mask_set", c->capture_mask_set, "pattern_us", (json_int_t)c->pattern_us, "dark_us",

@@ -50,10 +50,19 @@ typedef struct scicapd_config {
     char storage_root[SCICAPD_PATH_MAX];  /* /var/lib/scicapd */
     char runtime_dir[SCICAPD_PATH_MAX];   /* /run/scicapd */
     int fsync;                            /* 1: fsync files and folders before a capture is announced */
+    int writers;                          /* storage writer threads, 1..16 (capture folders written in parallel) */
+    int previews;                         /* 1: 8-bit PNG/GIF previews in each capture folder */
     /* devices: backend names ("sim", "dlpc900", "v4l2", "gpiod") and their own config objects (owned copies) */
     char dmd_backend[16], camera_backend[16], trigger_backend[16];
     char dmd_serial[SCICAPD_NAME_MAX];    /* "" = first found */
-    json_t *camera_json, *trigger_json;   /* the "camera" / "trigger" objects minus "backend"; may be NULL */
+    int dmd_emulator;                     /* dlpc900 only: drive the in-process DLPC900 emulator instead of USB */
+    int dmd_timeout_ms;                   /* dlpc900: per reply; 0 = the backend's 1000 */
+    uint32_t dmd_trigger_delay_us;        /* dlpc900: TRIG_IN_1 edge to pattern (external trigger); 0 = 105 */
+    int dmd_trigger_falling;              /* dlpc900: advance on the falling edge of TRIG_IN_1 */
+    uint32_t camera_readout_us;           /* exposure end to frame timestamp (window estimate without a strobe) */
+    json_t *camera_json, *trigger_json;   /* the "camera" / "trigger" objects minus the daemon's own keys
+                                             ("backend", "readout_us"): what camera_config_from_json /
+                                             trigger_config_from_json read; may be NULL */
     /* simulator (used when a backend is "sim") */
     char scene_path[SCICAPD_PATH_MAX];    /* "" = the embedded default scene */
     double sim_counts_per_unit;           /* sensor counts for a full-on mirror on a white target */
@@ -87,6 +96,10 @@ int scicapd_config_load(scicapd_config **out, const char *path, sci_error *err);
 /* Same from text (`name` stands for the file name in messages). */
 int scicapd_config_load_string(scicapd_config **out, const char *name, const char *text, sci_error *err);
 void scicapd_config_free(scicapd_config *c);
+/* A deep copy (for the acquisition thread, which keeps the device settings it opened with). -ENOMEM. */
+int scicapd_config_copy(scicapd_config **out, const scicapd_config *c, sci_error *err);
+/* 1 when a and b open the devices differently (devices or simulator sections). */
+int scicapd_config_devices_differ(const scicapd_config *a, const scicapd_config *b);
 
 /* The mask set called `name`, or NULL. Borrowed from c. */
 const scicapd_mask_set *scicapd_config_mask_set(const scicapd_config *c, const char *name);

@@ -30,7 +30,8 @@
 #include "daemon/store.h"
 #include "daemon/workers.h"
 
-#define STORE_QUEUE 8
+/* Snapshots waiting for a writer: enough to keep every writer busy while the acquisition thread runs ahead. */
+#define STORE_QUEUE_MIN 8
 
 struct scicapd {
     const sci_log *log;
@@ -91,6 +92,10 @@ static int reload(scicapd *d, json_t **restart, sci_error *err)
     scicapd_control_set_limits(d->ctl, c->max_clients, c->max_line_bytes);
     scicapd_queue_resize(d->acq_q, c->capture_queue);
     scicapd_queue_resize(d->recon_q, c->recon_queue);
+    scicapd_store_set_previews(d->store, c->previews);
+    sci_error e2 = {0};
+    if (scicapd_acquire_reconfigure(d->acq, c, &e2) < 0)
+        sci_log_write(d->log, SCI_LOG_ERR, "reload: devices keep their settings: %s", e2.msg);
     sci_log_write(d->log, SCI_LOG_NOTICE, "configuration reloaded from %s%s", c->path[0] ? c->path : "(defaults)",
                   json_array_size(keys) ? " (some changes need a restart)" : "");
     scicapd_notify_ready(&d->notify, "configuration reloaded");
@@ -115,6 +120,7 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
     if (rc < 0) {
         sci_log_write(d->log, SCI_LOG_ERR, "job %llu: storing snapshot %d failed: %s", (unsigned long long)j->id,
                       s->index, err->msg);
+        scicapd_job_settle(d->jobs, j, 0);
         if (scicapd_job_state_get(d->jobs, j) == SCICAPD_JOB_RUNNING)
             scicapd_job_set_state(d->jobs, j, SCICAPD_JOB_FAILED, err->msg);
         scicapd_mailbox_post(d->mailbox, j->client, 1,
@@ -125,7 +131,6 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
     }
     atomic_fetch_add(&d->stored, 1);
     scicapd_job_add_output(d->jobs, j, s->capture_id);
-    scicapd_job_set_progress(d->jobs, j, s->index + 1, c->count, NAN);
     double latency_ms = (double)(sci_clock_mono_ns() - j->submitted_ns) * 1e-6;
     scicapd_mailbox_post(d->mailbox, j->client, 1,
                          scicapd_event("capture.stored", j->id, j->request_id,
@@ -157,7 +162,8 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
                                  scicapd_event("recon.rejected", j->id, j->request_id,
                                                json_pack("{s:s, s:s}", "capture", s->capture_id, "reason", why)));
     }
-    if (s->index + 1 == c->count && scicapd_job_state_get(d->jobs, j) == SCICAPD_JOB_RUNNING) {
+    /* after the events of this snapshot: capture.done is the job's last word */
+    if (scicapd_job_settle(d->jobs, j, 1) == c->count && scicapd_job_state_get(d->jobs, j) == SCICAPD_JOB_RUNNING) {
         scicapd_job_set_state(d->jobs, j, SCICAPD_JOB_DONE, NULL);
         json_t *o = scicapd_job_json(d->jobs, j);
         scicapd_mailbox_post(d->mailbox, j->client, 1, scicapd_event("capture.done", j->id, j->request_id, o));
@@ -206,7 +212,7 @@ static json_t *status_json(scicapd *d)
     int q, r, f;
     scicapd_jobs_count(d->jobs, &q, &r, &f);
     return json_pack("{s:s, s:i, s:i, s:f, s:s, s:s, s:s, s:b, s:{s:[i,i], s:[i,i], s:[i,i]}, s:{s:i, s:i, s:i},"
-                     " s:i, s:i, s:I, s:{s:i, s:i}, s:b}",
+                     " s:i, s:i, s:I, s:{s:i, s:i}, s:b, s:o}",
                      "version", SCICAP_VERSION, "protocol", SCICAPD_PROTOCOL_VERSION, "pid", (int)getpid(),
                      "uptime_s", sci_clock_s(d->started_ns, sci_clock_mono_ns()), "config",
                      d->cfg->path[0] ? d->cfg->path : "(built-in defaults)", "socket", d->cfg->socket_path,
@@ -217,7 +223,7 @@ static json_t *status_json(scicapd *d)
                      "running", r, "finished", f, "workers_busy", scicapd_workers_busy(d->workers), "clients",
                      scicapd_control_clients(d->ctl), "captures_stored", (json_int_t)atomic_load(&d->stored),
                      "recovered", "captures", d->recovered.captures, "removed_partial", d->recovered.removed,
-                     "stopping", atomic_load(&d->stopping));
+                     "stopping", atomic_load(&d->stopping), "devices", scicapd_acquire_devices_json(d->acq));
 }
 
 static void submit(scicapd *d, scicapd_client *c, const json_t *id, scicapd_job *j, scicapd_queue *q,
@@ -395,7 +401,8 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
     /* 3. queues and the job table */
     if ((rc = scicapd_jobs_new(&d->jobs)) < 0 || (rc = scicapd_mailbox_new(&d->mailbox)) < 0 ||
         (rc = scicapd_queue_new(&d->acq_q, d->cfg->capture_queue)) < 0 ||
-        (rc = scicapd_queue_new(&d->store_q, STORE_QUEUE)) < 0 ||
+        (rc = scicapd_queue_new(&d->store_q, d->cfg->writers * 2 > STORE_QUEUE_MIN ? d->cfg->writers * 2
+                                                                                 : STORE_QUEUE_MIN)) < 0 ||
         (rc = scicapd_queue_new(&d->recon_q, d->cfg->recon_queue)) < 0) {
         sci_error_set(err, rc, "scicapd: %s", sci_strerror(rc));
         goto fail;
@@ -428,9 +435,10 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
                                    d->cfg->max_clients, d->cfg->max_line_bytes, log, on_line, d, err)) < 0)
         goto fail;
     /* 7. threads: writer, reconstruction workers, acquisition */
-    if ((rc = scicapd_store_start(d->store, d->store_q, on_stored, d, err)) < 0)
+    scicapd_store_set_previews(d->store, d->cfg->previews);
+    d->store_started = 1; /* stop joins whatever threads did start */
+    if ((rc = scicapd_store_start(d->store, d->store_q, d->cfg->writers, on_stored, d, err)) < 0)
         goto fail;
-    d->store_started = 1;
     scicapd_workers_env we = {.jobs = d->jobs, .mailbox = d->mailbox, .store = d->store, .in = d->recon_q, .log = log};
     if ((rc = scicapd_workers_start(&d->workers, &we, d->cfg->workers, d->cfg->recon_threads, err)) < 0 ||
         (rc = scicapd_acquire_start(d->acq, err)) < 0)

@@ -174,6 +174,16 @@ void scicapd_job_set_progress(scicapd_jobs *t, scicapd_job *j, int done, int tot
     pthread_mutex_unlock(&t->mu);
 }
 
+int scicapd_job_settle(scicapd_jobs *t, scicapd_job *j, int stored)
+{
+    pthread_mutex_lock(&t->mu);
+    int n = ++j->settled;
+    if (stored)
+        j->done++;
+    pthread_mutex_unlock(&t->mu);
+    return n;
+}
+
 void scicapd_job_add_output(scicapd_jobs *t, scicapd_job *j, const char *name)
 {
     pthread_mutex_lock(&t->mu);

@@ -42,6 +42,7 @@ typedef struct scicapd_job {
     /* under the table lock */
     scicapd_job_state state;
     int done, total;           /* snapshots stored / iterations run, of total */
+    int settled;               /* capture: snapshots the writers finished with (stored or failed) */
     double psnr;               /* latest PSNR (reconstruct with truth), NaN otherwise */
     char error[256];
     json_t *outputs;           /* array of capture ids / output folders (owned) */
@@ -64,6 +65,9 @@ void scicapd_jobs_forget(scicapd_jobs *t, scicapd_job *j);
 
 void scicapd_job_set_state(scicapd_jobs *t, scicapd_job *j, scicapd_job_state s, const char *error);
 void scicapd_job_set_progress(scicapd_jobs *t, scicapd_job *j, int done, int total, double psnr);
+/* Capture: one more snapshot finished by a writer (stored = 1, or failed); done counts the stored ones.
+ * Returns the number settled so far (writers run in parallel: this, not the index, says when a job is over). */
+int scicapd_job_settle(scicapd_jobs *t, scicapd_job *j, int stored);
 /* Append an output name (capture id or folder) to the job's outputs. */
 void scicapd_job_add_output(scicapd_jobs *t, scicapd_job *j, const char *name);
 scicapd_job_state scicapd_job_state_get(scicapd_jobs *t, scicapd_job *j);

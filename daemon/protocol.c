@@ -237,9 +237,6 @@ int scicapd_args_capture(const scicapd_request *r, const scicapd_config *cfg, sc
         return rc;
     out->count = (int)count;
     out->sync = (enum sync_mode)mode;
-    if (out->sync == SYNC_MODE_CAMERA_MASTER && strcmp(cfg->camera_backend, "sim") == 0)
-        return sci_json_fail(r->doc, err, "args.sync_mode", "camera-master needs a free-running camera; the "
-                             "simulated bench supports host-master and dmd-master");
     if ((uint64_t)out->mask_set.frames * (out->pattern_us + out->dark_us) > 60000000)
         return sci_json_fail(r->doc, err, r->args && json_object_get(r->args, "pattern_us") ? "args.pattern_us" : "args",
                              "%d masks of %u+%u us last longer than 60 s", out->mask_set.frames, out->pattern_us,

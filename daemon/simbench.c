@@ -12,13 +12,13 @@
 #include "drivers/capture.h"
 #include "sim/camera_sim.h"
 #include "sim/default_scene.h"
-#include "sim/dmd_sim.h"
 #include "sim/simulate.h"
 #include "sim/trigger_sim.h"
 
 struct scicapd_simbench {
     sim_scene *scene;
-    dmd inner;               /* the dmd_sim device */
+    dmd *inner;              /* the DMD, any backend (borrowed; NULL while it is not open) */
+    int ox, oy;              /* the camera sees mirrors [ox, ox + w) × [oy, oy + h) */
     dmd outer;               /* wrapper handed to the acquisition code */
     camera *cam;
     trigger *trig;
@@ -28,7 +28,9 @@ struct scicapd_simbench {
     sync_timeline *tl;       /* as set by set_timing */
     int tl_valid;
     int external;            /* DMD waits for the trigger input (host master) */
-    int armed;               /* started and waiting for a trigger (host master) */
+    int armed;               /* started and waiting for a trigger (host or camera master) */
+    int64_t armed_ns;        /* when it was armed: only an exposure starting later may start it */
+    int free_run;            /* camera free-running, its strobe starts the DMD (camera master) */
     int64_t seq_start_ns;    /* when pattern 0 began (0: not playing) */
     int64_t latency_ns;
     scicapd_target target;
@@ -37,7 +39,9 @@ struct scicapd_simbench {
     sci_cube *truth;         /* cached truth, n frames */
 };
 
-/* ---- the DMD wrapper: the real sim DMD plus the wiring of its trigger output ---- */
+/* ---- the DMD wrapper: the DMD plus the wiring of its trigger output ---- */
+
+static int no_dmd(sci_error *err) { return sci_error_set(err, -ENODEV, "DMD: not connected"); }
 
 static int w_open(void **state, const dmd_config *cfg, sci_error *err)
 {
@@ -46,20 +50,35 @@ static int w_open(void **state, const dmd_config *cfg, sci_error *err)
 static void w_close(void *state) { (void)state; }
 static int w_identify(void *state, dmd_identity *id, sci_error *err)
 {
-    return dmd_identify(&((scicapd_simbench *)state)->inner, id, err);
+    scicapd_simbench *sb = state;
+    return sb->inner ? dmd_identify(sb->inner, id, err) : no_dmd(err);
 }
 
 static int w_upload(void *state, const sci_cube *m, sci_error *err)
 {
     scicapd_simbench *sb = state;
-    int rc = dmd_upload(&sb->inner, m, err);
+    if (!sb->inner)
+        return no_dmd(err);
+    int rc = dmd_upload(sb->inner, m, err);
     if (rc < 0)
         return rc;
+    int w = sb->scene->w, h = sb->scene->h;
+    if (m->w < w || m->h < h)
+        return sci_error_set(err, SCI_ESHAPE, "simulated bench: masks %d×%d are smaller than the camera's %d×%d",
+                             m->w, m->h, w, h);
+    sb->ox = (m->w - w) / 2;
+    sb->oy = (m->h - h) / 2;
     sci_cube *copy;
-    if ((rc = sci_cube_clone(&copy, m, err)) < 0)
+    if ((rc = sci_cube_new(&copy, w, h, m->n, err)) < 0)
         return rc;
-    for (size_t i = 0; i < sci_cube_count(copy); i++)
-        copy->data[i] = copy->data[i] >= 0.5f ? 1.0f : 0.0f; /* what the mirrors do */
+    /* what the mirrors the camera sees do */
+    for (int k = 0; k < m->n; k++)
+        for (int y = 0; y < h; y++) {
+            const float *src = sci_cube_frame(m, k) + (size_t)(y + sb->oy) * m->w + sb->ox;
+            float *dst = sci_cube_frame(copy, k) + (size_t)y * w;
+            for (int x = 0; x < w; x++)
+                dst[x] = src[x] >= 0.5f ? 1.0f : 0.0f;
+        }
     sci_cube_free(sb->masks);
     sb->masks = copy;
     sb->tl_valid = 0;
@@ -69,7 +88,9 @@ static int w_upload(void *state, const sci_cube *m, sci_error *err)
 static int w_set_timing(void *state, const dmd_timing *t, sci_error *err)
 {
     scicapd_simbench *sb = state;
-    int rc = dmd_set_timing(&sb->inner, t, err);
+    if (!sb->inner)
+        return no_dmd(err);
+    int rc = dmd_set_timing(sb->inner, t, err);
     if (rc < 0)
         return rc;
     sb->external = t->trigger == DMD_TRIGGER_EXTERNAL;
@@ -88,12 +109,15 @@ static void play(scicapd_simbench *sb, int64_t t0)
 static int w_start(void *state, sci_error *err)
 {
     scicapd_simbench *sb = state;
-    int rc = dmd_start(&sb->inner, err);
+    if (!sb->inner)
+        return no_dmd(err);
+    int rc = dmd_start(sb->inner, err);
     if (rc < 0)
         return rc;
     sb->seq_start_ns = 0;
     if (sb->external) {
         sb->armed = 1;
+        sb->armed_ns = sci_clock_mono_ns();
     } else if (sb->tl_valid) {
         /* DMD master: the sequence runs now; the first pattern's trigger output starts the camera */
         int64_t t0 = sci_clock_mono_ns() + sb->latency_ns;
@@ -107,15 +131,20 @@ static int w_stop(void *state, sci_error *err)
 {
     scicapd_simbench *sb = state;
     sb->armed = 0;
-    return dmd_stop(&sb->inner, err);
+    return sb->inner ? dmd_stop(sb->inner, err) : 0;
 }
 static int w_status(void *state, dmd_status *st, sci_error *err)
 {
-    return dmd_status_get(&((scicapd_simbench *)state)->inner, st, err);
+    scicapd_simbench *sb = state;
+    if (sb->inner)
+        return dmd_status_get(sb->inner, st, err);
+    memset(st, 0, sizeof *st);
+    return 0;
 }
 static int w_poll(void *state, int timeout_ms, sci_error *err)
 {
-    return dmd_poll(&((scicapd_simbench *)state)->inner, timeout_ms, err);
+    scicapd_simbench *sb = state;
+    return sb->inner ? dmd_poll(sb->inner, timeout_ms, err) : 0;
 }
 
 static const dmd_ops simbench_dmd_ops = {
@@ -134,7 +163,7 @@ static void on_output(void *arg, int64_t t, uint32_t width_us)
         dmd_status st;
         sci_error e = {0};
         /* a DMD that lost power (unplugged) plays nothing */
-        if (dmd_status_get(&sb->inner, &st, &e) == 0 && st.connected && st.running)
+        if (sb->inner && dmd_status_get(sb->inner, &st, &e) == 0 && st.connected && st.running)
             play(sb, t + sb->latency_ns);
         sb->armed = 0;
     }
@@ -143,6 +172,14 @@ static void on_output(void *arg, int64_t t, uint32_t width_us)
 static void on_strobe(void *arg, const camera_sim_exposure *e)
 {
     scicapd_simbench *sb = arg;
+    if (sb->free_run && sb->armed && sb->tl_valid && e->start_ns >= sb->armed_ns) {
+        /* camera master: the strobe is wired to the DMD's trigger input */
+        dmd_status st;
+        sci_error err = {0};
+        if (sb->inner && dmd_status_get(sb->inner, &st, &err) == 0 && st.connected && st.running)
+            play(sb, e->start_ns + sb->latency_ns);
+        sb->armed = 0;
+    }
     trigger_sim_inject(sb->ts, TRIGGER_ROLE_STROBE, e->start_ns, 1);
     trigger_sim_inject(sb->ts, TRIGGER_ROLE_STROBE, e->end_ns, 0);
 }
@@ -214,8 +251,45 @@ static int source(void *arg, const camera_sim_exposure *e, uint16_t *out, uint32
 
 /* ---- life ---- */
 
-int scicapd_simbench_open(scicapd_simbench **out, const scicapd_config *cfg, const sci_log *log,
-                          dmd_event_fn on_event, void *user, sci_error *err)
+/* The simulated camera, streaming: external trigger (host and DMD master) or free run at 30 frames/s (camera
+ * master). A sensor changes this through its trigger-profile controls, set at open: so does the simulator. */
+static int open_camera(scicapd_simbench *sb, int free_run, sci_error *err)
+{
+    camera_sim_options copt = {.card = "scicap simulated camera", .readout_ns = 100000, .source = source,
+                               .source_arg = sb, .strobe = on_strobe, .strobe_arg = sb};
+    camera_config cc = camera_config_default();
+    cc.width = (uint32_t)sb->scene->w;
+    cc.height = (uint32_t)sb->scene->h;
+    cc.pixfmt = PIXFMT_Y16;
+    cc.exposure_us = 10000;
+    cc.interval_num = 1;
+    cc.interval_den = 30;
+    cc.trigger_profile_name = free_run ? "sim-free-run" : "sim-external";
+    cc.trigger_profile[0] = (camera_control){.name = "trigger_mode", .value = free_run ? 0 : 1};
+    cc.trigger_profile_count = 1;
+    cc.backend_options = &copt;
+    camera *cam;
+    int rc = camera_open(&cam, &camera_sim_ops, &cc, err);
+    if (rc < 0)
+        return rc;
+    if ((rc = camera_start(cam, err)) < 0) {
+        camera_close(cam);
+        return rc;
+    }
+    camera_close(sb->cam);
+    sb->cam = cam;
+    sb->cs = camera_sim_from(cam);
+    sb->free_run = free_run;
+    sb->armed = 0;
+    return 0;
+}
+
+int scicapd_simbench_set_free_run(scicapd_simbench *sb, int free_run, sci_error *err)
+{
+    return (free_run != 0) == sb->free_run ? 0 : open_camera(sb, free_run != 0, err);
+}
+
+int scicapd_simbench_open(scicapd_simbench **out, const scicapd_config *cfg, sci_error *err)
 {
     scicapd_simbench *sb = calloc(1, sizeof *sb);
     int rc;
@@ -233,32 +307,11 @@ int scicapd_simbench_open(scicapd_simbench **out, const scicapd_config *cfg, con
     sb->read_noise = cfg->sim_read_noise;
     sci_rng_seed(&sb->rng, cfg->sim_seed, 0x5c1cbe4c);
 
-    dmd_config dc = dmd_config_default();
-    dc.serial = cfg->dmd_serial[0] ? cfg->dmd_serial : NULL;
-    dc.width = sb->scene->w;
-    dc.height = sb->scene->h;
-    dc.on_event = on_event;
-    dc.event_user = user;
-    dc.log = log;
-    if ((rc = dmd_open(&sb->inner, &dmd_sim_ops, &dc, err)) < 0)
-        goto fail;
     sb->outer.ops = &simbench_dmd_ops;
     sb->outer.state = sb;
 
-    camera_sim_options copt = {.card = "scicap simulated camera", .readout_ns = 100000, .source = source,
-                               .source_arg = sb, .strobe = on_strobe, .strobe_arg = sb};
-    camera_config cc = camera_config_default();
-    cc.width = (uint32_t)sb->scene->w;
-    cc.height = (uint32_t)sb->scene->h;
-    cc.pixfmt = PIXFMT_Y16;
-    cc.exposure_us = 10000;
-    cc.trigger_profile_name = "sim-external";
-    cc.trigger_profile[0] = (camera_control){.name = "trigger_mode", .value = 1};
-    cc.trigger_profile_count = 1;
-    cc.backend_options = &copt;
-    if ((rc = camera_open(&sb->cam, &camera_sim_ops, &cc, err)) < 0)
+    if ((rc = open_camera(sb, 0, err)) < 0)
         goto fail;
-    sb->cs = camera_sim_from(sb->cam);
 
     trigger_sim_options topt = {.seed = cfg->sim_seed, .latency_ns = 20000, .jitter_ns = 3000,
                                 .on_output = on_output, .on_output_arg = sb};
@@ -272,8 +325,6 @@ int scicapd_simbench_open(scicapd_simbench **out, const scicapd_config *cfg, con
     if ((rc = trigger_open(&sb->trig, &trigger_sim_ops, &tc, err)) < 0)
         goto fail;
     sb->ts = trigger_sim_from(sb->trig);
-    if ((rc = camera_start(sb->cam, err)) < 0)
-        goto fail;
     *out = sb;
     return 0;
 fail:
@@ -287,12 +338,43 @@ void scicapd_simbench_close(scicapd_simbench *sb)
         return;
     trigger_close(sb->trig);
     camera_close(sb->cam);
-    dmd_close(&sb->inner);
     sim_scene_free(sb->scene);
     sci_cube_free(sb->masks);
     sci_cube_free(sb->truth);
     free(sb->tl);
     free(sb);
+}
+
+void scicapd_simbench_attach_dmd(scicapd_simbench *sb, dmd *inner)
+{
+    sb->inner = inner;
+    sb->armed = 0;
+    sb->tl_valid = 0;
+    sci_cube_free(sb->masks);
+    sb->masks = NULL;
+}
+
+void scicapd_simbench_size(const scicapd_simbench *sb, int *w, int *h)
+{
+    *w = sb->scene->w;
+    *h = sb->scene->h;
+}
+
+int scicapd_simbench_crop(const scicapd_simbench *sb, const sci_cube *dmd_masks, sci_cube **out, sci_error *err)
+{
+    int w = sb->scene->w, h = sb->scene->h;
+    if (dmd_masks->w < w || dmd_masks->h < h)
+        return sci_error_set(err, SCI_ESHAPE, "simulated bench: masks %d×%d are smaller than the camera's %d×%d",
+                             dmd_masks->w, dmd_masks->h, w, h);
+    int ox = (dmd_masks->w - w) / 2, oy = (dmd_masks->h - h) / 2;
+    int rc = sci_cube_new(out, w, h, dmd_masks->n, err);
+    if (rc < 0)
+        return rc;
+    for (int k = 0; k < dmd_masks->n; k++)
+        for (int y = 0; y < h; y++)
+            memcpy(sci_cube_frame(*out, k) + (size_t)y * w,
+                   sci_cube_frame(dmd_masks, k) + (size_t)(y + oy) * dmd_masks->w + ox, (size_t)w * sizeof(float));
+    return 0;
 }
 
 dmd *scicapd_simbench_dmd(scicapd_simbench *sb) { return &sb->outer; }
@@ -301,20 +383,6 @@ trigger *scicapd_simbench_trigger(scicapd_simbench *sb) { return sb->trig; }
 int64_t scicapd_simbench_dmd_latency_ns(const scicapd_simbench *sb) { return sb->latency_ns; }
 void scicapd_simbench_set_target(scicapd_simbench *sb, scicapd_target t) { sb->target = t; }
 const char *scicapd_simbench_scene_name(const scicapd_simbench *sb) { return sb->scene->name; }
-
-void scicapd_simbench_dmd_unplug(scicapd_simbench *sb, long reports)
-{
-    dlpc900_emu *emu = dmd_sim_emulator(&sb->inner);
-    if (emu)
-        dlpc900_emu_unplug_after(emu, reports);
-}
-
-void scicapd_simbench_dmd_replug(scicapd_simbench *sb)
-{
-    dlpc900_emu *emu = dmd_sim_emulator(&sb->inner);
-    if (emu && !dlpc900_emu_plugged(emu))
-        dlpc900_emu_replug(emu);
-}
 
 void scicapd_simbench_camera_stall(scicapd_simbench *sb, int n) { camera_sim_fault(sb->cs, CAMERA_SIM_FAULT_STALL, n); }
 void scicapd_simbench_trigger_miss(scicapd_simbench *sb, int n) { trigger_sim_miss_next(sb->ts, n); }

@@ -6,6 +6,7 @@
 #include <fcntl.h>
 #include <ftw.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,14 +16,17 @@
 #include "io/image.h"
 #include "io/problem_dir.h"
 
+#define STORE_MAX_WRITERS 16
+
 struct scicapd_store {
     char root[1024];
     int fsync_on;
+    atomic_int previews;
     const sci_log *log;
     pthread_mutex_t mu;
     unsigned long next_capture, next_calib;
-    pthread_t thread;
-    int running;
+    pthread_t threads[STORE_MAX_WRITERS];
+    int running;            /* writer threads started */
     scicapd_queue *q;
     scicapd_stored_fn on_stored;
     void *user;
@@ -111,11 +115,13 @@ int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, cons
     s->fsync_on = fsync_on;
     s->log = log;
     pthread_mutex_init(&s->mu, NULL);
-    char caps[1100], cals[1100];
+    atomic_init(&s->previews, 1);
+    char caps[1100], cals[1100], shown[1100];
     snprintf(caps, sizeof caps, "%s/captures", root);
     snprintf(cals, sizeof cals, "%s/calibrations", root);
+    snprintf(shown, sizeof shown, "%s/dmd_masks", root);
     int rc;
-    if ((rc = mkdir_p(caps, err)) < 0 || (rc = mkdir_p(cals, err)) < 0) {
+    if ((rc = mkdir_p(caps, err)) < 0 || (rc = mkdir_p(cals, err)) < 0 || (rc = mkdir_p(shown, err)) < 0) {
         scicapd_store_close(s);
         return rc;
     }
@@ -124,6 +130,8 @@ int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, cons
     sweep(caps, "c", &maxc, &r.captures, &r.removed, 1);
     sweep(cals, "dark-", &maxk, NULL, &r.removed, 0);
     sweep(cals, "masks-", &maxk, NULL, &r.removed, 0);
+    unsigned long unused = 0;
+    sweep(shown, NULL, &unused, NULL, &r.removed, 0);
     s->next_capture = maxc + 1;
     s->next_calib = maxk + 1;
     if (rec)
@@ -141,6 +149,16 @@ void scicapd_store_close(scicapd_store *s)
 }
 
 const char *scicapd_store_root(const scicapd_store *s) { return s->root; }
+
+void scicapd_store_set_previews(scicapd_store *s, int on) { atomic_store(&s->previews, on != 0); }
+
+void scicapd_store_reserve_id(scicapd_store *st, scicapd_snapshot *s)
+{
+    pthread_mutex_lock(&st->mu);
+    unsigned long n = st->next_capture++;
+    pthread_mutex_unlock(&st->mu);
+    snprintf(s->capture_id, sizeof s->capture_id, "c%06lu", n);
+}
 
 void scicapd_snapshot_free(scicapd_jobs *jobs, scicapd_snapshot *s)
 {
@@ -192,12 +210,73 @@ static int publish(scicapd_store *st, const char *tmp, const char *final, const 
     return 0;
 }
 
+/* FNV-1a over the mask stack's shape and values: names its folder under ROOT/dmd_masks. */
+static uint64_t masks_hash(const sci_cube *m)
+{
+    uint64_t h = 1469598103934665603ULL;
+    int dims[3] = {m->w, m->h, m->n};
+    const unsigned char *p = (const unsigned char *)dims;
+    for (size_t i = 0; i < sizeof dims; i++)
+        h = (h ^ p[i]) * 1099511628211ULL;
+    p = (const unsigned char *)m->data;
+    for (size_t i = 0, n = sci_cube_count(m) * sizeof(float); i < n; i++)
+        h = (h ^ p[i]) * 1099511628211ULL;
+    return h;
+}
+
+/* Hard-link every file of folder `from` into `to`. */
+static int link_all(const char *from, const char *to)
+{
+    DIR *d = opendir(from);
+    if (!d)
+        return -errno;
+    struct dirent *e;
+    int rc = 0;
+    while (rc == 0 && (e = readdir(d))) {
+        if (e->d_name[0] == '.')
+            continue;
+        char a[1400], b[1400];
+        snprintf(a, sizeof a, "%s/%s", from, e->d_name);
+        snprintf(b, sizeof b, "%s/%s", to, e->d_name);
+        if (link(a, b) != 0)
+            rc = -errno;
+    }
+    closedir(d);
+    return rc;
+}
+
+/* The masks shown on the DMD (dmd_mask_*.png + dmd_mask.json) are the same for every snapshot of a mask set:
+ * written once to ROOT/dmd_masks/<hash>/ (atomically) and hard-linked into each capture folder (~45 ms of PNG
+ * encoding saved per 256×256×8 snapshot). Files are never modified in place, so sharing inodes is safe; a
+ * filesystem without hard links falls back to writing them. */
+static int write_shown_masks(scicapd_store *st, const sci_cube *m, const char *dir, sci_error *err)
+{
+    char shared[1200], tmp[1300];
+    snprintf(shared, sizeof shared, "%s/dmd_masks/%016llx", st->root, (unsigned long long)masks_hash(m));
+    struct stat sb;
+    if (stat(shared, &sb) != 0) {
+        snprintf(tmp, sizeof tmp, "%s/dmd_masks/.%016llx.tmp-%d-%lx", st->root, (unsigned long long)masks_hash(m),
+                 (int)getpid(), (unsigned long)pthread_self());
+        int rc;
+        if ((rc = mkdir_p(tmp, err)) < 0 ||
+            (rc = sci_stack_write(tmp, "dmd_mask", "png", m, SCI_PIXEL_U8, 255.0, NULL, err)) < 0) {
+            scicapd_remove_tree(tmp);
+            return rc;
+        }
+        if (st->fsync_on)
+            nftw(tmp, fsync_cb, 16, FTW_PHYS);
+        if (rename(tmp, shared) != 0) /* another writer got there first: theirs is the same */
+            scicapd_remove_tree(tmp);
+    }
+    if (link_all(shared, dir) == 0)
+        return 0;
+    return sci_stack_write(dir, "dmd_mask", "png", m, SCI_PIXEL_U8, 255.0, NULL, err);
+}
+
 int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_error *err)
 {
-    pthread_mutex_lock(&st->mu);
-    unsigned long n = st->next_capture++;
-    pthread_mutex_unlock(&st->mu);
-    snprintf(s->capture_id, sizeof s->capture_id, "c%06lu", n);
+    if (!s->capture_id[0])
+        scicapd_store_reserve_id(st, s);
     char parent[1100], tmp[1200], path[1400];
     snprintf(parent, sizeof parent, "%s/captures", st->root);
     snprintf(tmp, sizeof tmp, "%s/.%s.partial", parent, s->capture_id);
@@ -206,14 +285,14 @@ int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_erro
     json_object_set_new(s->meta, "capture_id", json_string(s->capture_id));
     json_t *source = json_pack("{s:s, s:s}", "kind", "scicapd-capture", "capture_id", s->capture_id);
     sci_problem *p = s->problem;
-    int rc = sci_problem_dir_write(tmp, &p, 1, source, 0, err);
+    int rc = sci_problem_dir_write_opt(tmp, &p, 1, source, 0, atomic_load(&st->previews), err);
     json_decref(source);
     if (rc < 0)
         goto fail;
     snprintf(path, sizeof path, "%s/raw.tif", tmp);
     if ((rc = sci_image_write(path, s->raw, 0, SCI_PIXEL_U16, 1.0, "scicap raw snapshot (counts)", err)) < 0)
         goto fail;
-    if ((rc = sci_stack_write(tmp, "dmd_mask", "png", s->dmd_masks, SCI_PIXEL_U8, 255.0, NULL, err)) < 0)
+    if ((rc = write_shown_masks(st, s->dmd_masks, tmp, err)) < 0)
         goto fail;
     if (s->dark) {
         snprintf(path, sizeof path, "%s/dark.tif", tmp);
@@ -346,22 +425,27 @@ static void *writer_main(void *arg)
     return NULL;
 }
 
-int scicapd_store_start(scicapd_store *st, scicapd_queue *q, scicapd_stored_fn on_stored, void *user, sci_error *err)
+int scicapd_store_start(scicapd_store *st, scicapd_queue *q, int writers, scicapd_stored_fn on_stored, void *user,
+                        sci_error *err)
 {
     st->q = q;
     st->on_stored = on_stored;
     st->user = user;
-    int rc = pthread_create(&st->thread, NULL, writer_main, st);
-    if (rc != 0)
-        return sci_error_set(err, -rc, "store: cannot start the writer thread: %s", strerror(rc));
-    st->running = 1;
+    writers = writers < 1 ? 1 : writers > STORE_MAX_WRITERS ? STORE_MAX_WRITERS : writers;
+    for (int i = 0; i < writers; i++) {
+        int rc = pthread_create(&st->threads[i], NULL, writer_main, st);
+        if (rc != 0)
+            return sci_error_set(err, -rc, "store: cannot start writer thread %d: %s", i, strerror(rc));
+        st->running++;
+    }
     return 0;
 }
 
 void scicapd_store_stop(scicapd_store *st)
 {
-    if (st && st->running) {
-        pthread_join(st->thread, NULL);
-        st->running = 0;
-    }
+    if (!st)
+        return;
+    for (int i = 0; i < st->running; i++)
+        pthread_join(st->threads[i], NULL);
+    st->running = 0;
 }

@@ -7,14 +7,19 @@
  *     ROOT/calibrations/dark-000003/  a dark frame (dark.tif + calibration.json)
  *     ROOT/calibrations/masks-random8-000004/  measured masks (mask_*.exr stack + calibration.json)
  *     ROOT/calibrations/dark.json, masks-random8.json   which calibration is current (replaced atomically)
+ *     ROOT/dmd_masks/<hash>/          the PNGs of one mask stack as shown on the DMD, written once and hard-linked
+ *                                     into every capture folder that used it
  *
  * Atomicity: a capture is written under ROOT/captures/.c000042.partial and renamed when complete (after fsync
  * of every file and of the folder when fsync is on); only then is it announced. A kill -9 leaves at most a
  * dot-named partial folder or a *.tmp-<pid> folder, which scicapd_store_open removes: a reader never sees half a
  * capture, and every announced capture survives.
- * Capture ids are c000001, c000002, ...; numbering continues after the largest id found at open.
- * The writer thread takes snapshots from a bounded queue and calls on_stored for each (success or failure).
- * Thread-safe: ids are allocated under a lock; folders are written by one thread each.
+ * Capture ids are c000001, c000002, ...; numbering continues after the largest id found at open. The
+ * acquisition thread reserves each snapshot's id before queueing it, so ids follow acquisition order even though
+ * `writers` threads write folders in parallel (a crash may leave gaps: ids of folders that were never complete).
+ * The writer threads take snapshots from a bounded queue and call on_stored for each (success or failure), in
+ * completion order: with several writers, snapshot i+1 may be announced before snapshot i.
+ * Thread-safe: ids are allocated under a lock; each folder is written by one thread.
  */
 #ifndef SCICAP_DAEMON_STORE_H
 #define SCICAP_DAEMON_STORE_H
@@ -58,7 +63,11 @@ int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, cons
 void scicapd_store_close(scicapd_store *s);
 const char *scicapd_store_root(const scicapd_store *s);
 
-/* Write one snapshot as a capture folder (assigns s->capture_id and s->dir). Blocks on file I/O. */
+/* Give s the next capture id (s->capture_id). Thread-safe. */
+void scicapd_store_reserve_id(scicapd_store *st, scicapd_snapshot *s);
+/* Previews (preview_*.png, preview_truth.gif) in the folders written from now on (storage.previews). */
+void scicapd_store_set_previews(scicapd_store *st, int on);
+/* Write one snapshot as a capture folder (reserves an id unless s has one; sets s->dir). Blocks on file I/O. */
 int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_error *err);
 /* ROOT/captures/<id> into buf if it is a complete capture; -ENOENT otherwise. */
 int scicapd_store_capture_dir(const scicapd_store *st, const char *id, char *buf, size_t n, sci_error *err);
@@ -73,11 +82,13 @@ int scicapd_store_write_calibration(scicapd_store *st, const char *key, const sc
 int scicapd_store_load_calibration(scicapd_store *st, const char *key, sci_cube **data, json_t **record,
                                    sci_error *err);
 
-/* The writer thread: pops snapshots from q until it is closed and empty, writes each, then calls on_stored
- * (on the writer thread) with rc and err; on_stored takes ownership of the snapshot. */
+/* The writer threads (1..16): each pops snapshots from q until it is closed and empty, writes each, then calls
+ * on_stored (on that writer thread, so on_stored must be thread-safe) with rc and err; on_stored takes ownership
+ * of the snapshot. On failure the threads already started keep running: call scicapd_store_stop. */
 typedef void (*scicapd_stored_fn)(void *user, scicapd_snapshot *s, int rc, const sci_error *err);
-int scicapd_store_start(scicapd_store *st, scicapd_queue *q, scicapd_stored_fn on_stored, void *user, sci_error *err);
-/* Waits for the queue (closed by the caller) to drain and the thread to end. */
+int scicapd_store_start(scicapd_store *st, scicapd_queue *q, int writers, scicapd_stored_fn on_stored, void *user,
+                        sci_error *err);
+/* Waits for the queue (closed by the caller) to drain and the threads to end. */
 void scicapd_store_stop(scicapd_store *st);
 
 /* rm -rf `path` (no symlinks followed). 0 or -errno. */

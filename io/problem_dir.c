@@ -39,6 +39,12 @@ static json_t *camera_to_json(const sci_camera *c, sci_problem *const *problems,
 int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                           int overwrite, sci_error *err)
 {
+    return sci_problem_dir_write_opt(dir, problems, k, source, overwrite, 1, err);
+}
+
+int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                              int overwrite, int previews, sci_error *err)
+{
     if (k < 1)
         return sci_error_set(err, -EINVAL, "%s: no problems to write", dir);
     const sci_problem *p0 = problems[0];
@@ -79,15 +85,15 @@ int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, 
     char pv[4200];
     float lo, hi;
     sci_cube_minmax(meas, &lo, &hi);
-    for (int j = 0; j < k && rc == 0; j++) {
+    for (int j = 0; previews && j < k && rc == 0; j++) {
         snprintf(pv, sizeof pv, "%s/preview_meas_%03d.png", tmp, j);
         rc = sci_image_write(pv, meas, j, SCI_PIXEL_U8, hi > 0 ? 255.0 / hi : 1.0, NULL, err);
     }
-    for (int f = 0; f < n && rc == 0; f++) {
+    for (int f = 0; previews && f < n && rc == 0; f++) {
         snprintf(pv, sizeof pv, "%s/preview_mask_%03d.png", tmp, f);
         rc = sci_image_write(pv, p0->mask, f, SCI_PIXEL_U8, 255.0, NULL, err);
     }
-    if (rc == 0 && truth) {
+    if (previews && rc == 0 && truth) {
         snprintf(pv, sizeof pv, "%s/preview_truth.gif", tmp);
         rc = sci_image_write_gif(pv, truth, 255.0 / p0->peak, 125, err);
     }

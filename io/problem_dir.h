@@ -27,6 +27,10 @@
  * an existing DIR is replaced only when `overwrite` is nonzero (else -EEXIST). */
 int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                           int overwrite, sci_error *err);
+/* Same; previews = 0 leaves out the preview_*.png / preview_truth.gif files (most of the CPU cost of a write:
+ * the daemon's storage.previews switch). */
+int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                              int overwrite, int previews, sci_error *err);
 
 /* Read DIR (or DIR/problem.json). On success *out is a malloc'd array of *k problem pointers, freed with
  * sci_problem_array_free (recon/problem.h). */

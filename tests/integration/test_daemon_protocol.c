@@ -79,7 +79,7 @@ static void bad_requests_answered(void **state)
     expect_raw(&c, "{\"v\": 1, \"id\": 13, \"cmd\": \"cancel\", \"args\": {\"job\": 424242}}\n", "not_found", "13");
     expect_raw(&c, "{\"v\": 1, \"id\": 14, \"cmd\": \"status\", \"extra\": 1}\n", "bad_json", "14");
     expect_raw(&c, "{\"v\": 1, \"id\": 15, \"cmd\": \"status\", \"args\": {\"x\": 1}}\n", "bad_arguments", "15");
-    expect_raw(&c, "{\"v\": 1, \"id\": 16, \"cmd\": \"capture\", \"args\": {\"sync_mode\": \"camera-master\"}}\n",
+    expect_raw(&c, "{\"v\": 1, \"id\": 16, \"cmd\": \"capture\", \"args\": {\"sync_mode\": \"moon-master\"}}\n",
                "bad_arguments", "16");
     /* oversized: 10 000 bytes on one line, limit 4096 */
     size_t n = 10000;

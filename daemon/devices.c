@@ -1,0 +1,402 @@
+/* daemon/devices.c — open the bench's devices per backend, keep their errors, re-open what is missing. */
+#include "daemon/devices.h"
+
+#include <errno.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/clock.h"
+#include "drivers/camera_v4l2.h"
+#include "drivers/dlpc900_emu.h"
+#include "drivers/trigger_gpiod.h"
+#include "sim/dmd_sim.h"
+
+enum { DEV_DMD, DEV_CAMERA, DEV_TRIGGER, DEV_COUNT };
+static const char *const dev_names[DEV_COUNT] = {"dmd", "camera", "trigger"};
+
+struct scicapd_devices {
+    scicapd_config *cfg;       /* owned copy: what the devices were opened with */
+    const sci_log *log;
+    dmd_event_fn on_event;
+    void *user;
+    scicapd_simbench *sim;     /* camera and trigger simulated */
+    dlpc900_emu *emu;          /* dlpc900 backend with "emulator": true */
+    dmd dmd_dev;
+    int dmd_open;
+    dmd_identity dmd_id;
+    camera *cam;               /* real camera (the simulated one belongs to sim) */
+    trigger *trig;
+    char error[DEV_COUNT][512]; /* open error, "" when open */
+    int64_t last_try_ns;
+    /* shared with other threads */
+    pthread_mutex_t mu;
+    json_t *json;              /* description, rebuilt after every change */
+    atomic_int dmd_connected, can_dmd_faults, can_bench_faults;
+};
+
+/* ---- description (for `devices`, `status` and meta.json) ---- */
+
+static void merge(json_t *into, json_t *from)
+{
+    json_object_update(into, from);
+    json_decref(from);
+}
+
+static json_t *describe(scicapd_devices *d)
+{
+    const scicapd_config *c = d->cfg;
+    json_t *o = json_object();
+    const char *backends[DEV_COUNT] = {c->dmd_backend, c->camera_backend, c->trigger_backend};
+    for (int i = 0; i < DEV_COUNT; i++) {
+        json_t *e = json_pack("{s:s, s:b}", "backend", backends[i], "connected",
+                              i == DEV_DMD ? atomic_load(&d->dmd_connected) : !d->error[i][0]);
+        if (d->error[i][0])
+            json_object_set_new(e, "error", json_string(d->error[i]));
+        json_object_set_new(o, dev_names[i], e);
+    }
+    json_t *dm = json_object_get(o, "dmd");
+    if (d->dmd_open) {
+        const dmd_identity *id = &d->dmd_id;
+        merge(dm, json_pack("{s:s, s:s, s:s, s:i, s:i, s:i, s:i}", "model", id->model, "serial",
+                                         id->serial, "firmware", id->firmware, "width", id->width, "height",
+                                         id->height, "max_masks", id->max_masks, "min_exposure_us",
+                                         id->min_exposure_us));
+        if (d->emu)
+            json_object_set_new(dm, "transport", json_string("emulator"));
+    }
+    camera *cam = scicapd_devices_camera(d);
+    if (cam) {
+        camera_identity ci;
+        camera_format cf;
+        camera_identity_get(cam, &ci);
+        camera_format_get(cam, &cf);
+        merge(json_object_get(o, "camera"),
+                           json_pack("{s:o, s:i, s:i, s:i}", "identity", camera_identity_json(&ci), "width",
+                                     (int)cf.width, "height", (int)cf.height, "bits", cf.bits_per_sample));
+    }
+    trigger *tr = scicapd_devices_trigger(d);
+    if (tr) {
+        trigger_identity ti;
+        trigger_identity_get(tr, &ti);
+        json_object_set_new(json_object_get(o, "trigger"), "identity", trigger_identity_json(&ti));
+    }
+    return o;
+}
+
+static void publish(scicapd_devices *d)
+{
+    json_t *j = describe(d);
+    pthread_mutex_lock(&d->mu);
+    json_decref(d->json);
+    d->json = j;
+    pthread_mutex_unlock(&d->mu);
+}
+
+json_t *scicapd_devices_json(scicapd_devices *d)
+{
+    pthread_mutex_lock(&d->mu);
+    json_t *j = json_deep_copy(d->json);
+    pthread_mutex_unlock(&d->mu);
+    return j;
+}
+
+int scicapd_devices_dmd_connected(scicapd_devices *d) { return atomic_load(&d->dmd_connected); }
+
+/* ---- opening ---- */
+
+/* Logged when it changes: a retry every few seconds that fails the same way stays quiet. */
+static void set_error(scicapd_devices *d, int which, const char *msg)
+{
+    if (strncmp(d->error[which], msg, sizeof d->error[which] - 1) == 0)
+        return;
+    snprintf(d->error[which], sizeof d->error[which], "%s", msg);
+    sci_log_write(d->log, SCI_LOG_ERR, "%s (%s): %s", dev_names[which],
+                  which == DEV_DMD ? d->cfg->dmd_backend : which == DEV_CAMERA ? d->cfg->camera_backend
+                                                                                : d->cfg->trigger_backend, msg);
+}
+
+static void on_dmd_event(void *user, dmd_event ev, const char *serial)
+{
+    scicapd_devices *d = user;
+    scicapd_devices_dmd_event(d, ev);
+    if (d->on_event)
+        d->on_event(d->user, ev, serial);
+}
+
+void scicapd_devices_dmd_event(scicapd_devices *d, dmd_event ev)
+{
+    atomic_store(&d->dmd_connected, d->dmd_open && ev == DMD_EVENT_CONNECTED);
+    publish(d);
+}
+
+static void open_bench(scicapd_devices *d)
+{
+    const scicapd_config *c = d->cfg;
+    sci_error e = {0};
+    if (strcmp(c->camera_backend, "sim") == 0) {
+        if (!d->sim && scicapd_simbench_open(&d->sim, c, &e) < 0) {
+            set_error(d, DEV_CAMERA, e.msg);
+            set_error(d, DEV_TRIGGER, e.msg);
+            return;
+        }
+        d->error[DEV_CAMERA][0] = d->error[DEV_TRIGGER][0] = '\0';
+        atomic_store(&d->can_bench_faults, 1);
+        return;
+    }
+    if (!d->cam) {
+        camera_config cc;
+        camera *cam = NULL;
+        int rc = camera_config_from_json(c->camera_json, "devices.camera", &cc, &e);
+        if (rc == 0)
+            rc = camera_open(&cam, &camera_v4l2_ops, &cc, &e);
+        if (rc == 0 && (rc = camera_start(cam, &e)) < 0)
+            camera_close(cam);
+        if (rc < 0)
+            set_error(d, DEV_CAMERA, e.msg);
+        else {
+            d->cam = cam;
+            d->error[DEV_CAMERA][0] = '\0';
+        }
+    }
+    if (!d->trig) {
+        trigger_config tc;
+        int rc = trigger_config_from_json(c->trigger_json, "devices.trigger", &tc, &e);
+        if (rc == 0) {
+            if (!tc.consumer)
+                tc.consumer = "scicapd";
+            rc = trigger_open(&d->trig, &trigger_gpiod_ops, &tc, &e);
+        }
+        if (rc < 0) {
+            d->trig = NULL;
+            set_error(d, DEV_TRIGGER, e.msg);
+        } else
+            d->error[DEV_TRIGGER][0] = '\0';
+    }
+}
+
+static void open_dmd(scicapd_devices *d)
+{
+    if (d->dmd_open)
+        return;
+    const scicapd_config *c = d->cfg;
+    sci_error e = {0};
+    dmd_config dc = dmd_config_default();
+    dc.serial = c->dmd_serial[0] ? c->dmd_serial : NULL;
+    dc.timeout_ms = c->dmd_timeout_ms > 0 ? c->dmd_timeout_ms : dc.timeout_ms;
+    dc.on_event = on_dmd_event;
+    dc.event_user = d;
+    dc.log = d->log;
+    int w = 0, h = 0, rc;
+    if (d->sim)
+        scicapd_simbench_size(d->sim, &w, &h); /* emulated mirrors: one per simulated pixel */
+    const dmd_ops *ops = &dmd_dlpc900_ops;
+    if (strcmp(c->dmd_backend, "sim") == 0) {
+        ops = &dmd_sim_ops;
+        dc.width = w;
+        dc.height = h;
+    } else if (c->dmd_emulator) {
+        if (!d->emu) {
+            dlpc900_emu_config ec = {.serial = dc.serial ? dc.serial : "EMU0001", .width = w, .height = h};
+            if ((rc = dlpc900_emu_new(&d->emu, &ec, &e)) < 0) {
+                set_error(d, DEV_DMD, e.msg);
+                return;
+            }
+        }
+        dc.emulator = d->emu;
+    }
+    if ((rc = dmd_open(&d->dmd_dev, ops, &dc, &e)) < 0) {
+        set_error(d, DEV_DMD, e.msg);
+        return;
+    }
+    if ((rc = dmd_identify(&d->dmd_dev, &d->dmd_id, &e)) < 0) {
+        dmd_close(&d->dmd_dev);
+        set_error(d, DEV_DMD, e.msg);
+        return;
+    }
+    d->dmd_open = 1;
+    d->error[DEV_DMD][0] = '\0';
+    atomic_store(&d->dmd_connected, 1);
+    atomic_store(&d->can_dmd_faults, dmd_sim_emulator(&d->dmd_dev) != NULL || d->emu != NULL);
+    sci_log_write(d->log, SCI_LOG_INFO, "dmd (%s%s): %s %s, %d×%d, firmware %s", c->dmd_backend,
+                  d->emu ? " on the DLPC900 emulator" : "", d->dmd_id.model, d->dmd_id.serial, d->dmd_id.width,
+                  d->dmd_id.height, d->dmd_id.firmware);
+}
+
+static void open_missing(scicapd_devices *d)
+{
+    d->last_try_ns = sci_clock_mono_ns();
+    open_bench(d);
+    open_dmd(d);
+    if (d->sim)
+        scicapd_simbench_attach_dmd(d->sim, d->dmd_open ? &d->dmd_dev : NULL);
+    publish(d);
+}
+
+static void close_all(scicapd_devices *d)
+{
+    if (d->sim)
+        scicapd_simbench_attach_dmd(d->sim, NULL);
+    if (d->dmd_open)
+        dmd_close(&d->dmd_dev);
+    d->dmd_open = 0;
+    atomic_store(&d->dmd_connected, 0);
+    atomic_store(&d->can_dmd_faults, 0);
+    atomic_store(&d->can_bench_faults, 0);
+    dlpc900_emu_free(d->emu); /* after the dmd that talks to it */
+    d->emu = NULL;
+    scicapd_simbench_close(d->sim);
+    d->sim = NULL;
+    camera_close(d->cam);
+    d->cam = NULL;
+    trigger_close(d->trig);
+    d->trig = NULL;
+}
+
+int scicapd_devices_open(scicapd_devices **out, const scicapd_config *cfg, const sci_log *log,
+                         dmd_event_fn on_event, void *user, sci_error *err)
+{
+    scicapd_devices *d = calloc(1, sizeof *d);
+    if (!d)
+        return sci_error_set(err, -ENOMEM, "devices: out of memory");
+    int rc = scicapd_config_copy(&d->cfg, cfg, err);
+    if (rc < 0) {
+        free(d);
+        return rc;
+    }
+    d->log = log;
+    d->on_event = on_event;
+    d->user = user;
+    pthread_mutex_init(&d->mu, NULL);
+    open_missing(d);
+    *out = d;
+    return 0;
+}
+
+void scicapd_devices_close(scicapd_devices *d)
+{
+    if (!d)
+        return;
+    close_all(d);
+    json_decref(d->json);
+    pthread_mutex_destroy(&d->mu);
+    scicapd_config_free(d->cfg);
+    free(d);
+}
+
+int scicapd_devices_differ(const scicapd_devices *d, const scicapd_config *cfg)
+{
+    return scicapd_config_devices_differ(d->cfg, cfg);
+}
+
+int scicapd_devices_reconfigure(scicapd_devices *d, const scicapd_config *cfg, sci_error *err)
+{
+    scicapd_config *c;
+    int rc = scicapd_config_copy(&c, cfg, err);
+    if (rc < 0)
+        return rc;
+    close_all(d);
+    scicapd_config_free(d->cfg);
+    d->cfg = c;
+    for (int i = 0; i < DEV_COUNT; i++)
+        d->error[i][0] = '\0';
+    sci_log_write(d->log, SCI_LOG_NOTICE, "devices re-opened: dmd %s, camera %s, trigger %s", c->dmd_backend,
+                  c->camera_backend, c->trigger_backend);
+    open_missing(d);
+    return 0;
+}
+
+static int all_open(const scicapd_devices *d)
+{
+    return d->dmd_open && (d->sim || (d->cam && d->trig));
+}
+
+int scicapd_devices_retry(scicapd_devices *d, int64_t period_ns, int force)
+{
+    if (all_open(d) || (!force && sci_clock_mono_ns() - d->last_try_ns < period_ns))
+        return 0;
+    open_missing(d);
+    if (!all_open(d))
+        return 0;
+    sci_log_write(d->log, SCI_LOG_NOTICE, "devices: all open");
+    return 1;
+}
+
+int scicapd_devices_ready(scicapd_devices *d, sci_error *err)
+{
+    const char *backends[DEV_COUNT] = {d->cfg->dmd_backend, d->cfg->camera_backend, d->cfg->trigger_backend};
+    for (int i = 0; i < DEV_COUNT; i++)
+        if (d->error[i][0])
+            return sci_error_set(err, -ENODEV, "%s (%s): not connected: %s", dev_names[i], backends[i], d->error[i]);
+    if (!all_open(d))
+        return sci_error_set(err, -ENODEV, "devices: not open");
+    return 0;
+}
+
+dmd *scicapd_devices_dmd(scicapd_devices *d)
+{
+    if (!d->dmd_open)
+        return NULL;
+    return d->sim ? scicapd_simbench_dmd(d->sim) : &d->dmd_dev;
+}
+
+camera *scicapd_devices_camera(scicapd_devices *d) { return d->sim ? scicapd_simbench_camera(d->sim) : d->cam; }
+trigger *scicapd_devices_trigger(scicapd_devices *d) { return d->sim ? scicapd_simbench_trigger(d->sim) : d->trig; }
+const dmd_identity *scicapd_devices_dmd_identity(const scicapd_devices *d) { return d->dmd_open ? &d->dmd_id : NULL; }
+scicapd_simbench *scicapd_devices_sim(scicapd_devices *d) { return d->sim; }
+
+int64_t scicapd_devices_dmd_latency_ns(const scicapd_devices *d)
+{
+    if (d->sim)
+        return scicapd_simbench_dmd_latency_ns(d->sim);
+    /* a real bench: the DLPC900 starts its first pattern TRIG_IN_1 delay after the edge */
+    return (int64_t)(d->cfg->dmd_trigger_delay_us ? d->cfg->dmd_trigger_delay_us : 105) * 1000;
+}
+
+int64_t scicapd_devices_readout_ns(const scicapd_devices *d)
+{
+    return d->sim ? 100000 : (int64_t)d->cfg->camera_readout_us * 1000;
+}
+
+void scicapd_devices_timing_defaults(const scicapd_devices *d, dmd_timing *t)
+{
+    t->trigger_delay_us = d->cfg->dmd_trigger_delay_us;
+    t->trigger_falling = d->cfg->dmd_trigger_falling;
+}
+
+int scicapd_devices_fault_supported(scicapd_devices *d, scicapd_fault fault)
+{
+    switch (fault) {
+    case SCICAPD_FAULT_DMD_UNPLUG:
+    case SCICAPD_FAULT_DMD_REPLUG: return atomic_load(&d->can_dmd_faults);
+    case SCICAPD_FAULT_CAMERA_STALL:
+    case SCICAPD_FAULT_TRIGGER_MISS: return atomic_load(&d->can_bench_faults);
+    default: return 1;
+    }
+}
+
+void scicapd_devices_fault_apply(scicapd_devices *d, scicapd_fault fault, long n)
+{
+    dlpc900_emu *emu = d->emu ? d->emu : d->dmd_open ? dmd_sim_emulator(&d->dmd_dev) : NULL;
+    switch (fault) {
+    case SCICAPD_FAULT_DMD_UNPLUG:
+        if (emu)
+            dlpc900_emu_unplug_after(emu, n);
+        break;
+    case SCICAPD_FAULT_DMD_REPLUG:
+        if (emu && !dlpc900_emu_plugged(emu))
+            dlpc900_emu_replug(emu);
+        break;
+    case SCICAPD_FAULT_CAMERA_STALL:
+        if (d->sim)
+            scicapd_simbench_camera_stall(d->sim, (int)n);
+        break;
+    case SCICAPD_FAULT_TRIGGER_MISS:
+        if (d->sim)
+            scicapd_simbench_trigger_miss(d->sim, (int)n);
+        break;
+    default: break;
+    }
+}

@@ -1,0 +1,78 @@
+/* daemon/devices.h — the bench's three devices, opened per the configuration's backends (docs/config.md):
+ *
+ *     DMD      "sim" (sim/dmd_sim.h: the dlpc900 backend on an emulator) or "dlpc900" (drivers/dmd_dlpc900.c over
+ *              USB HID, or over the in-process DLPC900 emulator with "emulator": true)
+ *     camera   "sim" (the simulated bench, daemon/simbench.h) or "v4l2" (drivers/camera_v4l2.h)
+ *     trigger  "sim" (the simulated bench) or "gpiod" (drivers/trigger_gpiod.h)
+ *
+ * Camera and trigger are both simulated or both real (the config refuses a mix: the trigger output starts the
+ * camera and the camera's strobe comes back to a trigger input). When they are simulated the DMD, whatever its
+ * backend, is wired into the simulated bench (its masks shape the simulated image); otherwise it is used as is.
+ *
+ * A device that fails to open does not stop the daemon: its error (naming the device) is kept, logged, shown by
+ * `devices` and `status`, and returned by scicapd_devices_ready to every capture; scicapd_devices_retry re-opens
+ * what is missing (every few seconds while idle, and at once after a reload).
+ *
+ * Threads: everything except scicapd_devices_json, _dmd_connected and _fault_supported is called by the
+ * acquisition thread only (the device handles are not thread-safe). Those three are safe from any thread.
+ */
+#ifndef SCICAP_DAEMON_DEVICES_H
+#define SCICAP_DAEMON_DEVICES_H
+
+#include <jansson.h>
+#include <stdint.h>
+
+#include "base/log.h"
+#include "daemon/config.h"
+#include "daemon/protocol.h"
+#include "daemon/simbench.h"
+#include "drivers/camera.h"
+#include "drivers/dmd.h"
+#include "drivers/trigger.h"
+
+typedef struct scicapd_devices scicapd_devices;
+
+/* Copy what is needed from cfg and try to open the three devices. Fails only for -ENOMEM: device errors are
+ * kept (scicapd_devices_ready). DMD connect/disconnect events (including hotplug) go to on_event/user, on the
+ * calling thread of the device functions. */
+int scicapd_devices_open(scicapd_devices **out, const scicapd_config *cfg, const sci_log *log,
+                         dmd_event_fn on_event, void *user, sci_error *err);
+void scicapd_devices_close(scicapd_devices *d); /* NULL is harmless */
+
+/* 1 when cfg opens the devices differently from what d was opened with. */
+int scicapd_devices_differ(const scicapd_devices *d, const scicapd_config *cfg);
+/* Close everything and open per cfg (reload with changed devices or simulator sections). -ENOMEM only. */
+int scicapd_devices_reconfigure(scicapd_devices *d, const scicapd_config *cfg, sci_error *err);
+/* Re-open the devices that are not open, at most every `period_ns` unless `force`. 1 if one came back. */
+int scicapd_devices_retry(scicapd_devices *d, int64_t period_ns, int force);
+/* 0 when all three are open; else -ENODEV with "camera (v4l2): not connected: <its open error>". */
+int scicapd_devices_ready(scicapd_devices *d, sci_error *err);
+
+/* Handles (borrowed, valid until the next reconfigure/retry/close; NULL when that device is not open). */
+dmd *scicapd_devices_dmd(scicapd_devices *d);
+camera *scicapd_devices_camera(scicapd_devices *d);
+trigger *scicapd_devices_trigger(scicapd_devices *d);
+const dmd_identity *scicapd_devices_dmd_identity(const scicapd_devices *d);
+/* The simulated bench when camera and trigger are simulated (truth, white target, faults), else NULL. */
+scicapd_simbench *scicapd_devices_sim(scicapd_devices *d);
+/* Start (pulse or DMD start) to first pattern: the simulator's latency, or the DLPC900 trigger delay. */
+int64_t scicapd_devices_dmd_latency_ns(const scicapd_devices *d);
+/* Exposure end to frame timestamp, for the exposure window when no strobe is wired. */
+int64_t scicapd_devices_readout_ns(const scicapd_devices *d);
+/* What the DMD needs in its dmd_timing beyond exposure/dark/trigger mode (DLPC900 trigger-in settings). */
+void scicapd_devices_timing_defaults(const scicapd_devices *d, dmd_timing *t);
+
+/* Mark the DMD (dis)connected after a hotplug event (the acquisition thread's event callback calls this). */
+void scicapd_devices_dmd_event(scicapd_devices *d, dmd_event ev);
+
+/* Thread-safe: {"dmd": {backend, connected, error | identity...}, "camera": ..., "trigger": ...} (new ref). */
+json_t *scicapd_devices_json(scicapd_devices *d);
+/* Thread-safe: 1 when the DMD is open and connected. */
+int scicapd_devices_dmd_connected(scicapd_devices *d);
+/* Thread-safe: 1 if `fault` can be injected into the devices as configured (DMD faults need an emulated DMD,
+ * camera and trigger faults the simulated bench). */
+int scicapd_devices_fault_supported(scicapd_devices *d, scicapd_fault fault);
+/* Inject it (acquisition thread); unsupported faults are ignored. */
+void scicapd_devices_fault_apply(scicapd_devices *d, scicapd_fault fault, long n);
+
+#endif

@@ -1,0 +1,252 @@
+/* scicapd's device backends without hardware: configuration validation for each backend (scicapd
+ * --check-config); a start on a DLPC900, a V4L2 node and a GPIO chip that are not there (the daemon serves, says
+ * which device is missing and why, refuses captures with that reason, and reconnects after a reload); and a mixed
+ * bench where the DMD is the real dlpc900 backend driving the DLPC900 emulator through its transport, with the
+ * simulated camera and trigger: captures, a reconstruction, dmd-master sync, and an unplug/replug; camera-master
+ * sync on the simulated bench. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <cmocka.h>
+
+#include "tests/integration/daemon_harness.h"
+
+/* Run `scicapd --check-config -c FILE` on `text`; returns the exit status, the output in out. */
+static int check_config(const char *text, char *out, size_t n)
+{
+    harness h;
+    harness_init(&h, text);
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd, "%s --check-config -c %s 2>&1", h.bin, h.config);
+    FILE *p = popen(cmd, "r");
+    assert_non_null(p);
+    size_t len = fread(out, 1, n - 1, p);
+    out[len] = '\0';
+    int st = pclose(p);
+    harness_cleanup(&h);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static void expect_valid(const char *text)
+{
+    char out[2048];
+    int st = check_config(text, out, sizeof out);
+    if (st != 0)
+        fail_msg("expected a valid configuration, got: %s", out);
+}
+
+static void expect_invalid(const char *text, const char *key, const char *words)
+{
+    char out[2048];
+    int st = check_config(text, out, sizeof out);
+    printf("  refused: %s", out);
+    if (st != 1 || !strstr(out, "scicapd.json:") || !strstr(out, key) || (words && !strstr(out, words)))
+        fail_msg("expected \"%s\" refused naming %s (%s), got status %d: %s", text, key, words ? words : "", st, out);
+}
+
+static void config_validation_per_backend(void **state)
+{
+    (void)state;
+    /* valid: every backend */
+    expect_valid("{\"devices\": {\"dmd\": {\"backend\": \"dlpc900\", \"serial\": \"A1B2C3\", \"timeout_ms\": 500,"
+                 " \"trigger_delay_us\": 120}, \"camera\": {\"backend\": \"v4l2\", \"device\": \"/dev/video0\","
+                 " \"width\": 1440, \"height\": 1080, \"format\": \"Y16\", \"exposure_us\": 10000, \"readout_us\": 50,"
+                 " \"trigger_profile\": {\"name\": \"imx296-ext\", \"controls\": {\"trigger_mode\": 1}}},"
+                 " \"trigger\": {\"backend\": \"gpiod\", \"chip\": \"gpiochip0\", \"output\": 17,"
+                 " \"dmd_input\": 22, \"strobe_input\": {\"line\": 27, \"active_low\": true}}}}");
+    expect_valid("{\"devices\": {\"dmd\": {\"backend\": \"dlpc900\", \"emulator\": true}}}");
+    expect_valid("{\"storage\": {\"writers\": 4, \"previews\": false}}");
+    /* refused, with file:line:col and the key */
+    expect_invalid("{\"devices\": {\"dmd\": {\"backend\": \"dlpc9000\"}}}", "devices.dmd.backend", NULL);
+    expect_invalid("{\"devices\": {\"dmd\": {\"backend\": \"sim\", \"emulator\": true}}}", "devices.dmd.emulator",
+                   "dlpc900");
+    expect_invalid("{\"devices\": {\"dmd\": {\"backend\": \"dlpc900\", \"trigger_delay_us\": 70000}}}",
+                   "devices.dmd.trigger_delay_us", NULL);
+    expect_invalid("{\"devices\": {\"camera\": {\"backend\": \"v4l2\", \"device\": \"/dev/video0\"}}}",
+                   "devices.camera.backend", "both real");
+    expect_invalid("{\"devices\": {\"camera\": {\"backend\": \"v4l2\"}, \"trigger\": {\"backend\": \"gpiod\","
+                   " \"chip\": \"gpiochip0\", \"output\": 17}}}", "devices.camera", "device");
+    expect_invalid("{\"devices\": {\"camera\": {\"backend\": \"v4l2\", \"device\": \"/dev/video0\", \"widht\": 3},"
+                   " \"trigger\": {\"backend\": \"gpiod\", \"chip\": \"gpiochip0\", \"output\": 17}}}",
+                   "devices.camera.widht", "unknown key");
+    expect_invalid("{\"devices\": {\"camera\": {\"backend\": \"v4l2\", \"device\": \"/dev/video0\"},"
+                   " \"trigger\": {\"backend\": \"gpiod\", \"output\": 17}}}", "devices.trigger.chip", NULL);
+    expect_invalid("{\"devices\": {\"camera\": {\"backend\": \"v4l2\", \"device\": \"/dev/video0\"},"
+                   " \"trigger\": {\"backend\": \"gpiod\", \"chip\": \"gpiochip0\"}}}", "devices.trigger", "output");
+    expect_invalid("{\"devices\": {\"trigger\": {\"backend\": \"sim\", \"chip\": \"x\"}}}", "devices.trigger",
+                   "no settings");
+    expect_invalid("{\"storage\": {\"writers\": 0}}", "storage.writers", NULL);
+}
+
+static const char *const MISSING =
+    "{\"devices\": {\"dmd\": {\"backend\": \"dlpc900\", \"serial\": \"NOSUCHDMD\", \"timeout_ms\": 200},"
+    " \"camera\": {\"backend\": \"v4l2\", \"device\": \"/dev/video-scicap-missing\"},"
+    " \"trigger\": {\"backend\": \"gpiod\", \"chip\": \"/dev/gpiochip-scicap-missing\", \"output\": 17}}}";
+
+static void missing_hardware_then_reload(void **state)
+{
+    (void)state;
+    harness h;
+    harness_start(&h, MISSING, NULL); /* the daemon starts and serves */
+    hconn c;
+    hconn_open(&c, &h);
+    json_t *r = hconn_request(&c, "devices", NULL);
+    const char *names[3] = {"dmd", "camera", "trigger"}, *want[3] = {"NOSUCHDMD", "/dev/video-scicap-missing",
+                                                                      "/dev/gpiochip-scicap-missing"};
+    for (int i = 0; i < 3; i++) {
+        json_t *d = json_object_get(r, names[i]);
+        const char *e = json_string_value(json_object_get(d, "error"));
+        printf("  %s: %s\n", names[i], e ? e : "(no error)");
+        assert_true(json_is_false(json_object_get(d, "connected")));
+        assert_non_null(e);
+        assert_non_null(strstr(e, want[i]));
+    }
+    json_decref(r);
+    r = hconn_request(&c, "status", NULL);
+    assert_true(json_is_false(json_object_get(r, "dmd_connected")));
+    assert_true(json_is_false(json_object_get(json_object_get(json_object_get(r, "devices"), "camera"), "connected")));
+    json_decref(r);
+    /* a capture is refused with the reason, and the daemon keeps serving */
+    json_decref(hconn_request(&c, "capture", NULL));
+    json_t *e = hconn_wait_event(&c, "capture.failed", 20000);
+    const char *why = json_string_value(json_object_get(json_object_get(e, "data"), "error"));
+    printf("  capture: %s\n", why);
+    assert_non_null(strstr(why, "not connected"));
+    json_decref(e);
+    hconn_expect_error(&c, "simulate", json_pack("{s:s}", "fault", "dmd-unplug"), "unsupported");
+    /* the start-up error is in the log, naming the node */
+    FILE *f = fopen(h.log, "r");
+    char logbuf[16384];
+    size_t n = f ? fread(logbuf, 1, sizeof logbuf - 1, f) : 0;
+    logbuf[n] = '\0';
+    if (f)
+        fclose(f);
+    assert_non_null(strstr(logbuf, "/dev/video-scicap-missing"));
+    assert_non_null(strstr(logbuf, "/dev/gpiochip-scicap-missing"));
+    /* the devices come back with a reload (here: the simulated bench instead) */
+    harness_write_config(&h, "{\"version\": 1}");
+    json_decref(hconn_request(&c, "reload", NULL));
+    int ok = 0;
+    for (int i = 0; i < 50 && !ok; i++) {
+        h_sleep_ms(100);
+        r = hconn_request(&c, "status", NULL);
+        ok = json_is_true(json_object_get(r, "dmd_connected")) &&
+             json_is_true(json_object_get(json_object_get(json_object_get(r, "devices"), "camera"), "connected"));
+        json_decref(r);
+    }
+    assert_true(ok);
+    json_decref(hconn_request(&c, "capture", NULL));
+    json_decref(hconn_wait_event(&c, "capture.done", 20000));
+    hconn_close(&c);
+    harness_stop(&h);
+    harness_cleanup(&h);
+}
+
+static const char *const EMULATED =
+    "{\"devices\": {\"dmd\": {\"backend\": \"dlpc900\", \"emulator\": true, \"serial\": \"EMU4242\"},"
+    " \"camera\": {\"backend\": \"sim\"}, \"trigger\": {\"backend\": \"sim\"}},"
+    " \"storage\": {\"writers\": 2, \"previews\": false}}";
+
+static void dlpc900_backend_on_the_emulator(void **state)
+{
+    (void)state;
+    harness h;
+    harness_start(&h, EMULATED, NULL);
+    hconn c;
+    hconn_open(&c, &h);
+    json_t *r = hconn_request(&c, "devices", NULL);
+    json_t *dm = json_object_get(r, "dmd");
+    assert_string_equal(json_string_value(json_object_get(dm, "backend")), "dlpc900");
+    assert_string_equal(json_string_value(json_object_get(dm, "transport")), "emulator");
+    assert_string_equal(json_string_value(json_object_get(dm, "serial")), "EMU4242");
+    assert_true(json_is_true(json_object_get(dm, "connected")));
+    json_decref(r);
+    /* host master, reconstructed */
+    json_decref(hconn_request(&c, "capture", json_pack("{s:i, s:b, s:s}", "count", 3, "reconstruct", 1, "preset",
+                                                       "fast")));
+    json_t *e = hconn_wait_event(&c, "capture.stored", 20000);
+    char dir[512];
+    snprintf(dir, sizeof dir, "%s", json_string_value(json_object_get(json_object_get(e, "data"), "dir")));
+    json_decref(e);
+    json_decref(hconn_wait_event(&c, "capture.done", 20000));
+    e = hconn_wait_event(&c, "recon.done", 60000);
+    double psnr = json_number_value(json_object_get(json_object_get(e, "data"), "psnr"));
+    printf("  dlpc900 backend on the emulator: GAP-TV fast PSNR %.2f dB\n", psnr);
+    assert_true(psnr > 18);
+    json_decref(e);
+    assert_true(h_exists("%s/%s", dir, "dmd_mask_000.png"));
+    assert_false(h_exists("%s/%s", dir, "preview_truth.gif")); /* storage.previews false */
+    /* dmd master */
+    json_decref(hconn_request(&c, "capture", json_pack("{s:s}", "sync_mode", "dmd-master")));
+    e = hconn_wait_event(&c, "capture.snapshot", 20000);
+    assert_true(json_is_false(json_object_get(json_object_get(e, "data"), "broken")));
+    json_decref(e);
+    json_decref(hconn_wait_event(&c, "capture.done", 20000));
+    /* unplugged through the emulator: the real backend notices, reconnects, uploads again */
+    json_decref(hconn_request(&c, "simulate", json_pack("{s:s}", "fault", "dmd-unplug")));
+    json_decref(hconn_request(&c, "capture", NULL));
+    json_decref(hconn_wait_event(&c, "capture.failed", 20000));
+    json_decref(hconn_request(&c, "simulate", json_pack("{s:s}", "fault", "dmd-replug")));
+    int ok = 0;
+    for (int i = 0; i < 50 && !ok; i++) {
+        h_sleep_ms(100);
+        r = hconn_request(&c, "status", NULL);
+        ok = json_is_true(json_object_get(r, "dmd_connected"));
+        json_decref(r);
+    }
+    assert_true(ok);
+    json_decref(hconn_request(&c, "capture", json_pack("{s:i}", "count", 2)));
+    e = hconn_wait_event(&c, "capture.done", 20000);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(e, "data"), "done")), 2);
+    json_decref(e);
+    hconn_close(&c);
+    harness_stop(&h);
+    harness_cleanup(&h);
+}
+
+/* Camera master on the simulated bench: the camera free-runs, the strobe of the first exposure after the DMD was
+ * armed starts the sequence; the snapshot is whole (not broken) and reconstructs; host master works after it. */
+static void camera_master_on_the_simulated_bench(void **state)
+{
+    (void)state;
+    harness h;
+    harness_start(&h, "{\"capture\": {\"sync_mode\": \"camera-master\"}}", NULL);
+    hconn c;
+    hconn_open(&c, &h);
+    json_decref(hconn_request(&c, "capture", json_pack("{s:i, s:b, s:s}", "count", 2, "reconstruct", 1, "preset",
+                                                       "fast")));
+    for (int i = 0; i < 2; i++) {
+        json_t *e = hconn_wait_event(&c, "capture.snapshot", 20000);
+        json_t *d = json_object_get(e, "data");
+        printf("  camera master snapshot %d: sync %s, %d patterns inside\n", i,
+               json_string_value(json_object_get(d, "sync")), (int)json_integer_value(json_object_get(d, "inside")));
+        assert_true(json_is_false(json_object_get(d, "broken")));
+        json_decref(e);
+    }
+    json_t *e = hconn_wait_event(&c, "recon.done", 60000);
+    double psnr = json_number_value(json_object_get(json_object_get(e, "data"), "psnr"));
+    printf("  camera master: GAP-TV fast PSNR %.2f dB\n", psnr);
+    assert_true(psnr > 18);
+    json_decref(e);
+    json_decref(hconn_request(&c, "capture", json_pack("{s:s}", "sync_mode", "host-master")));
+    e = hconn_wait_event(&c, "capture.snapshot", 20000);
+    assert_true(json_is_false(json_object_get(json_object_get(e, "data"), "broken")));
+    json_decref(e);
+    json_decref(hconn_wait_event(&c, "capture.done", 20000));
+    hconn_close(&c);
+    harness_stop(&h);
+    harness_cleanup(&h);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(config_validation_per_backend),
+        cmocka_unit_test(missing_hardware_then_reload),
+        cmocka_unit_test(dlpc900_backend_on_the_emulator),
+        cmocka_unit_test(camera_master_on_the_simulated_bench),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
