@@ -3,7 +3,7 @@
  * which device is missing and why, refuses captures with that reason, and reconnects after a reload); and a mixed
  * bench where the DMD is the real dlpc900 backend driving the DLPC900 emulator through its transport, with the
  * simulated camera and trigger: captures, a reconstruction, dmd-master sync, and an unplug/replug; camera-master
- * sync on the simulated bench. */
+ * sync on the simulated bench; the storage writer pool's ordering and shared DMD mask files. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -240,6 +240,53 @@ static void camera_master_on_the_simulated_bench(void **state)
     harness_cleanup(&h);
 }
 
+/* Four writers: ids follow the snapshot index, capture.done comes after every capture.stored, and the DMD mask
+ * PNGs of one mask set are one set of files hard-linked into each folder. */
+static void writer_pool_keeps_order(void **state)
+{
+    (void)state;
+    harness h;
+    harness_start(&h, "{\"storage\": {\"writers\": 4, \"previews\": false}}", NULL);
+    hconn c;
+    hconn_open(&c, &h);
+    enum { N = 8 };
+    json_decref(hconn_request(&c, "capture", json_pack("{s:i}", "count", N)));
+    char ids[N][32] = {{0}};
+    int stored = 0, done = 0;
+    while (!done) {
+        json_t *m = hconn_read(&c, 30000);
+        if (!m)
+            fail_msg("no capture.done within 30 s (%d stored)", stored);
+        const char *ev = json_string_value(json_object_get(m, "event"));
+        json_t *d = json_object_get(m, "data");
+        if (ev && !strcmp(ev, "capture.stored")) {
+            int i = (int)json_integer_value(json_object_get(d, "index"));
+            assert_true(i >= 0 && i < N);
+            snprintf(ids[i], sizeof ids[i], "%s", json_string_value(json_object_get(d, "capture")));
+            stored++;
+        } else if (ev && !strcmp(ev, "capture.done")) {
+            assert_int_equal(stored, N); /* the job's last word */
+            assert_int_equal(json_integer_value(json_object_get(d, "done")), N);
+            done = 1;
+        } else if (ev && strstr(ev, ".failed")) {
+            fail_msg("capture failed");
+        }
+        json_decref(m);
+    }
+    for (int i = 1; i < N; i++)
+        assert_true(strcmp(ids[i - 1], ids[i]) < 0);
+    char p[1024];
+    snprintf(p, sizeof p, "%s/captures/%s/dmd_mask_000.png", h.store, ids[N - 1]);
+    struct stat sb;
+    assert_int_equal(stat(p, &sb), 0);
+    printf("  %d snapshots by 4 writers: %s .. %s in order; dmd_mask_000.png has %d links\n", N, ids[0], ids[N - 1],
+           (int)sb.st_nlink);
+    assert_true(sb.st_nlink >= N);
+    hconn_close(&c);
+    harness_stop(&h);
+    harness_cleanup(&h);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -247,6 +294,7 @@ int main(void)
         cmocka_unit_test(missing_hardware_then_reload),
         cmocka_unit_test(dlpc900_backend_on_the_emulator),
         cmocka_unit_test(camera_master_on_the_simulated_bench),
+        cmocka_unit_test(writer_pool_keeps_order),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
