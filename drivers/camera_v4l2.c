@@ -361,8 +361,12 @@ static int v4l2_set_exposure(void *state, uint32_t *exposure_us, sci_error *err)
 static int v4l2_set_gain(void *state, int32_t *gain, sci_error *err)
 {
     v4l2_cam *c = state;
+    /* auto gain off first, as for exposure: while it is on, the gain is the device's own (read back volatile) */
+    int rc = v4l2_set_ctrl(c, V4L2_CID_AUTOGAIN, V4L2_CTRL_TYPE_BOOLEAN, 0);
+    if (rc < 0 && rc != -EINVAL)
+        return v4l2_fail(c, rc, err, "VIDIOC_S_EXT_CTRLS(AUTOGAIN)");
     uint32_t id = V4L2_CID_GAIN;
-    int rc = v4l2_set_ctrl(c, id, V4L2_CTRL_TYPE_INTEGER, *gain);
+    rc = v4l2_set_ctrl(c, id, V4L2_CTRL_TYPE_INTEGER, *gain);
     if (rc == -EINVAL) {
         id = V4L2_CID_ANALOGUE_GAIN;
         rc = v4l2_set_ctrl(c, id, V4L2_CTRL_TYPE_INTEGER, *gain);
@@ -461,7 +465,10 @@ static int v4l2_wait_frame(void *state, int64_t timeout_ns, camera_frame *out, s
         if (rc == 0)
             rc = pixfmt_unpack(c->fmt.pixfmt, c->bufs[b.index].ptr, used, c->fmt.bytesperline, c->fmt.width,
                                c->fmt.height, out->data, err);
-        int qrc = V4L2_IOCTL(&c->dev, VIDIOC_QBUF, &b); /* back to the driver at once, whatever happened */
+        /* Back to the driver at once, whatever happened. QBUF is _IOWR: the kernel rewrites the struct with the
+         * queued state (sequence 0, no timestamp, no ERROR flag), so it gets a copy and `b` keeps the frame's. */
+        struct v4l2_buffer q = b;
+        int qrc = V4L2_IOCTL(&c->dev, VIDIOC_QBUF, &q);
         if (rc < 0)
             return sci_error_prefix(err, "%s: buffer %u: ", c->path, b.index), rc;
         if (qrc < 0)

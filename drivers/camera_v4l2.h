@@ -9,7 +9,8 @@
  * size is an error, not a surprise), its bytesperline honoured; frame interval with S_PARM when the driver has
  * V4L2_CAP_TIMEPERFRAME.
  * Exposure: V4L2_CID_EXPOSURE_AUTO set to manual, then V4L2_CID_EXPOSURE_ABSOLUTE in 100 µs units (the value is
- * rounded to the nearest 100 µs, at least 1 unit, and the applied value is read back). Gain: V4L2_CID_GAIN, or
+ * rounded to the nearest 100 µs, at least 1 unit, and the applied value is read back). Gain: V4L2_CID_AUTOGAIN
+ * off when the device has it (else the gain read back is the automatic one), then V4L2_CID_GAIN, or
  * V4L2_CID_ANALOGUE_GAIN when the first is absent. Trigger profile: each named control is found with
  * VIDIOC_QUERY_EXT_CTRL (names compared as v4l2_util_ctrl_name_eq) and set with VIDIOC_S_EXT_CTRLS.
  *
