@@ -23,7 +23,7 @@ PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 # libgpiod 1.6 (Debian 12) and 2.x have different APIs; drivers/ picks one at compile time.
 GPIOD_MAJOR := $(shell pkg-config --modversion libgpiod 2>/dev/null | cut -d. -f1)
 ALL_CFLAGS   = -std=c11 -D_GNU_SOURCE -fopenmp $(WARN) -I. $(PKG_CFLAGS) -DSCICAP_GPIOD_MAJOR=$(or $(GPIOD_MAJOR),0) \
-               -DSCICAP_VERSION='"$(VERSION)"' $(CFLAGS) $(CPPFLAGS)
+               -DSCICAP_VERSION='"$(VERSION)"' -DSCICAP_DATADIR='"$(PREFIX)/share/scicap"' $(CFLAGS) $(CPPFLAGS)
 ALL_CXXFLAGS = -std=c++17 -fopenmp $(filter-out -Wshadow,$(WARN)) -I. $(PKG_CFLAGS) $(CXXFLAGS) $(CPPFLAGS)
 LDLIBS_ALL   = $(PKG_LIBS) -lstdc++ -lm -lpthread $(LDLIBS)
 VERSION := $(shell git describe --always --dirty 2>/dev/null || echo 0.1)
@@ -128,6 +128,7 @@ install: all
 	install -d $(DESTDIR)$(PREFIX)/bin
 	install -m 755 $(BINS) $(DESTDIR)$(PREFIX)/bin/
 	install -d $(DESTDIR)$(PREFIX)/share/scicap/scenes
+	install -m 644 bench/results.csv $(DESTDIR)$(PREFIX)/share/scicap/results.csv
 	install -m 644 etc/scenes/*.json etc/scenes/*.pgm $(DESTDIR)$(PREFIX)/share/scicap/scenes/
 	install -d $(DESTDIR)$(PREFIX)/share/man/man1
 	install -m 644 docs/man/*.1 $(DESTDIR)$(PREFIX)/share/man/man1/

@@ -219,6 +219,8 @@ static void usage(FILE *f, const char *cmd)
             "                 [--sync host-master|dmd-master] [--recon] [--method M] [--preset P] [--wait]\n"
             "  scicap calibrate --dark|--masks [--mask-set S] [--average N]   (waits for the result)\n"
             "  scicap recon --capture ID [--method gap-tv|admm-tv] [--preset fast|default|quality] [--iters N] [--wait]\n"
+            "  scicap recon --capture ID --budget SECONDS [--method M] [--wait]\n"
+            "                                      the most accurate measured setting that fits (bench/results.csv)\n"
             "  scicap jobs                         queued, running and recent jobs\n"
             "  scicap cancel JOB\n"
             "  scicap watch                        the event stream, with a progress bar (Ctrl-C ends)\n"
@@ -231,7 +233,7 @@ static void usage(FILE *f, const char *cmd)
 }
 
 enum { O_SOCKET = 1000, O_MASK_SET, O_COUNT, O_EXPOSURE, O_PATTERN, O_DARK_US, O_SYNC, O_RECON, O_METHOD, O_PRESET,
-       O_WAIT, O_DARK, O_MASKS, O_AVERAGE, O_CAPTURE, O_ITERS, O_HELP };
+       O_WAIT, O_DARK, O_MASKS, O_AVERAGE, O_CAPTURE, O_ITERS, O_BUDGET, O_HELP };
 
 static const struct option long_opts[] = {
     {"socket", required_argument, 0, O_SOCKET},   {"mask-set", required_argument, 0, O_MASK_SET},
@@ -242,7 +244,8 @@ static const struct option long_opts[] = {
     {"wait", no_argument, 0, O_WAIT},             {"dark", no_argument, 0, O_DARK},
     {"masks", no_argument, 0, O_MASKS},           {"average", required_argument, 0, O_AVERAGE},
     {"capture", required_argument, 0, O_CAPTURE}, {"iters", required_argument, 0, O_ITERS},
-    {"help", no_argument, 0, O_HELP},             {0, 0, 0, 0},
+    {"budget", required_argument, 0, O_BUDGET},   {"help", no_argument, 0, O_HELP},
+    {0, 0, 0, 0},
 };
 
 static int parse_count(const char *s, const char *opt, long long *out)
@@ -280,6 +283,16 @@ static int run(int argc, char **argv, int recon_mode)
         case O_CAPTURE: json_object_set_new(args, "capture", json_string(optarg)); break;
         case O_RECON: json_object_set_new(args, "reconstruct", json_true()); break;
         case O_WAIT: wait = 1; break;
+        case O_BUDGET: {
+            char *end;
+            double b = strtod(optarg, &end);
+            if (*end || end == optarg || !(b > 0)) {
+                fprintf(stderr, "scicap: --budget wants a time in seconds, got '%s'\n", optarg);
+                goto usage_err;
+            }
+            json_object_set_new(args, "budget_s", json_real(b));
+            break;
+        }
         case O_DARK: kind = 0; break;
         case O_MASKS: kind = 1; break;
         case O_COUNT: case O_EXPOSURE: case O_PATTERN: case O_DARK_US: case O_AVERAGE: case O_ITERS: {

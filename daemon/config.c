@@ -46,6 +46,7 @@ static void defaults(scicapd_config *c)
     c->sync_mode = SYNC_MODE_HOST_MASTER;
     strcpy(c->recon_method, "gap-tv");
     strcpy(c->recon_preset, "default");
+    snprintf(c->recon_curves, sizeof c->recon_curves, "%s/results.csv", SCICAP_DATADIR);
     c->recon_auto = 0;
     c->workers = 1;
     c->capture_queue = 16;
@@ -389,7 +390,7 @@ static int parse_capture(const sci_json_doc *doc, const json_t *o, scicapd_confi
 
 static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
-    static const char *const keys[] = {"method", "preset", "auto", "workers", "threads", NULL};
+    static const char *const keys[] = {"method", "preset", "auto", "workers", "threads", "curves", NULL};
     static const char *const methods[] = {"gap-tv", "admm-tv", NULL};
     static const char *const presets[] = {"fast", "default", "quality", NULL};
     int rc, m = 0, p = 1;
@@ -406,6 +407,15 @@ static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config 
         (rc = get_int(doc, o, "reconstruction", "workers", 1, 16, &c->workers, err)) < 0 ||
         (rc = get_int(doc, o, "reconstruction", "threads", 0, 256, &c->recon_threads, err)) < 0)
         return rc;
+    const char *curves = NULL;
+    if ((rc = sci_json_get_string(doc, o, "reconstruction", "curves", 0, &curves, err)) < 0)
+        return rc;
+    if (rc == 0) {
+        if (!curves[0] || strlen(curves) >= sizeof c->recon_curves)
+            return sci_json_fail(doc, err, "reconstruction.curves", "must be a path shorter than %zu bytes",
+                                 sizeof c->recon_curves);
+        snprintf(c->recon_curves, sizeof c->recon_curves, "%s", curves);
+    }
     return 0;
 }
 

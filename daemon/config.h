@@ -82,6 +82,9 @@ typedef struct scicapd_config {
     /* reconstruction defaults */
     char recon_method[16];                /* "gap-tv" */
     char recon_preset[16];                /* "default" */
+    char recon_curves[SCICAPD_PATH_MAX];  /* measured accuracy-against-time curves (scicap bench CSV) used to
+                                             honour a reconstruct request's budget_s; default
+                                             SCICAP_DATADIR/results.csv, installed by make install */
     int recon_auto;                       /* reconstruct every capture unless the request says otherwise */
     int workers;                          /* reconstruction threads, 1..16 */
     int recon_threads;                    /* OpenMP threads per reconstruction; 0 = OpenMP's default */

@@ -1,5 +1,6 @@
 /* daemon/protocol.c — request checks, argument parsing, reply and event encoding (protocol version 1). */
 #include "daemon/protocol.h"
+#include "io/curves.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -175,6 +176,46 @@ int scicapd_recon_spec_resolve(const char *method, const char *preset, const sci
 
 json_t *scicapd_recon_spec_json(const scicapd_recon_spec *s)
 {
+    json_t *j = scicapd_recon_spec_json_plain(s);
+    if (j && s->budget_s > 0)
+        json_object_set_new(j, "budget", json_pack("{s:f, s:f, s:f}", "budget_s", s->budget_s, "predicted_s",
+                                                   s->predicted_s, "expected_psnr_db", s->expected_db));
+    return j;
+}
+
+/* A budget: the most accurate measured setting whose predicted time fits (io/curves.h), for a problem of
+ * `voxels`; `method` restricts the choice when the request named one. */
+static int apply_budget(const scicapd_config *cfg, const sci_json_doc *doc, const char *path, double budget_s,
+                        const char *method, double voxels, scicapd_recon_spec *out, sci_error *err)
+{
+    sci_curves *cv = NULL;
+    sci_error e2 = {0};
+    if (sci_curves_load(&cv, cfg->recon_curves, &e2) < 0)
+        return sci_json_fail(doc, err, path, "no measured curves to choose from (%s); run make bench-report", e2.msg);
+    sci_curve_choice ch;
+    int rc = sci_curves_pick(cv, method, 0, voxels, budget_s, &ch, &e2);
+    sci_curves_free(cv);
+    if (rc == 0 && strcmp(ch.method, "gap-tv") != 0 && strcmp(ch.method, "admm-tv") != 0)
+        rc = sci_error_set(&e2, -ENOENT, "the best setting in budget is %s, which the daemon does not run", ch.method);
+    if (rc < 0)
+        return sci_json_fail(doc, err, path, "%s", e2.msg);
+    json_t *params = sci_curves_setting_json(ch.setting);
+    json_t *it = json_object_get(params, "iters"), *tvi = json_object_get(params, "tv_iters");
+    out->method = strcmp(ch.method, "admm-tv") == 0 ? SCICAPD_METHOD_ADMMTV : SCICAPD_METHOD_GAPTV;
+    if (it)
+        out->gap.iters = out->admm.iters = (int)json_integer_value(it);
+    if (tvi)
+        out->gap.tv_iters = out->admm.tv_iters = (int)json_integer_value(tvi);
+    json_decref(params);
+    snprintf(out->preset, sizeof out->preset, "budget");
+    out->budget_s = budget_s;
+    out->predicted_s = ch.predicted_s;
+    out->expected_db = ch.mean_psnr;
+    return 0;
+}
+
+json_t *scicapd_recon_spec_json_plain(const scicapd_recon_spec *s)
+{
     if (s->method == SCICAPD_METHOD_ADMMTV)
         return json_pack("{s:s, s:s, s:i, s:f, s:f, s:f, s:i}", "method", "admm-tv", "preset", s->preset, "iters",
                          s->admm.iters, "lambda", s->admm.lambda, "gamma", s->admm.gamma, "tv_weight",
@@ -275,7 +316,7 @@ int scicapd_args_calibrate(const scicapd_request *r, const scicapd_config *cfg, 
 int scicapd_args_reconstruct(const scicapd_request *r, const scicapd_config *cfg, scicapd_recon_args *out,
                              sci_error *err)
 {
-    static const char *const keys[] = {"capture", "method", "preset", "params", NULL};
+    static const char *const keys[] = {"capture", "method", "preset", "params", "budget_s", NULL};
     memset(out, 0, sizeof *out);
     const char *cap = NULL;
     int rc;
@@ -288,7 +329,29 @@ int scicapd_args_reconstruct(const scicapd_request *r, const scicapd_config *cfg
     if (!cap[0] || strlen(cap) >= sizeof out->capture_id || strchr(cap, '/') || cap[0] == '.')
         return sci_json_fail(r->doc, err, "args.capture", "not a capture id: \"%.64s\"", cap);
     snprintf(out->capture_id, sizeof out->capture_id, "%s", cap);
-    return get_recon(r, r->args, "args", cfg, &out->spec, err);
+    if ((rc = get_recon(r, r->args, "args", cfg, &out->spec, err)) < 0)
+        return rc;
+    double budget = 0;
+    if ((rc = sci_json_get_double(r->doc, r->args, "args", "budget_s", 0, 1e-6, 1e6, &budget, err)) < 0)
+        return rc;
+    if (rc == 1)
+        return 0;
+    /* The capture's size, from its manifest: times scale with w·h·N. */
+    char path[SCICAPD_PATH_MAX + 96];
+    snprintf(path, sizeof path, "%s/captures/%s/problem.json", cfg->storage_root, out->capture_id);
+    json_t *man = json_load_file(path, 0, NULL);
+    double voxels = man ? (double)json_integer_value(json_object_get(man, "w")) *
+                              (double)json_integer_value(json_object_get(man, "h")) *
+                              (double)json_integer_value(json_object_get(man, "n"))
+                        : 0;
+    json_decref(man);
+    if (!(voxels > 0))
+        return sci_json_fail(r->doc, err, "args.capture", "capture \"%s\" not found (needed to size the budget)",
+                             out->capture_id);
+    const char *method = json_object_get(r->args, "method") ? (out->spec.method == SCICAPD_METHOD_ADMMTV ? "admm-tv"
+                                                                                                         : "gap-tv")
+                                                            : NULL;
+    return apply_budget(cfg, r->doc, "args.budget_s", budget, method, voxels, &out->spec, err);
 }
 
 int scicapd_args_cancel(const scicapd_request *r, uint64_t *job, sci_error *err)

@@ -94,7 +94,9 @@ const char *scicapd_method_name(scicapd_method m);
 /* A reconstruction fully resolved: method, preset, parameters. */
 typedef struct scicapd_recon_spec {
     scicapd_method method;
-    char preset[16];
+    char preset[16];                 /* "budget" when chosen by time budget */
+    double budget_s;                 /* the request's budget (0: none) */
+    double predicted_s, expected_db; /* the chosen setting's predicted solver time and mean PSNR on the suite */
     sci_gaptv_params gap;
     sci_admmtv_params admm;
 } scicapd_recon_spec;
@@ -104,7 +106,9 @@ typedef struct scicapd_recon_spec {
  * (gap-tv). Errors are positioned in doc at `path`. */
 int scicapd_recon_spec_resolve(const char *method, const char *preset, const sci_json_doc *doc,
                                const json_t *params, const char *path, scicapd_recon_spec *out, sci_error *err);
+/* The spec as JSON; with a budget, also what was chosen for it (budget_s, predicted_s, expected_psnr_db). */
 json_t *scicapd_recon_spec_json(const scicapd_recon_spec *s);
+json_t *scicapd_recon_spec_json_plain(const scicapd_recon_spec *s);
 
 typedef struct scicapd_capture_args {
     scicapd_mask_set mask_set;   /* resolved copy */
