@@ -153,12 +153,20 @@ void nerf_poses_distance(const nerf_poses *p, const double (*ref)[12], double *r
 
 void nerf_poses_set_hold_first(nerf_poses *p, int hold) { p->hold_first = hold != 0; }
 
-void nerf_poses_relative_error(const nerf_poses *p, const double (*ref)[12], double *rot_rad, double *trans)
+nerf_pose_error nerf_poses_relative_error(const nerf_poses *p, const double (*ref)[12])
 {
-    double sr = 0, st = 0, P0[12], P0i[12], R0i[12];
+    nerf_pose_error e = {.scale = 1};
+    if (p->n < 2)
+        return e;
+    double P0[12], P0i[12], R0i[12], num = 0, den = 0;
     nerf_poses_get(p, 0, P0);
     nerf_se3_inv(P0, P0i);
     nerf_se3_inv(ref[0], R0i);
+    double(*qp)[3] = malloc((size_t)p->n * sizeof *qp), (*qr)[3] = malloc((size_t)p->n * sizeof *qr);
+    if (!qp || !qr) {
+        free(qp), free(qr);
+        return (nerf_pose_error){NAN, NAN, NAN, NAN};
+    }
     for (int j = 1; j < p->n; j++) {
         double Pj[12], Qp[12], Qr[12], Qri[12], D[12], xi[6];
         nerf_poses_get(p, j, Pj);
@@ -167,9 +175,22 @@ void nerf_poses_relative_error(const nerf_poses *p, const double (*ref)[12], dou
         nerf_se3_inv(Qr, Qri);
         nerf_se3_mul(Qri, Qp, D);
         nerf_se3_log(D, xi);
-        sr += sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
-        st += sqrt(D[3] * D[3] + D[7] * D[7] + D[11] * D[11]);
+        e.rot_rad += sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
+        for (int k = 0; k < 3; k++) {
+            qp[j][k] = Qp[4 * k + 3], qr[j][k] = Qr[4 * k + 3];
+            num += qp[j][k] * qr[j][k], den += qp[j][k] * qp[j][k];
+        }
     }
-    *rot_rad = p->n > 1 ? sr / (p->n - 1) : 0;
-    *trans = p->n > 1 ? st / (p->n - 1) : 0;
+    e.scale = den > 0 ? num / den : 1;
+    for (int j = 1; j < p->n; j++) {
+        double a = 0, b = 0;
+        for (int k = 0; k < 3; k++) {
+            double d = qp[j][k] - qr[j][k], ds = e.scale * qp[j][k] - qr[j][k];
+            a += d * d, b += ds * ds;
+        }
+        e.trans += sqrt(a), e.trans_scaled += sqrt(b);
+    }
+    free(qp), free(qr);
+    e.rot_rad /= p->n - 1, e.trans /= p->n - 1, e.trans_scaled /= p->n - 1;
+    return e;
 }

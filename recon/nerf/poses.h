@@ -49,9 +49,16 @@ double *nerf_poses_state(nerf_poses *p, long **step);
 
 /* Mean rotation angle (radians) and translation distance between the poses and `ref` (n poses): how far they are. */
 void nerf_poses_distance(const nerf_poses *p, const double (*ref)[12], double *rot_rad, double *trans);
-/* The same for the motion relative to pose 1, blind to the gauge (a rigid motion of the whole trajectory): mean
- * over j = 2 … N of the rotation angle and translation length of (R₁⁻¹R_j)⁻¹·(P₁⁻¹P_j), P the poses, R the
- * reference. 0, 0 for N = 1. */
-void nerf_poses_relative_error(const nerf_poses *p, const double (*ref)[12], double *rot_rad, double *trans);
+/* Error of the motion relative to pose 1, blind to the gauge (a rigid motion of the whole trajectory), P the poses,
+ * R the reference, means over j = 2 … N:
+ *   rot_rad   rotation angle of (R₁⁻¹R_j)⁻¹·(P₁⁻¹P_j)
+ *   trans     ‖t(P₁⁻¹P_j) − t(R₁⁻¹R_j)‖
+ *   trans_scaled  the same after scaling the estimated relative translations by the least-squares factor `scale`
+ *             (a scene and its camera path scaled together give the same images: scale is a gauge too)
+ * All 0 for N = 1 (scale 1). */
+typedef struct nerf_pose_error {
+    double rot_rad, trans, trans_scaled, scale;
+} nerf_pose_error;
+nerf_pose_error nerf_poses_relative_error(const nerf_poses *p, const double (*ref)[12]);
 
 #endif

@@ -94,6 +94,7 @@ static void train_config(const sci_rayformer_params *p, nerf_train_config *c)
                              .pose_hold_first = p->pose_hold_first,
                              .pose_lr = p->pose_lr,
                              .pose_lr_final = p->pose_lr_final,
+                             .pose_delay = p->pose_delay,
                              .pose_warmup = p->pose_warmup,
                              .metrics_every = p->metrics_every,
                              .ssim_every = p->ssim_every,
@@ -185,6 +186,8 @@ int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_param
     cfg.intra_ray = params->intra_ray;
     if ((rc = nerf_train_scene_box(problem, &tc, cfg.aabb_min, cfg.aabb_max, err)) < 0)
         return rc;
+    memcpy(tc.box_lo, cfg.aabb_min, sizeof tc.box_lo);
+    memcpy(tc.box_hi, cfg.aabb_max, sizeof tc.box_hi);
     rf_model m = {0};
     const int groups = params->patches_per_step * problem->mask->n;
     const int threads = params->threads > 0 ? params->threads : omp_get_max_threads();

@@ -50,7 +50,8 @@ typedef struct sci_rayformer_params {
     double pose_perturb_trans;   /* scene units */
     double pose_lr;              /* pose Adam learning rate, decayed exponentially to pose_lr_final */
     double pose_lr_final;
-    int pose_warmup;             /* pose lr ramps up from 0 over this many steps (0: none) */
+    int pose_delay;              /* poses stay put for this many steps (the scene forms first) */
+    int pose_warmup;             /* then the pose lr ramps up from 0 over this many steps (0: none) */
     int pose_hold_first;         /* gauge: pose 1 stays where it starts */
     int metrics_every;           /* full render for PSNR every k steps (0: only at the end) */
     int ssim_every;              /* SSIM on those renders every k steps (0: only at the end) */

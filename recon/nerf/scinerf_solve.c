@@ -27,6 +27,7 @@ void sci_scinerf_params_default(sci_scinerf_params *p)
                               .feature_dim = 15,
                               .color_hidden = 64,
                               .dir_enc = NERF_MLP_DIR_SH,
+                              .sh_degree = 4,
                               .lr = 1e-2,
                               .lr_final = 1e-3,
                               .pose_mode = NERF_POSES_KNOWN,
@@ -78,6 +79,7 @@ static void train_config(const sci_scinerf_params *p, nerf_train_config *c)
                              .pose_hold_first = p->pose_hold_first,
                              .pose_lr = p->pose_lr,
                              .pose_lr_final = p->pose_lr_final,
+                             .pose_delay = p->pose_delay,
                              .pose_warmup = p->pose_warmup,
                              .metrics_every = p->metrics_every,
                              .ssim_every = p->ssim_every,
@@ -102,6 +104,7 @@ static nerf_mlp_config mlp_config(const sci_scinerf_params *p)
     c.feature_dim = p->feature_dim;
     c.color_hidden = p->color_hidden;
     c.dir_enc = p->dir_enc;
+    c.sh_degree = p->sh_degree;
     /* ReLU density (NeRF) with the frequency encoding, trunc_exp (Instant-NGP) with the hash grid */
     c.density_act = p->pos_enc == NERF_MLP_POS_HASH ? NERF_ACT_TRUNC_EXP : NERF_ACT_RELU;
     return c;
@@ -180,6 +183,8 @@ int sci_scinerf_solve_ex(const sci_problem *problem, const sci_scinerf_params *p
     nerf_mlp_config mc = mlp_config(params);
     if ((rc = nerf_train_scene_box(problem, &tc, mc.aabb_min, mc.aabb_max, err)) < 0)
         return rc;
+    memcpy(tc.box_lo, mc.aabb_min, sizeof tc.box_lo);
+    memcpy(tc.box_hi, mc.aabb_max, sizeof tc.box_hi);
     const int groups = tc.groups_per_step * problem->mask->n, R = GROUP * GROUP;
     const int threads = params->threads > 0 ? params->threads : omp_get_max_threads();
     mlp_model m[2] = {{0}, {0}};

@@ -34,13 +34,14 @@ typedef struct sci_scinerf_params {
     int depth, width, skip;      /* trunk (SCINeRF 8, 256, 4; skip −1: none) */
     int feature_dim;             /* features before the colour head (SCINeRF 256) */
     int color_hidden;            /* colour head hidden width (SCINeRF 128; 0: one layer) */
-    nerf_mlp_dir_enc dir_enc;    /* NERF_MLP_DIR_FREQ (SCINeRF, 4 octaves) or NERF_MLP_DIR_SH (degree 4) */
+    nerf_mlp_dir_enc dir_enc;    /* NERF_MLP_DIR_FREQ (SCINeRF, 4 octaves) or NERF_MLP_DIR_SH */
+    int sh_degree;               /* SH directions: 1 … 4 (1: a constant, i.e. view-independent colour) */
     double lr, lr_final;         /* Adam, decayed exponentially over the steps */
     nerf_poses_mode pose_mode;   /* KNOWN, LINEAR (SCINeRF's default) or PER_FRAME */
     int pose_init_identity;      /* start from the identity (SCINeRF) instead of the camera's poses */
     double pose_perturb_rot_rad, pose_perturb_trans; /* U(±a) on each twist component of the start */
     double pose_lr, pose_lr_final;
-    int pose_warmup, pose_hold_first;
+    int pose_delay, pose_warmup, pose_hold_first; /* as in rayformer_solve.h */
     int metrics_every, ssim_every;
     unsigned long long seed;
     int threads;                 /* OpenMP threads, 0: omp_get_max_threads() */

@@ -16,6 +16,21 @@
 #include "recon/nerf/se3.h"
 #include "recon/tracer.h"
 
+/* Checkpoint header (trainer.h); the arrays follow it. */
+#define CKPT_MAGIC "SCINERF"
+#define CKPT_VERSION 1u
+
+typedef struct ckpt_header {
+    char magic[8];
+    uint32_t version, reserved;
+    char method[16];
+    int32_t w, h, n, iter;
+    uint64_t n_params[2], n_pose_params;
+    uint64_t rng[4];
+    double wall_s, cpu_s;
+    float box[6]; /* the scene box the models were built with */
+} ckpt_header;
+
 int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
 {
     const char *m = c->method ? c->method : "nerf";
@@ -48,8 +63,9 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
         !isfinite(c->pose_perturb_trans))
         return sci_error_set(err, -EINVAL, "%s: pose perturbation out of range (rotation %g rad in [0, 1], %g)", m,
                              c->pose_perturb_rot_rad, c->pose_perturb_trans);
-    if (c->pose_warmup < 0 || c->metrics_every < 0 || c->ssim_every < 0 || c->checkpoint_every < 0)
-        return sci_error_set(err, -EINVAL, "%s: pose-warmup, metrics and checkpoint intervals must be >= 0", m);
+    if (c->pose_delay < 0 || c->pose_warmup < 0 || c->metrics_every < 0 || c->ssim_every < 0 || c->checkpoint_every < 0)
+        return sci_error_set(err, -EINVAL, "%s: pose delay and warm-up, metrics and checkpoint intervals must be >= 0",
+                             m);
     return 0;
 }
 
@@ -64,10 +80,21 @@ static int make_poses(const sci_problem *pb, const nerf_train_config *c, nerf_po
     return rc;
 }
 
+static int ckpt_header_check(const void *blob, size_t bytes, ckpt_header *h, sci_error *err);
+
 int nerf_train_scene_box(const sci_problem *pb, const nerf_train_config *c, float lo[3], float hi[3],
                          sci_error *err)
 {
     const sci_camera *cam = pb->camera;
+    if (c->resume) { /* the network's coordinates must mean what they meant when the checkpoint was taken */
+        ckpt_header h;
+        int rc = ckpt_header_check(c->resume, c->resume_bytes, &h, err);
+        if (rc < 0)
+            return rc;
+        memcpy(lo, h.box, 3 * sizeof *lo);
+        memcpy(hi, h.box + 3, 3 * sizeof *hi);
+        return 0;
+    }
     nerf_poses *p;
     int rc = make_poses(pb, c, &p, err);
     if (rc < 0)
@@ -192,7 +219,9 @@ static int run_init(run *r, const sci_problem *pb, const nerf_train_config *c, c
     const size_t fs = (size_t)r->w * r->h;
     for (size_t k = 0; k < fs; k++)
         ysq += (double)pb->meas->data[k] * pb->meas->data[k];
-    r->y_rms = sqrt(ysq / (double)fs);
+    /* the residual's scale: the snapshot's RMS, floored at 0.1 % of white so that a black snapshot does not make
+     * every residual look divergent */
+    r->y_rms = fmax(sqrt(ysq / (double)fs), 1e-3 * (pb->peak > 0 ? pb->peak : 1.0));
     int rc;
     if ((rc = make_poses(pb, c, &r->poses, err)) < 0)
         return rc;
@@ -418,7 +447,7 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
         loss += pass_loss(r, pc, 0, &dc);
     }
     *loss_out = loss;
-    *residual = sqrt(data / (double)P) / fmax(r->y_rms, 1e-30);
+    *residual = sqrt(data / (double)P) / r->y_rms;
     const int pose_grads = nerf_poses_param_count(r->poses) > 0;
     const double lr = lr_at(c->lr, c->lr_final, it, c->iters);
     for (int k = 0; k < r->n_pass; k++) {
@@ -432,8 +461,10 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
         double plr = c->pose_lr > 0 ? lr_at(c->pose_lr, c->pose_lr_final > 0 ? c->pose_lr_final : c->pose_lr, it,
                                             c->iters)
                                     : 0;
-        if (c->pose_warmup > 0 && it < c->pose_warmup)
-            plr *= (double)it / c->pose_warmup;
+        if (it <= c->pose_delay)
+            plr = 0;
+        else if (c->pose_warmup > 0 && it - c->pose_delay < c->pose_warmup)
+            plr *= (double)(it - c->pose_delay) / c->pose_warmup;
         nerf_poses_step(r->poses, plr);
     }
     return 0;
@@ -480,18 +511,6 @@ static int render_all(run *r, sci_cube *x)
 
 /* ------------------------------------------------------------------ checkpoints */
 
-#define CKPT_MAGIC "SCINERF"
-#define CKPT_VERSION 1u
-
-typedef struct ckpt_header {
-    char magic[8];
-    uint32_t version, reserved;
-    char method[16];
-    int32_t w, h, n, iter;
-    uint64_t n_params[2], n_pose_params;
-    uint64_t rng[4];
-    double wall_s, cpu_s;
-} ckpt_header;
 
 static uint64_t fnv1a(const unsigned char *p, size_t n)
 {
@@ -525,6 +544,8 @@ static int ckpt_save(run *r, int iter, double wall_s, double cpu_s, unsigned cha
     ckpt_header h = {.magic = CKPT_MAGIC, .version = CKPT_VERSION, .w = r->w, .h = r->h, .n = r->n, .iter = iter,
                      .n_pose_params = (uint64_t)nerf_poses_param_count(r->poses), .wall_s = wall_s, .cpu_s = cpu_s};
     snprintf(h.method, sizeof h.method, "%s", r->c->method);
+    memcpy(h.box, r->c->box_lo, sizeof r->c->box_lo);
+    memcpy(h.box + 3, r->c->box_hi, sizeof r->c->box_hi);
     for (int k = 0; k < r->n_pass; k++)
         h.n_params[k] = r->ps[k].m->n_params;
     memcpy(h.rng, r->rng.s, sizeof h.rng);
@@ -613,11 +634,15 @@ static int ckpt_load(run *r, const void *blob, size_t bytes, sci_error *err)
                                  "checkpoint: %s model has %llu parameters, this configuration %llu",
                                  k ? "fine" : "coarse", (unsigned long long)h.n_params[k], (unsigned long long)want);
     }
-    if (h.n_pose_params != (uint64_t)nerf_poses_param_count(r->poses))
+    /* A checkpoint of a run with known poses may start a run that optimises them (scene first, poses after): the
+     * poses then start as configured. Otherwise the pose parametrisation must be the same. */
+    const int skip_poses = h.n_pose_params == 0 && nerf_poses_param_count(r->poses) > 0;
+    if (!skip_poses && h.n_pose_params != (uint64_t)nerf_poses_param_count(r->poses))
         return sci_error_set(err, SCI_ESHAPE, "checkpoint: %llu pose parameters, this pose mode has %d",
                              (unsigned long long)h.n_pose_params, nerf_poses_param_count(r->poses));
-    if (bytes != ckpt_bytes(r))
-        return sci_error_set(err, SCI_EFORMAT, "checkpoint: %zu bytes, expected %zu", bytes, ckpt_bytes(r));
+    size_t want = ckpt_bytes(r) - (skip_poses ? (size_t)nerf_poses_param_count(r->poses) * 4 * sizeof(double) : 0);
+    if (bytes != want)
+        return sci_error_set(err, SCI_EFORMAT, "checkpoint: %zu bytes, expected %zu", bytes, want);
     if (h.iter < 0 || h.iter > 10000000 || !isfinite(h.wall_s) || !isfinite(h.cpu_s))
         return sci_error_set(err, SCI_EFORMAT, "checkpoint: iteration %d or times out of range", h.iter);
     const unsigned char *in = (const unsigned char *)blob + sizeof h;
@@ -635,17 +660,19 @@ static int ckpt_load(run *r, const void *blob, size_t bytes, sci_error *err)
             return sci_error_set(err, SCI_ENONFINITE, "checkpoint: non-finite %s model parameters or moments",
                                  k ? "fine" : "coarse");
     }
-    size_t npp = (size_t)nerf_poses_param_count(r->poses);
-    long *step;
-    double *st = nerf_poses_state(r->poses, &step), *xi = nerf_poses_params(r->poses);
-    int64_t step64;
-    memcpy(xi, in, npp * sizeof(double)), in += npp * sizeof(double);
-    memcpy(st, in, 3 * npp * sizeof(double)), in += 3 * npp * sizeof(double);
-    memcpy(&step64, in, sizeof step64);
-    for (size_t i = 0; i < 4 * npp; i++)
-        if (!isfinite(i < npp ? xi[i] : st[i - npp]))
-            return sci_error_set(err, SCI_ENONFINITE, "checkpoint: non-finite pose parameters");
-    *step = (long)step64;
+    if (!skip_poses) { /* else the poses keep their configured start */
+        size_t npp = (size_t)h.n_pose_params;
+        long *step;
+        double *st = nerf_poses_state(r->poses, &step), *xi = nerf_poses_params(r->poses);
+        int64_t step64;
+        memcpy(xi, in, npp * sizeof(double)), in += npp * sizeof(double);
+        memcpy(st, in, 3 * npp * sizeof(double)), in += 3 * npp * sizeof(double);
+        memcpy(&step64, in, sizeof step64);
+        for (size_t i = 0; i < 4 * npp; i++)
+            if (!isfinite(i < npp ? xi[i] : st[i - npp]))
+                return sci_error_set(err, SCI_ENONFINITE, "checkpoint: non-finite pose parameters");
+        *step = (long)step64;
+    }
     memcpy(r->rng.s, h.rng, sizeof h.rng);
     r->wall0_ns = (int64_t)(h.wall_s * 1e9);
     r->cpu0_ns = (int64_t)(h.cpu_s * 1e9);

@@ -27,9 +27,12 @@
  * their Adam, the sampling RNG, elapsed time) are byte blobs: recon/ writes no files. checkpoint_fn gets one
  * every checkpoint_every steps and when the run is canceled; `resume` starts from one. A resumed run continues
  * the same step sequence: with the same parameters and thread count it ends bitwise equal to an uninterrupted
- * run. The blob is validated (magic, version, method, sizes, checksum, finite values) before use.
+ * run. The blob is validated (magic, version, method, sizes, checksum, finite values) before use. A checkpoint of
+ * a run with known poses may also start a run that optimises them (the scene first, then the poses): the poses
+ * then start as configured.
  * Layout (little-endian, native float/double): header {magic "SCINERF\0", u32 version, u32 reserved,
- * char method[16], i32 w, h, n, iter, u64 n_params[2], u64 n_pose_params, u64 rng[4], f64 wall_s, cpu_s},
+ * char method[16], i32 w, h, n, iter, u64 n_params[2], u64 n_pose_params, u64 rng[4], f64 wall_s, cpu_s,
+ * f32 box[6]},
  * then for each model: params (f32), Adam m, s (f32), steps (u32); pose twists, pose Adam m, v, grad (f64),
  * pose step (i64); then a u64 FNV-1a checksum of everything before it.
  *
@@ -87,7 +90,8 @@ typedef struct nerf_train_config {
     double pose_perturb_trans;    /* U(±a) on each translation component, scene units */
     int pose_hold_first;          /* pin pose 1 (gauge) */
     double pose_lr, pose_lr_final;/* pose Adam, exponential decay */
-    int pose_warmup;              /* pose lr ramps linearly from 0 over this many steps (0: none) */
+    int pose_delay;               /* poses stay put for this many steps (the scene forms first), 0: none */
+    int pose_warmup;              /* then the pose lr ramps linearly from 0 over this many steps (0: none) */
     int metrics_every;            /* full render for PSNR every k steps (0: only at the end) */
     int ssim_every;               /* SSIM on those renders every k steps (0: only at the end) */
     uint64_t seed;
@@ -96,13 +100,16 @@ typedef struct nerf_train_config {
     void *checkpoint_user;
     const void *resume;           /* borrowed checkpoint blob to start from, or NULL */
     size_t resume_bytes;
+    float box_lo[3], box_hi[3];   /* the scene box the models were built with (nerf_train_scene_box); kept in
+                                     checkpoints */
 } nerf_train_config;
 
 /* -EINVAL naming the field and its value. */
 int nerf_train_config_check(const nerf_train_config *c, sci_error *err);
 
 /* The box every sample may fall in: the frustums between near and far of the initial poses, padded (more when
- * poses are optimised). Poses as the trainer will start them (identity + perturbation, or the camera's). */
+ * poses are optimised). Poses as the trainer will start them (identity + perturbation, or the camera's). With
+ * c->resume, the box stored in the checkpoint (SCI_EFORMAT if the blob is not a valid checkpoint). */
 int nerf_train_scene_box(const sci_problem *pb, const nerf_train_config *c, float lo[3], float hi[3],
                          sci_error *err);
 
