@@ -102,6 +102,9 @@ static void test_params_check(void **state)
     assert_non_null(strstr(err.msg, "depth"));
     sci_scinerf_params_default(&p);
     assert_int_equal(sci_scinerf_params_preset(&p, "best"), 0);
+    assert_int_equal(p.fine_samples, 32);
+    assert_int_equal(sci_scinerf_params_check(&p, &err), 0);
+    sci_scinerf_params_paper(&p);
     assert_int_equal(p.pos_enc, NERF_MLP_POS_FREQ);
     assert_int_equal(sci_scinerf_params_check(&p, &err), 0);
     assert_int_equal(sci_scinerf_params_preset(&p, "quick"), -EINVAL);
@@ -163,7 +166,7 @@ static void test_frequency_network(void **state)
     sci_problem *p = tiny_problem(3);
     sci_scinerf_params prm;
     small_params(&prm, 3);
-    assert_int_equal(sci_scinerf_params_preset(&prm, "best"), 0);
+    sci_scinerf_params_paper(&prm);
     prm.iters = 5, prm.rays_per_step = 64, prm.samples = 8, prm.fine_samples = 8, prm.depth = 3, prm.width = 32;
     prm.skip = 2, prm.feature_dim = 16, prm.color_hidden = 16, prm.metrics_every = 0;
     sci_result r = {0};

@@ -1,0 +1,244 @@
+/* bench/bench_nerf_recon.c — cost and accuracy of the NeRF reconstruction presets (issue 6).
+ *
+ * Part 1: seconds per training step, rendering seconds per frame and peak memory (RSS) of each preset of rayformer
+ * and scinerf at 128×128 (static3d_corridor) and 256×256 (static3d_tabletop), N = 8: each measurement runs in its
+ * own child process (so that its peak RSS is its own, from wait4), trains STEPS steps and renders the frames once;
+ * the step time is the median over the steps after the first two, the render time the final render / N.
+ * Part 2: PSNR and SSIM against wall time of each preset run to its end on static3d_corridor (known poses),
+ * sampled every 1/8 of the run (the evaluation renders are excluded from the wall time, as in every trace).
+ * Writes bench/results/nerf_recon.md; records the load average before and after (2 shared cores: timings vary
+ * with what else runs). `bench_nerf_recon --quick` does part 1 only.
+ */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "recon/nerf/rayformer_solve.h"
+#include "recon/nerf/scinerf_solve.h"
+#include "sim/simulate.h"
+
+#define STEPS 12
+#define MAX_CURVE 16
+
+typedef struct measure {
+    int ok;
+    double step_s, render_s_per_frame, total_s;
+    int n_curve;
+    double curve[MAX_CURVE][4]; /* iter, wall s, PSNR, SSIM */
+    long n_params;
+    char err[256];
+} measure;
+
+static void loadavg(char *buf, size_t n)
+{
+    FILE *f = fopen("/proc/loadavg", "r");
+    buf[0] = 0;
+    if (f) {
+        if (!fgets(buf, (int)n, f))
+            buf[0] = 0;
+        fclose(f);
+    }
+    char *sp = buf;
+    for (int k = 0; k < 3 && sp; k++)
+        sp = strchr(sp + 1, ' ');
+    if (sp)
+        *sp = 0;
+}
+
+static int cmpd(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static sci_problem *load_scene(const char *path, sci_error *err)
+{
+    sim_scene *sc = NULL;
+    if (sim_scene_load_file(&sc, path, err) < 0)
+        return NULL;
+    sci_problem **p;
+    int k;
+    int rc = sim_run(sc, &p, &k, NULL, NULL, NULL, err);
+    sim_scene_free(sc);
+    if (rc < 0)
+        return NULL;
+    for (int i = 1; i < k; i++)
+        sci_problem_free(p[i]);
+    sci_problem *one = p[0];
+    free(p);
+    return one;
+}
+
+/* Runs in the child: one preset of one method on one scene, `full` = the whole preset, else STEPS steps. */
+static void run_child(const char *method, const char *preset, const char *scene, int full, measure *m)
+{
+    sci_error err = {0};
+    sci_problem *p = load_scene(scene, &err);
+    if (!p) {
+        snprintf(m->err, sizeof m->err, "%s", err.msg);
+        return;
+    }
+    sci_result r = {0};
+    int rc, iters;
+    if (strcmp(method, "rayformer") == 0) {
+        sci_rayformer_params q;
+        sci_rayformer_params_default(&q);
+        sci_rayformer_params_preset(&q, preset);
+        if (!full)
+            q.iters = STEPS;
+        q.metrics_every = full ? (q.iters + 7) / 8 : 0;
+        q.ssim_every = q.metrics_every;
+        iters = q.iters;
+        rc = sci_rayformer_solve(p, &q, &r, NULL, NULL);
+    } else {
+        sci_scinerf_params q;
+        sci_scinerf_params_default(&q);
+        sci_scinerf_params_preset(&q, preset);
+        if (!full)
+            q.iters = STEPS;
+        q.metrics_every = full ? (q.iters + 7) / 8 : 0;
+        q.ssim_every = q.metrics_every;
+        iters = q.iters;
+        rc = sci_scinerf_solve(p, &q, &r, NULL, NULL);
+    }
+    if (rc < 0 || (int)r.trace.len != iters) {
+        snprintf(m->err, sizeof m->err, "%s", r.error.msg);
+    } else {
+        const sci_trace_entry *e = r.trace.e;
+        const int n = (int)r.trace.len;
+        if (!full) {
+            double d[STEPS];
+            int k = 0;
+            for (int i = 2; i < n - 1; i++)
+                d[k++] = e[i].wall_s - e[i - 1].wall_s;
+            qsort(d, (size_t)k, sizeof *d, cmpd);
+            m->step_s = d[k / 2];
+            m->render_s_per_frame = (e[n - 1].wall_s - e[n - 2].wall_s - m->step_s) / p->mask->n;
+        }
+        m->total_s = e[n - 1].wall_s;
+        for (int i = 0; i < n && m->n_curve < MAX_CURVE; i++)
+            if (!isnan(e[i].psnr_peak1)) {
+                double *c = m->curve[m->n_curve++];
+                c[0] = e[i].iter, c[1] = e[i].wall_s, c[2] = e[i].psnr_peak1, c[3] = e[i].ssim;
+            }
+        m->ok = 1;
+    }
+    sci_result_free_contents(&r);
+    sci_problem_free(p);
+}
+
+/* Fork, run, collect the measurement and the child's peak RSS (KiB). */
+static int measure_in_child(const char *method, const char *preset, const char *scene, int full, measure *m,
+                            long *maxrss_kib)
+{
+    int fd[2];
+    if (pipe(fd) < 0)
+        return -errno;
+    fflush(stdout);
+    pid_t pid = fork();
+    if (pid < 0)
+        return -errno;
+    if (pid == 0) {
+        close(fd[0]);
+        measure mm = {0};
+        run_child(method, preset, scene, full, &mm);
+        ssize_t w = write(fd[1], &mm, sizeof mm);
+        _exit(w == (ssize_t)sizeof mm ? 0 : 1);
+    }
+    close(fd[1]);
+    memset(m, 0, sizeof *m);
+    size_t got = 0;
+    while (got < sizeof *m) {
+        ssize_t k = read(fd[0], (char *)m + got, sizeof *m - got);
+        if (k <= 0)
+            break;
+        got += (size_t)k;
+    }
+    close(fd[0]);
+    int status;
+    struct rusage ru;
+    if (wait4(pid, &status, 0, &ru) < 0)
+        return -errno;
+    *maxrss_kib = ru.ru_maxrss;
+    return got == sizeof *m && WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -EIO;
+}
+
+int main(int argc, char **argv)
+{
+    const int quick = argc > 1 && strcmp(argv[1], "--quick") == 0;
+    const char *methods[] = {"rayformer", "scinerf"}, *presets[] = {"fast", "balanced", "best"};
+    const char *scenes[] = {"etc/scenes/static3d_corridor.json", "etc/scenes/static3d_tabletop.json"};
+    const int sizes[] = {128, 256};
+    char load0[64], load1[64];
+    loadavg(load0, sizeof load0);
+    printf("NeRF reconstruction presets, 2 threads; load average %s\n", load0);
+    FILE *md = fopen("bench/results/nerf_recon.md.tmp", "w");
+    if (!md) {
+        perror("bench/results/nerf_recon.md.tmp");
+        return 1;
+    }
+    fprintf(md, "Measured by `make bench` (bench/bench_nerf_recon.c): each preset trained for %d steps in its own "
+                "process on static3d_corridor (128×128) and static3d_tabletop (256×256), N = 8, 2 threads; step "
+                "time = median step after the first two; render = the final window-wise render of all N frames, "
+                "per frame; peak RSS of that process.\n\n",
+            STEPS);
+    fprintf(md, "| method | preset | size | s per step | render s per frame | peak RSS MiB |\n");
+    fprintf(md, "|---|---|---:|---:|---:|---:|\n");
+    int status = 0;
+    for (int mi = 0; mi < 2; mi++)
+        for (int pi = 0; pi < 3; pi++)
+            for (int si = 0; si < 2; si++) {
+                measure m;
+                long rss = 0;
+                int rc = measure_in_child(methods[mi], presets[pi], scenes[si], 0, &m, &rss);
+                if (rc < 0 || !m.ok) {
+                    printf("%s %s %d: failed: %s\n", methods[mi], presets[pi], sizes[si], m.err);
+                    fprintf(md, "| %s | %s | %d | failed | | |\n", methods[mi], presets[pi], sizes[si]);
+                    status = 1;
+                    continue;
+                }
+                printf("%-9s %-8s %3d²: %.3f s/step, render %.2f s/frame, peak RSS %.0f MiB\n", methods[mi],
+                       presets[pi], sizes[si], m.step_s, m.render_s_per_frame, rss / 1024.0);
+                fprintf(md, "| %s | %s | %d² | %.3f | %.2f | %.0f |\n", methods[mi], presets[pi], sizes[si],
+                        m.step_s, m.render_s_per_frame, rss / 1024.0);
+                fflush(md);
+            }
+    if (!quick) {
+        fprintf(md, "\nPSNR (peak = 1) and SSIM against wall time, each preset run to its end on static3d_corridor "
+                    "(128×128×8, known poses; evaluation renders excluded from the time):\n\n");
+        fprintf(md, "| method | preset | step | wall s | PSNR dB | SSIM |\n|---|---|---:|---:|---:|---:|\n");
+        for (int mi = 0; mi < 2; mi++)
+            for (int pi = 0; pi < 3; pi++) {
+                measure m;
+                long rss = 0;
+                int rc = measure_in_child(methods[mi], presets[pi], scenes[0], 1, &m, &rss);
+                if (rc < 0 || !m.ok) {
+                    printf("%s %s full run failed: %s\n", methods[mi], presets[pi], m.err);
+                    status = 1;
+                    continue;
+                }
+                for (int k = 0; k < m.n_curve; k++) {
+                    const double *c = m.curve[k];
+                    printf("%-9s %-8s step %5.0f  %7.1f s  PSNR %.2f dB  SSIM %.4f\n", methods[mi], presets[pi], c[0],
+                           c[1], c[2], c[3]);
+                    fprintf(md, "| %s | %s | %.0f | %.1f | %.2f | %.4f |\n", methods[mi], presets[pi], c[0], c[1],
+                            c[2], c[3]);
+                }
+                fflush(md);
+            }
+    }
+    loadavg(load1, sizeof load1);
+    fprintf(md, "\nLoad average %s at the start, %s at the end (2 cores, shared with other jobs).\n", load0, load1);
+    fclose(md);
+    if (rename("bench/results/nerf_recon.md.tmp", "bench/results/nerf_recon.md") < 0) {
+        perror("bench/results/nerf_recon.md");
+        return 1;
+    }
+    printf("load average %s → %s; wrote bench/results/nerf_recon.md\n", load0, load1);
+    return status;
+}
