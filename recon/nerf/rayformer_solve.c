@@ -15,7 +15,7 @@ const char *const sci_rayformer_ablation_names[5] = {"baseline", "+patch", "+int
 
 void sci_rayformer_params_default(sci_rayformer_params *p)
 {
-    *p = (sci_rayformer_params){.iters = 1000,
+    *p = (sci_rayformer_params){.iters = 2000,
                                 .patch = 8,
                                 .patches_per_step = 8,
                                 .samples = 32,
@@ -51,9 +51,9 @@ int sci_rayformer_params_preset(sci_rayformer_params *p, const char *name)
         int iters, patches_per_step, log2_table;
         double finest_res;
     } t[] = {
-        {"fast", 600, 4, 16, 512},
-        {"balanced", 1000, 8, 16, 512},
-        {"best", 2000, 8, 18, 1024},
+        {"fast", 1500, 4, 16, 512},
+        {"balanced", 2000, 8, 16, 512},
+        {"best", 4000, 8, 18, 1024},
     };
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (strcmp(name, t[i].name) == 0) {

@@ -13,7 +13,7 @@
 
 void sci_scinerf_params_default(sci_scinerf_params *p)
 {
-    *p = (sci_scinerf_params){.iters = 1000,
+    *p = (sci_scinerf_params){.iters = 1500,
                               .rays_per_step = 2048,
                               .samples = 32,
                               .fine_samples = 0,
@@ -45,9 +45,9 @@ int sci_scinerf_params_preset(sci_scinerf_params *p, const char *name)
         const char *name;
         int iters, rays, fine;
     } t[] = {
-        {"fast", 500, 1024, 0},
-        {"balanced", 1000, 2048, 0},
-        {"best", 2000, 2048, 32},
+        {"fast", 1000, 1024, 0},
+        {"balanced", 1500, 2048, 0},
+        {"best", 1500, 2048, 32},
     };
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (strcmp(name, t[i].name) == 0) {
