@@ -72,8 +72,8 @@ static void write_md(void)
             snprintf(rays, sizeof rays, "%d", r->rays);
         if (r->iters)
             snprintf(steps, sizeof steps, "%d", r->iters);
-        fprintf(f, "| %s | %s | %s | %s | %.2f | %.4f | %.1f |\n", r->scene, r->method, steps, rays, r->psnr, r->ssim,
-                r->wall_s);
+        fprintf(f, "| %s | %s | %s | %s | %.2f | %.4f | %.*f |\n", r->scene, r->method, steps, rays, r->psnr, r->ssim,
+                r->wall_s < 10 ? 2 : 0, r->wall_s);
     }
     int any_pose = 0;
     for (int i = 0; i < n_rows; i++)
@@ -112,7 +112,7 @@ static void add(const char *scene, const char *method, const sci_result *r, int 
             nerf_poses_free(pp);
         }
     }
-    printf("%-9s %-40s PSNR %6.2f dB  SSIM %.4f  %8.1f s\n", scene, method, w->psnr, w->ssim, w->wall_s);
+    printf("%-9s %-40s PSNR %6.2f dB  SSIM %.4f  %8.2f s\n", scene, method, w->psnr, w->ssim, w->wall_s);
     fflush(stdout);
     write_md();
 }
