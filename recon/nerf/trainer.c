@@ -44,6 +44,9 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
     if (c->samples < 2 || c->samples > 1024 || c->fine_samples < 0 || c->fine_samples > 1024)
         return sci_error_set(err, -EINVAL, "%s: samples %d / fine samples %d out of range ([2, 1024], [0, 1024])",
                              m, c->samples, c->fine_samples);
+    if (c->fine_samples > 0 && c->samples < 3)
+        return sci_error_set(err, -EINVAL, "%s: importance sampling needs at least 3 coarse samples (got %d)", m,
+                             c->samples);
     if (!(c->lr > 0) || !(c->lr < 10) || !(c->lr_final > 0) || !(c->lr_final < 10))
         return sci_error_set(err, -EINVAL, "%s: lr and lr-final must be in (0, 10) (got %g, %g)", m, c->lr,
                              c->lr_final);
