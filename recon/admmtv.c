@@ -91,16 +91,16 @@ int sci_admmtv_solve(const sci_problem *problem, const sci_admmtv_params *params
     admm_step step = {.mask = mask, .r = r->data, .lambda = (float)params->lambda, .fs = fs, .v = v->data,
                       .b = b->data};
     for (int it = 1; it <= params->iters; it++) {
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (count >= SCI_PARALLEL_MIN)
         for (size_t i = 0; i < count; i++)
             tb->data[i] = theta->data[i] + b->data[i];
         sci_op_forward(mask, tb, yhat);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (fs >= SCI_PARALLEL_MIN)
         for (size_t i = 0; i < fs; i++)
             r->data[i] = (y->data[i] - yhat->data[i]) / den->data[i];
         /* θ = TV(v − b): the data step writes v and leaves v − b in θ for the denoiser. */
         sci_tv_denoise_with(tv, theta, (float)params->tv_weight, params->tv_iters, admm_data_step, &step);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (count >= SCI_PARALLEL_MIN)
         for (size_t i = 0; i < count; i++)
             b->data[i] -= v->data[i] - theta->data[i];
         double res = sci_op_forward_residual(mask, v, y, NULL, rowbuf);

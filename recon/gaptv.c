@@ -83,13 +83,13 @@ int sci_gaptv_solve(const sci_problem *problem, const sci_gaptv_params *params, 
         const float *yv = y->data, *yh = yhat->data, *ph = phi->data;
         float *yb = ybar->data, *rv = r->data;
         if (params->accelerate) {
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (fs >= SCI_PARALLEL_MIN)
             for (size_t i = 0; i < fs; i++) {
                 yb[i] += yv[i] - yh[i];
                 rv[i] = (yb[i] - yh[i]) / ph[i];
             }
         } else {
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (fs >= SCI_PARALLEL_MIN)
             for (size_t i = 0; i < fs; i++)
                 rv[i] = (yv[i] - yh[i]) / ph[i];
         }

@@ -1,4 +1,5 @@
 #include "recon/metrics.h"
+#include "recon/sci_ops.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -23,7 +24,7 @@ double sci_psnr(const sci_cube *x, const sci_cube *truth, sci_peak conv, double 
     double *v = per_frame ? per_frame : malloc((size_t)x->n * sizeof *v);
     if (!v)
         return NAN;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (sci_cube_count(x) >= SCI_PARALLEL_MIN)
     for (int k = 0; k < x->n; k++) {
         const float *t = sci_cube_frame(truth, k);
         double p = peak;
@@ -112,7 +113,7 @@ double sci_ssim(const sci_cube *x, const sci_cube *truth, double range, double *
     double *v = per_frame ? per_frame : malloc((size_t)x->n * sizeof *v);
     if (!v)
         return NAN;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (sci_cube_count(x) >= SCI_PARALLEL_MIN / 16)
     for (int k = 0; k < x->n; k++)
         v[k] = sci_ssim_frame(sci_cube_frame(x, k), sci_cube_frame(truth, k), x->w, x->h, range);
     double s = 0;

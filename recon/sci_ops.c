@@ -8,7 +8,7 @@ void sci_op_adjoint(const sci_cube *mask, const sci_cube *y, sci_cube *x)
 {
     assert(sci_cube_same_shape(mask, x) && y->w == x->w && y->h == x->h && y->n == 1);
     const long fs = (long)sci_cube_frame_size(x);
-#pragma omp parallel for schedule(static) collapse(2)
+#pragma omp parallel for schedule(static) collapse(2) if (sci_cube_count(x) >= SCI_PARALLEL_MIN)
     for (int f = 0; f < x->n; f++)
         for (int r = 0; r < x->h; r++) {
             long base = (long)r * x->w;
@@ -24,7 +24,7 @@ long sci_op_phi_sum(const sci_cube *mask, sci_cube *phi)
     assert(phi->w == mask->w && phi->h == mask->h && phi->n == 1);
     const long fs = (long)sci_cube_frame_size(mask);
     long guarded = 0;
-#pragma omp parallel for schedule(static) reduction(+ : guarded)
+#pragma omp parallel for schedule(static) reduction(+ : guarded) if (sci_cube_count(mask) >= SCI_PARALLEL_MIN)
     for (long i = 0; i < fs; i++) {
         double s = 0;
         for (int f = 0; f < mask->n; f++) {
@@ -77,7 +77,7 @@ double sci_op_forward_residual(const sci_cube *mask, const sci_cube *x, const sc
     const int h = x->h;
     /* Per-row partial sums added in row order afterwards: an OpenMP reduction would combine the threads' sums in
      * arrival order, and the result would change in the last bits from run to run. */
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (sci_cube_count(x) >= SCI_PARALLEL_MIN)
     for (int r = 0; r < h; r++)
         forward_row(mask, x, y, yhat ? yhat->data : NULL, r, &rowbuf[2 * r], &rowbuf[2 * r + 1]);
     double num = 0, den = 0;
@@ -93,7 +93,7 @@ void sci_op_forward(const sci_cube *mask, const sci_cube *x, sci_cube *y)
     assert(sci_cube_same_shape(mask, x) && y->w == x->w && y->h == x->h && y->n == 1);
     /* Rows in parallel, frames summed in a fixed order in double: same answer for any thread count. The residual
      * sums forward_row also returns are ignored here (y serves as its own reference). */
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (sci_cube_count(x) >= SCI_PARALLEL_MIN)
     for (int r = 0; r < x->h; r++) {
         double num, den;
         forward_row(mask, x, y, y->data, r, &num, &den);

@@ -14,6 +14,11 @@
 
 #include "base/cube.h"
 
+/* Below this many elements of work a loop runs on one thread: a parallel region costs a few microseconds on a
+ * quiet machine but a scheduler time slice per barrier on a loaded one, which would make small problems (and the
+ * 10,000-iteration stability runs) thousands of times slower than serial. */
+#define SCI_PARALLEL_MIN 65536
+
 /* y = A(x). */
 void sci_op_forward(const sci_cube *mask, const sci_cube *x, sci_cube *y);
 /* x = Aᵀ(y). */

@@ -1,4 +1,5 @@
 #include "recon/tv.h"
+#include "recon/sci_ops.h"
 
 #include <assert.h>
 #include <errno.h>
@@ -103,7 +104,7 @@ void sci_tv_denoise_with(sci_tv *tv, sci_cube *x, float weight, int iters,
                          void (*pre)(float *frame, int k, void *ctx), void *ctx)
 {
     assert(x->w == tv->w && x->h == tv->h);
-#pragma omp parallel for schedule(static) num_threads(tv->nthreads)
+#pragma omp parallel for schedule(static) num_threads(tv->nthreads) if (sci_cube_count(x) >= SCI_PARALLEL_MIN)
     for (int k = 0; k < x->n; k++) {
         float *work = tv->work + tv->per_thread * (size_t)omp_get_thread_num();
         float *frame = sci_cube_frame(x, k);

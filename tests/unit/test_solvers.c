@@ -117,10 +117,11 @@ static void test_bad_input_refused(void **state)
 }
 
 /* Frames are denoised independently and frame sums are done in double in a fixed order: 1 and 2 threads give
- * the same bits. */
+ * the same bits. The problem is above SCI_PARALLEL_MIN so the loops really do run on two threads. */
 static void test_thread_count_independent(void **state)
 {
-    sci_problem *p = blob_problem(48, 40, 6, 4);
+    sci_problem *p = blob_problem(128, 96, 8, 4);
+    assert_true(sci_cube_count(p->mask) >= SCI_PARALLEL_MIN);
     sci_gaptv_params gp;
     sci_gaptv_params_default(&gp);
     gp.iters = 30;
@@ -133,6 +134,7 @@ static void test_thread_count_independent(void **state)
     omp_set_num_threads(saved);
     assert_memory_equal(r1.frames->data, r2.frames->data, sci_cube_count(r1.frames) * sizeof(float));
     assert_true(r1.trace.e[29].residual == r2.trace.e[29].residual);
+    assert_true(r1.trace.e[29].psnr == r2.trace.e[29].psnr);
     sci_result_free_contents(&r1);
     sci_result_free_contents(&r2);
     sci_problem_free(p);
