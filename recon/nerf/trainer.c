@@ -1,5 +1,6 @@
 /* recon/nerf/trainer.c — the NeRF-family training loop (see trainer.h). */
 #include "recon/nerf/trainer.h"
+#include "recon/nerf/trainer_run.h"
 
 #include <errno.h>
 #include <math.h>
@@ -15,21 +16,6 @@
 #include "recon/nerf/render.h"
 #include "recon/nerf/se3.h"
 #include "recon/tracer.h"
-
-/* Checkpoint header (trainer.h); the arrays follow it. */
-#define CKPT_MAGIC "SCINERF"
-#define CKPT_VERSION 1u
-
-typedef struct ckpt_header {
-    char magic[8];
-    uint32_t version, reserved;
-    char method[16];
-    int32_t w, h, n, iter;
-    uint64_t n_params[2], n_pose_params;
-    uint64_t rng[4];
-    double wall_s, cpu_s;
-    float box[6]; /* the scene box the models were built with */
-} ckpt_header;
 
 int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
 {
@@ -83,21 +69,12 @@ static int make_poses(const sci_problem *pb, const nerf_train_config *c, nerf_po
     return rc;
 }
 
-static int ckpt_header_check(const void *blob, size_t bytes, ckpt_header *h, sci_error *err);
-
 int nerf_train_scene_box(const sci_problem *pb, const nerf_train_config *c, float lo[3], float hi[3],
                          sci_error *err)
 {
     const sci_camera *cam = pb->camera;
-    if (c->resume) { /* the network's coordinates must mean what they meant when the checkpoint was taken */
-        ckpt_header h;
-        int rc = ckpt_header_check(c->resume, c->resume_bytes, &h, err);
-        if (rc < 0)
-            return rc;
-        memcpy(lo, h.box, 3 * sizeof *lo);
-        memcpy(hi, h.box + 3, 3 * sizeof *hi);
-        return 0;
-    }
+    if (c->resume) /* the network's coordinates must mean what they meant when the checkpoint was taken */
+        return nerf_trainer_ckpt_box(c->resume, c->resume_bytes, lo, hi, err);
     nerf_poses *p;
     int rc = make_poses(pb, c, &p, err);
     if (rc < 0)
@@ -116,37 +93,7 @@ int nerf_train_scene_box(const sci_problem *pb, const nerf_train_config *c, floa
     return 0;
 }
 
-/* ------------------------------------------------------------------ run state */
-
-/* One rendering pass (coarse, or fine): its model, optimiser and buffers for up to G groups. The camera-frame
- * samples of the coarse pass depend only on the pixel (indexed by location b); those of the fine pass depend on
- * the pose through the coarse weights (indexed by group q). */
-typedef struct pass {
-    const nerf_model *m;
-    nerf_adam *adam;
-    float *params, *grad;
-    int L, per_group;
-    float *t, *pcam, *delta;              /* camera frame: G·R·L (t: fine only) */
-    float *pos, *sigma, *rgb;             /* G·R·L */
-    float *color, *grey, *dC, *d_color;   /* G·R */
-    float *d_sigma, *d_rgb, *d_pos, *d_dir;
-} pass;
-
-typedef struct run {
-    const sci_problem *pb;
-    const nerf_train_config *c;
-    int w, h, n, R, B, G, n_pass;
-    double near, far, y_rms;
-    nerf_poses *poses;
-    pass ps[2];
-    int *px, *py;
-    float *dcam, *dir, *Y, *M;
-    double (*T)[12];
-    double *imp_cdf, *imp_u; /* importance sampling scratch: Lc, Lf */
-    float *imp_tc, *imp_tf;
-    sci_rng rng;
-    int64_t wall0_ns, cpu0_ns; /* elapsed time carried over from a checkpoint */
-} run;
+/* ------------------------------------------------------------------ run state (trainer_run.h) */
 
 static void pass_free(pass *p)
 {
@@ -512,176 +459,6 @@ static int render_all(run *r, sci_cube *x)
     return 0;
 }
 
-/* ------------------------------------------------------------------ checkpoints */
-
-
-static uint64_t fnv1a(const unsigned char *p, size_t n)
-{
-    uint64_t h = 1469598103934665603ull;
-    for (size_t i = 0; i < n; i++)
-        h = (h ^ p[i]) * 1099511628211ull;
-    return h;
-}
-
-static size_t ckpt_bytes(const run *r)
-{
-    size_t b = sizeof(ckpt_header);
-    for (int k = 0; k < r->n_pass; k++)
-        b += r->ps[k].m->n_params * (3 * sizeof(float) + sizeof(uint32_t));
-    size_t np = (size_t)nerf_poses_param_count(r->poses);
-    return b + np * 4 * sizeof(double) + sizeof(int64_t) + sizeof(uint64_t);
-}
-
-static unsigned char *put(unsigned char *o, const void *src, size_t n)
-{
-    memcpy(o, src, n);
-    return o + n;
-}
-
-static int ckpt_save(run *r, int iter, double wall_s, double cpu_s, unsigned char **out, size_t *bytes)
-{
-    size_t n = ckpt_bytes(r);
-    unsigned char *buf = malloc(n), *o = buf;
-    if (!buf)
-        return -ENOMEM;
-    ckpt_header h = {.magic = CKPT_MAGIC, .version = CKPT_VERSION, .w = r->w, .h = r->h, .n = r->n, .iter = iter,
-                     .n_pose_params = (uint64_t)nerf_poses_param_count(r->poses), .wall_s = wall_s, .cpu_s = cpu_s};
-    snprintf(h.method, sizeof h.method, "%s", r->c->method);
-    memcpy(h.box, r->c->box_lo, sizeof r->c->box_lo);
-    memcpy(h.box + 3, r->c->box_hi, sizeof r->c->box_hi);
-    for (int k = 0; k < r->n_pass; k++)
-        h.n_params[k] = r->ps[k].m->n_params;
-    memcpy(h.rng, r->rng.s, sizeof h.rng);
-    o = put(o, &h, sizeof h);
-    for (int k = 0; k < r->n_pass; k++) {
-        pass *p = &r->ps[k];
-        float *m, *s;
-        uint32_t *t;
-        nerf_adam_buffers(p->adam, &m, &s, &t);
-        size_t np = p->m->n_params;
-        o = put(o, p->params, np * sizeof(float));
-        o = put(o, m, np * sizeof(float));
-        o = put(o, s, np * sizeof(float));
-        o = put(o, t, np * sizeof(uint32_t));
-    }
-    size_t npp = (size_t)nerf_poses_param_count(r->poses);
-    long *step;
-    double *st = nerf_poses_state(r->poses, &step);
-    int64_t step64 = *step;
-    o = put(o, nerf_poses_params(r->poses), npp * sizeof(double));
-    o = put(o, st, 3 * npp * sizeof(double));
-    o = put(o, &step64, sizeof step64);
-    uint64_t sum = fnv1a(buf, (size_t)(o - buf));
-    o = put(o, &sum, sizeof sum);
-    *out = buf;
-    *bytes = n;
-    return 0;
-}
-
-static int ckpt_header_check(const void *blob, size_t bytes, ckpt_header *h, sci_error *err)
-{
-    if (!blob || bytes < sizeof *h + sizeof(uint64_t))
-        return sci_error_set(err, SCI_EFORMAT, "checkpoint: %zu bytes is too short for a checkpoint", bytes);
-    memcpy(h, blob, sizeof *h);
-    if (memcmp(h->magic, CKPT_MAGIC, sizeof CKPT_MAGIC) != 0)
-        return sci_error_set(err, SCI_EFORMAT, "checkpoint: not a scicap NeRF checkpoint (bad magic)");
-    if (h->version != CKPT_VERSION)
-        return sci_error_set(err, SCI_EFORMAT, "checkpoint: version %u, this build reads %u", h->version,
-                             CKPT_VERSION);
-    uint64_t sum;
-    memcpy(&sum, (const unsigned char *)blob + bytes - sizeof sum, sizeof sum);
-    if (sum != fnv1a(blob, bytes - sizeof sum))
-        return sci_error_set(err, SCI_EFORMAT, "checkpoint: checksum mismatch (truncated or corrupted)");
-    h->method[sizeof h->method - 1] = 0;
-    return 0;
-}
-
-int nerf_checkpoint_peek(const void *blob, size_t bytes, int *iter, char method[16], sci_error *err)
-{
-    ckpt_header h;
-    int rc = ckpt_header_check(blob, bytes, &h, err);
-    if (rc < 0)
-        return rc;
-    if (iter)
-        *iter = h.iter;
-    if (method)
-        memcpy(method, h.method, sizeof h.method);
-    return 0;
-}
-
-static int all_finite_f(const float *v, size_t n)
-{
-    for (size_t i = 0; i < n; i++)
-        if (!isfinite(v[i]))
-            return 0;
-    return 1;
-}
-
-/* Restore the run from a blob; returns the iteration it was taken after (>= 0) or an error. */
-static int ckpt_load(run *r, const void *blob, size_t bytes, sci_error *err)
-{
-    ckpt_header h;
-    int rc = ckpt_header_check(blob, bytes, &h, err);
-    if (rc < 0)
-        return rc;
-    const char *m = r->c->method;
-    if (strcmp(h.method, m) != 0)
-        return sci_error_set(err, SCI_EFORMAT, "checkpoint: written by method '%s', this run is '%s'", h.method, m);
-    if (h.w != r->w || h.h != r->h || h.n != r->n)
-        return sci_error_set(err, SCI_ESHAPE, "checkpoint: problem %dx%dx%d, this one is %dx%dx%d", h.w, h.h, h.n,
-                             r->w, r->h, r->n);
-    for (int k = 0; k < 2; k++) {
-        uint64_t want = k < r->n_pass ? r->ps[k].m->n_params : 0;
-        if (h.n_params[k] != want)
-            return sci_error_set(err, SCI_ESHAPE,
-                                 "checkpoint: %s model has %llu parameters, this configuration %llu",
-                                 k ? "fine" : "coarse", (unsigned long long)h.n_params[k], (unsigned long long)want);
-    }
-    /* A checkpoint of a run with known poses may start a run that optimises them (scene first, poses after): the
-     * poses then start as configured. Otherwise the pose parametrisation must be the same. */
-    const int skip_poses = h.n_pose_params == 0 && nerf_poses_param_count(r->poses) > 0;
-    if (!skip_poses && h.n_pose_params != (uint64_t)nerf_poses_param_count(r->poses))
-        return sci_error_set(err, SCI_ESHAPE, "checkpoint: %llu pose parameters, this pose mode has %d",
-                             (unsigned long long)h.n_pose_params, nerf_poses_param_count(r->poses));
-    size_t want = ckpt_bytes(r) - (skip_poses ? (size_t)nerf_poses_param_count(r->poses) * 4 * sizeof(double) : 0);
-    if (bytes != want)
-        return sci_error_set(err, SCI_EFORMAT, "checkpoint: %zu bytes, expected %zu", bytes, want);
-    if (h.iter < 0 || h.iter > 10000000 || !isfinite(h.wall_s) || !isfinite(h.cpu_s))
-        return sci_error_set(err, SCI_EFORMAT, "checkpoint: iteration %d or times out of range", h.iter);
-    const unsigned char *in = (const unsigned char *)blob + sizeof h;
-    for (int k = 0; k < r->n_pass; k++) {
-        pass *p = &r->ps[k];
-        float *mm, *s;
-        uint32_t *t;
-        nerf_adam_buffers(p->adam, &mm, &s, &t);
-        size_t np = p->m->n_params;
-        memcpy(p->params, in, np * sizeof(float)), in += np * sizeof(float);
-        memcpy(mm, in, np * sizeof(float)), in += np * sizeof(float);
-        memcpy(s, in, np * sizeof(float)), in += np * sizeof(float);
-        memcpy(t, in, np * sizeof(uint32_t)), in += np * sizeof(uint32_t);
-        if (!all_finite_f(p->params, np) || !all_finite_f(mm, np) || !all_finite_f(s, np))
-            return sci_error_set(err, SCI_ENONFINITE, "checkpoint: non-finite %s model parameters or moments",
-                                 k ? "fine" : "coarse");
-    }
-    if (!skip_poses) { /* else the poses keep their configured start */
-        size_t npp = (size_t)h.n_pose_params;
-        long *step;
-        double *st = nerf_poses_state(r->poses, &step), *xi = nerf_poses_params(r->poses);
-        int64_t step64;
-        memcpy(xi, in, npp * sizeof(double)), in += npp * sizeof(double);
-        memcpy(st, in, 3 * npp * sizeof(double)), in += 3 * npp * sizeof(double);
-        memcpy(&step64, in, sizeof step64);
-        for (size_t i = 0; i < 4 * npp; i++)
-            if (!isfinite(i < npp ? xi[i] : st[i - npp]))
-                return sci_error_set(err, SCI_ENONFINITE, "checkpoint: non-finite pose parameters");
-        *step = (long)step64;
-    }
-    memcpy(r->rng.s, h.rng, sizeof h.rng);
-    r->wall0_ns = (int64_t)(h.wall_s * 1e9);
-    r->cpu0_ns = (int64_t)(h.cpu_s * 1e9);
-    return h.iter;
-}
-
 static int emit_checkpoint(run *r, const sci_tracer *tr, int iter, sci_error *err)
 {
     const nerf_train_config *c = r->c;
@@ -692,7 +469,7 @@ static int emit_checkpoint(run *r, const sci_tracer *tr, int iter, sci_error *er
     double cpu_s = (double)(cpu - tr->cpu0_ns - tr->skip_cpu_ns) * 1e-9;
     unsigned char *blob;
     size_t n;
-    int rc = ckpt_save(r, iter, wall_s, cpu_s, &blob, &n);
+    int rc = nerf_trainer_ckpt_save(r, iter, wall_s, cpu_s, &blob, &n);
     if (rc < 0)
         return sci_error_set(err, rc, "%s: checkpoint at step %d: out of memory", c->method, iter);
     rc = c->checkpoint_fn(blob, n, iter, c->checkpoint_user);
@@ -738,7 +515,7 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
     if ((rc = run_init(&r, pb, c, coarse, fine, err)) < 0 ||
         (rc = sci_cube_new(&x, pb->mask->w, pb->mask->h, pb->mask->n, err)) < 0)
         goto out;
-    if (c->resume && (rc = start = ckpt_load(&r, c->resume, c->resume_bytes, err)) < 0)
+    if (c->resume && (rc = start = nerf_trainer_ckpt_load(&r, c->resume, c->resume_bytes, err)) < 0)
         goto out;
     rc = 0;
     if (start >= c->iters) {
