@@ -19,6 +19,7 @@
 #include "recon/gaptv.h"
 #include "recon/metrics.h"
 #include "recon/nerf/rayformer_solve.h"
+#include "recon/nerf/scinerf_solve.h"
 
 static void usage(FILE *f)
 {
@@ -32,8 +33,8 @@ static void usage(FILE *f)
             "previews, trace.csv (time against accuracy per iteration) and result.json. When the truth is known\n"
             "it prints per-frame and mean PSNR in both peak conventions, and SSIM.\n"
             "\n"
-            "  -m, --method NAME      gap-tv (default), admm-tv, or rayformer (static scenes with a known camera;\n"
-            "                         work in progress: see docs/nerf-methods.md)\n"
+            "  -m, --method NAME      gap-tv (default), admm-tv, rayformer or scinerf (the last two need a static\n"
+            "                         scene with a camera, e.g. from a static3d scene; see docs/nerf-methods.md)\n"
             "  -o, --output DIR       output folder (required); replaced only with --force\n"
             "  -f, --force            replace an existing output folder\n"
             "  -s, --snapshot J       reconstruct only snapshot J (1-based); default all\n"
@@ -43,8 +44,9 @@ static void usage(FILE *f)
             "  -t, --tv-iters N       TV denoiser passes per iteration (default 5)\n"
             "      --plain            gap-tv: plain GAP instead of accelerated\n"
             "  -g, --gamma X          admm-tv: gamma added to the mask energy (default 1e-3)\n"
-            "  rayformer:  --patch P (2,4,8,16; default 8)  --patches-per-step B  --samples L (per ray)\n"
-            "              --lr X  --pose-mode known|linear|per-frame  --seed S   (--iters, --tv-weight apply too)\n"
+            "  rayformer, scinerf:  --preset fast|balanced|best (default balanced; the options below override it)\n"
+            "              --samples L (per ray)  --lr X  --pose-mode known|linear|per-frame  --seed S\n"
+            "              (--iters applies too; rayformer also --patch P (2,4,8,16) --patches-per-step B --tv-weight)\n"
             "      --metrics-every K  PSNR against truth in the trace every K iterations (default 1)\n"
             "      --ssim-every K     SSIM in the trace every K iterations (default 10; 0 = last only)\n"
             "  -j, --threads N        OpenMP threads (default: all cores)\n"
@@ -57,10 +59,11 @@ static void usage(FILE *f)
 }
 
 typedef struct recon_opts {
-    int method; /* 0 gap-tv, 1 admm-tv, 2 rayformer */
+    int method; /* 0 gap-tv, 1 admm-tv, 2 rayformer, 3 scinerf */
     sci_gaptv_params gap;
     sci_admmtv_params admm;
     sci_rayformer_params rf;
+    sci_scinerf_params sn;
     int quiet;
 } recon_opts;
 
@@ -96,6 +99,10 @@ static json_t *params_json(const recon_opts *o)
         return json_pack("{s:s, s:i, s:f, s:b, s:f, s:i}", "method", "gap-tv", "iters", o->gap.iters, "lambda",
                          o->gap.lambda, "accelerate", o->gap.accelerate, "tv_weight", o->gap.tv_weight, "tv_iters",
                          o->gap.tv_iters);
+    if (o->method == 3)
+        return json_pack("{s:s, s:i, s:i, s:i, s:f, s:i, s:I}", "method", "scinerf", "iters", o->sn.iters, "rays_per_step",
+                         o->sn.rays_per_step, "samples", o->sn.samples, "lr", o->sn.lr, "pose_mode",
+                         (int)o->sn.pose_mode, "seed", (json_int_t)o->sn.seed);
     if (o->method == 2)
         return json_pack("{s:s, s:i, s:i, s:i, s:i, s:f, s:f, s:i, s:I}", "method", "rayformer", "iters", o->rf.iters,
                          "patch", o->rf.patch, "patches_per_step", o->rf.patches_per_step, "samples", o->rf.samples,
@@ -132,10 +139,14 @@ int cli_recon_main(int argc, char **argv)
     sci_gaptv_params_default(&o.gap);
     sci_admmtv_params_default(&o.admm);
     sci_rayformer_params_default(&o.rf);
+    sci_scinerf_params_default(&o.sn);
+    const char *preset = NULL;
+    int nf_patch = 0, nf_pps = 0, nf_samples = 0, nf_pose = -1, nf_seed = -1;
+    double nf_lr = NAN;
     const char *out = NULL;
     int force = 0, snapshot = 0, threads = 0, iters = -1, tv_iters = -1, metrics_every = -1, ssim_every = -1;
     double lambda = NAN, tv_weight = NAN;
-    enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED };
+    enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET };
     static const struct option longopts[] = {
         {"method", required_argument, 0, 'm'},   {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},          {"snapshot", required_argument, 0, 's'},
@@ -147,6 +158,7 @@ int cli_recon_main(int argc, char **argv)
         {"patch", required_argument, 0, OPT_PATCH}, {"patches-per-step", required_argument, 0, OPT_PPS},
         {"samples", required_argument, 0, OPT_SAMPLES}, {"lr", required_argument, 0, OPT_LR},
         {"pose-mode", required_argument, 0, OPT_POSE}, {"seed", required_argument, 0, OPT_SEED},
+        {"preset", required_argument, 0, OPT_PRESET},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
     };
     optind = 1;
@@ -161,8 +173,10 @@ int cli_recon_main(int argc, char **argv)
                 o.method = 1;
             else if (strcmp(optarg, "rayformer") == 0)
                 o.method = 2;
+            else if (strcmp(optarg, "scinerf") == 0)
+                o.method = 3;
             else {
-                fprintf(stderr, "scicap recon: unknown method '%s' (gap-tv, admm-tv, rayformer)\n", optarg);
+                fprintf(stderr, "scicap recon: unknown method '%s' (gap-tv, admm-tv, rayformer, scinerf)\n", optarg);
                 return 2;
             }
             break;
@@ -178,26 +192,25 @@ int cli_recon_main(int argc, char **argv)
         case OPT_METRICS: bad = parse_int(optarg, "--metrics-every", 0, 1 << 30, &metrics_every); break;
         case OPT_SSIM: bad = parse_int(optarg, "--ssim-every", 0, 1 << 30, &ssim_every); break;
         case 'j': bad = parse_int(optarg, "--threads", 1, 1024, &threads); break;
-        case OPT_PATCH: bad = parse_int(optarg, "--patch", 2, 16, &o.rf.patch); break;
-        case OPT_PPS: bad = parse_int(optarg, "--patches-per-step", 1, 4096, &o.rf.patches_per_step); break;
-        case OPT_SAMPLES: bad = parse_int(optarg, "--samples", 2, 1024, &o.rf.samples); break;
-        case OPT_LR: bad = parse_double(optarg, "--lr", &o.rf.lr); break;
+        case OPT_PRESET: preset = optarg; break;
+        case OPT_PATCH: bad = parse_int(optarg, "--patch", 2, 16, &nf_patch); break;
+        case OPT_PPS: bad = parse_int(optarg, "--patches-per-step", 1, 4096, &nf_pps); break;
+        case OPT_SAMPLES: bad = parse_int(optarg, "--samples", 2, 1024, &nf_samples); break;
+        case OPT_LR: bad = parse_double(optarg, "--lr", &nf_lr); break;
         case OPT_POSE:
             if (strcmp(optarg, "known") == 0)
-                o.rf.pose_mode = NERF_POSES_KNOWN;
+                nf_pose = NERF_POSES_KNOWN;
             else if (strcmp(optarg, "linear") == 0)
-                o.rf.pose_mode = NERF_POSES_LINEAR;
+                nf_pose = NERF_POSES_LINEAR;
             else if (strcmp(optarg, "per-frame") == 0)
-                o.rf.pose_mode = NERF_POSES_PER_FRAME;
+                nf_pose = NERF_POSES_PER_FRAME;
             else {
                 fprintf(stderr, "scicap recon: --pose-mode wants known, linear or per-frame, got '%s'\n", optarg);
                 bad = -1;
             }
             break;
         case OPT_SEED: {
-            int sd = 0;
-            bad = parse_int(optarg, "--seed", 0, 1 << 30, &sd);
-            o.rf.seed = (unsigned long long)sd;
+            bad = parse_int(optarg, "--seed", 0, 1 << 30, &nf_seed);
             break;
         }
         case 'q': o.quiet = 1; break;
@@ -213,11 +226,28 @@ int cli_recon_main(int argc, char **argv)
         return 2;
     }
     const char *input = argv[optind];
+    /* NeRF methods: the preset first, then the options given explicitly. */
+    if (preset && (sci_rayformer_params_preset(&o.rf, preset) < 0 || sci_scinerf_params_preset(&o.sn, preset) < 0)) {
+        fprintf(stderr, "scicap recon: unknown preset '%s' (fast, balanced, best)\n", preset);
+        return 2;
+    }
+    if (nf_patch)
+        o.rf.patch = nf_patch;
+    if (nf_pps)
+        o.rf.patches_per_step = nf_pps;
+    if (nf_samples)
+        o.rf.samples = o.sn.samples = nf_samples;
+    if (!isnan(nf_lr))
+        o.rf.lr = o.sn.lr = nf_lr;
+    if (nf_pose >= 0)
+        o.rf.pose_mode = o.sn.pose_mode = (nerf_poses_mode)nf_pose;
+    if (nf_seed >= 0)
+        o.rf.seed = o.sn.seed = (unsigned long long)nf_seed;
     if (threads)
         omp_set_num_threads(threads);
     /* Common options map onto whichever method runs. */
     if (iters > 0)
-        o.gap.iters = o.admm.iters = o.rf.iters = iters;
+        o.gap.iters = o.admm.iters = o.rf.iters = o.sn.iters = iters;
     if (!isnan(lambda))
         o.gap.lambda = o.admm.lambda = lambda;
     if (!isnan(tv_weight))
@@ -225,13 +255,14 @@ int cli_recon_main(int argc, char **argv)
     if (tv_iters > 0)
         o.gap.tv_iters = o.admm.tv_iters = tv_iters;
     if (metrics_every >= 0)
-        o.gap.metrics_every = o.admm.metrics_every = o.rf.metrics_every = metrics_every;
+        o.gap.metrics_every = o.admm.metrics_every = o.rf.metrics_every = o.sn.metrics_every = metrics_every;
     if (ssim_every >= 0)
-        o.gap.ssim_every = o.admm.ssim_every = o.rf.ssim_every = ssim_every;
+        o.gap.ssim_every = o.admm.ssim_every = o.rf.ssim_every = o.sn.ssim_every = ssim_every;
     sci_error err = {0};
     int chk = o.method == 0   ? sci_gaptv_params_check(&o.gap, &err)
               : o.method == 1 ? sci_admmtv_params_check(&o.admm, &err)
-                              : sci_rayformer_params_check(&o.rf, &err);
+              : o.method == 2 ? sci_rayformer_params_check(&o.rf, &err)
+                              : sci_scinerf_params_check(&o.sn, &err);
     if (chk < 0) {
         fprintf(stderr, "scicap recon: %s\n", err.msg);
         return 2;
@@ -256,17 +287,19 @@ int cli_recon_main(int argc, char **argv)
     json_t *params = params_json(&o);
     for (int j = first; j <= last && status == 0; j++) {
         const sci_problem *p = probs[j];
-        static const char *const names[] = {"gap-tv", "admm-tv", "rayformer"};
+        static const char *const names[] = {"gap-tv", "admm-tv", "rayformer", "scinerf"};
         printf("%s: %s, %dx%d, %d frames per snapshot%s\n", p->name, names[o.method],
                p->mask->w, p->mask->h, p->mask->n, p->truth ? ", truth known" : "");
         fflush(stdout);
         cli_progress prog;
-        cli_progress_init(&prog, o.quiet ? -1 : 2, o.method == 0 ? o.gap.iters : o.method == 1 ? o.admm.iters : o.rf.iters);
+        const int total = o.method == 0 ? o.gap.iters : o.method == 1 ? o.admm.iters : o.method == 2 ? o.rf.iters : o.sn.iters;
+        cli_progress_init(&prog, o.quiet ? -1 : 2, total);
         sci_result r = {0};
         int64_t t0 = sci_clock_mono_ns();
         int rc = o.method == 0   ? sci_gaptv_solve(p, &o.gap, &r, cli_progress_update, &prog)
                  : o.method == 1 ? sci_admmtv_solve(p, &o.admm, &r, cli_progress_update, &prog)
-                                 : sci_rayformer_solve(p, &o.rf, &r, cli_progress_update, &prog);
+                 : o.method == 2 ? sci_rayformer_solve(p, &o.rf, &r, cli_progress_update, &prog)
+                                 : sci_scinerf_solve(p, &o.sn, &r, cli_progress_update, &prog);
         double secs = sci_clock_s(t0, sci_clock_mono_ns());
         cli_progress_done(&prog);
         if (rc < 0) {
