@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "base/clock.h"
+#include "base/omp_env.h"
 #include "io/matfile.h"
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
@@ -44,6 +45,7 @@ static double memcpy_gbs(void)
 
 int main(int argc, char **argv)
 {
+    sci_omp_env_prefer_passive(argv); /* as scicap and scicapd run */
     const char *dir = getenv("SCICAP_DATA");
     char path[4096];
     snprintf(path, sizeof path, "%s/drop40_cacti.mat", dir && *dir ? dir : "../shared/data");

@@ -2,6 +2,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "base/omp_env.h"
 #include "cli/client.h"
 #include "cli/commands.h"
 
@@ -38,6 +39,7 @@ static void usage(FILE *f)
 
 int main(int argc, char **argv)
 {
+    sci_omp_env_prefer_passive(argv);
     if (argc < 2) {
         usage(stderr);
         return 2;

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "base/log.h"
+#include "base/omp_env.h"
 #include "daemon/config.h"
 #include "daemon/daemon.h"
 
@@ -36,6 +37,7 @@ static void usage(FILE *f)
 
 int main(int argc, char **argv)
 {
+    sci_omp_env_prefer_passive(argv);
     static const struct option opts[] = {
         {"config", required_argument, 0, 'c'}, {"no-config", no_argument, 0, 'N'},
         {"socket", required_argument, 0, 's'}, {"storage", required_argument, 0, 'd'},
