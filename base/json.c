@@ -1,5 +1,7 @@
 #include "base/json.h"
 
+#include "base/file.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -195,39 +197,12 @@ int sci_json_doc_load_string(sci_json_doc **out, const char *name, const char *t
 int sci_json_doc_load_file(sci_json_doc **out, const char *path, sci_error *err)
 {
     *out = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
-    char *text = NULL;
-    size_t len = 0, cap = 0;
-    for (;;) {
-        if (len + 65536 > cap) {
-            cap = cap ? cap * 2 : 65536;
-            if (cap > ((size_t)1 << 30)) {
-                free(text);
-                fclose(f);
-                return sci_error_set(err, -EFBIG, "%s: larger than 1 GiB", path);
-            }
-            char *t = realloc(text, cap);
-            if (!t) {
-                free(text);
-                fclose(f);
-                return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
-            }
-            text = t;
-        }
-        size_t got = fread(text + len, 1, cap - len, f);
-        len += got;
-        if (got == 0)
-            break;
-    }
-    int bad = ferror(f);
-    fclose(f);
-    if (bad) {
-        free(text);
-        return sci_error_set(err, -EIO, "%s: read error", path);
-    }
-    int rc = sci_json_doc_load_string(out, path, text, len, err);
+    void *text;
+    size_t len;
+    int rc = sci_file_read(path, (size_t)1 << 30, &text, &len, err);
+    if (rc < 0)
+        return rc;
+    rc = sci_json_doc_load_string(out, path, text, len, err);
     free(text);
     return rc;
 }

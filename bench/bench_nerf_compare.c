@@ -7,7 +7,10 @@
  *
  * It takes hours on the 2-core machine (every NeRF row trains a whole preset), so `make bench` only prints how to
  * run it:  build/bench/bench_nerf_compare --run [--preset fast|balanced|best] [--scenes corridor,orbit,noisy]
- * Run from the repository root (it reads etc/scenes/ and writes bench/results/).
+ *                                         [--parts ladder,patch,poses]
+ * Run from the repository root (it reads etc/scenes/ and writes bench/results/). Rows persist in
+ * bench/results/nerf_compare.tsv: a run replaces the rows of the scenes it measures and keeps the others, so the
+ * scenes can be measured in separate sittings; each row keeps the load average at its end.
  */
 #include <math.h>
 #include <stdio.h>
@@ -21,11 +24,13 @@
 #include "sim/simulate.h"
 
 #define MAX_ROWS 256
+#define TSV "bench/results/nerf_compare.tsv"
 
 typedef struct row {
     char scene[32], method[96];
     double psnr, ssim, wall_s, pose_rot, pose_trans;
     int iters, rays;
+    char load[24]; /* 1-minute load average when the row finished */
 } row;
 
 static row rows[MAX_ROWS];
@@ -47,6 +52,65 @@ static void loadavg(char *buf, size_t n)
         sp = strchr(sp + 1, ' ');
     if (sp)
         *sp = 0;
+}
+
+static void write_tsv(void)
+{
+    FILE *f = fopen(TSV ".tmp", "w");
+    if (!f) {
+        perror(TSV ".tmp");
+        return;
+    }
+    fprintf(f, "scene\tmethod\tsteps\trays\tpsnr\tssim\twall_s\tpose_rot\tpose_trans\tload1\n");
+    for (int i = 0; i < n_rows; i++) {
+        const row *r = &rows[i];
+        fprintf(f, "%s\t%s\t%d\t%d\t%.4f\t%.5f\t%.3f\t%.5f\t%.5f\t%s\n", r->scene, r->method, r->iters, r->rays,
+                r->psnr, r->ssim, r->wall_s, r->pose_rot, r->pose_trans, r->load);
+    }
+    fclose(f);
+    if (rename(TSV ".tmp", TSV) < 0)
+        perror(TSV);
+}
+
+/* Keeps the stored rows of scenes not in the comma-separated list `redo`. */
+static void read_tsv(const char *redo)
+{
+    FILE *f = fopen(TSV, "r");
+    if (!f)
+        return;
+    char line[512];
+    if (!fgets(line, sizeof line, f)) {
+        fclose(f);
+        return;
+    }
+    while (n_rows < MAX_ROWS && fgets(line, sizeof line, f)) {
+        row r = {0};
+        char *fld[10];
+        int k = 0;
+        line[strcspn(line, "\n")] = 0;
+        for (char *s = line, *t; k < 10; s = t + 1) {
+            fld[k++] = s;
+            if (!(t = strchr(s, '\t')))
+                break;
+            *t = 0;
+        }
+        if (k != 10)
+            continue;
+        char key[40];
+        snprintf(key, sizeof key, ",%s,", fld[0]);
+        char list[160];
+        snprintf(list, sizeof list, ",%s,", redo);
+        if (strstr(list, key))
+            continue;
+        snprintf(r.scene, sizeof r.scene, "%s", fld[0]);
+        snprintf(r.method, sizeof r.method, "%s", fld[1]);
+        r.iters = atoi(fld[2]), r.rays = atoi(fld[3]);
+        r.psnr = strtod(fld[4], NULL), r.ssim = strtod(fld[5], NULL), r.wall_s = strtod(fld[6], NULL);
+        r.pose_rot = strtod(fld[7], NULL), r.pose_trans = strtod(fld[8], NULL);
+        snprintf(r.load, sizeof r.load, "%s", fld[9]);
+        rows[n_rows++] = r;
+    }
+    fclose(f);
 }
 
 static void write_md(void)
@@ -86,9 +150,22 @@ static void write_md(void)
                 fprintf(f, "| %s | %s | %.4f | %.4f |\n", rows[i].scene, rows[i].method, rows[i].pose_rot,
                         rows[i].pose_trans);
     }
-    fprintf(f, "\nLoad average %s at the start, %s at the last row (2 cores, shared with other jobs).\n", load0,
-            load1);
+    fprintf(f, "\n1-minute load average when each row finished (2 cores; above 2 means another job shared them and "
+               "the wall times are inflated):");
+    for (int i = 0; i < n_rows; i++)
+        if (i == 0 || strcmp(rows[i].scene, rows[i - 1].scene) != 0) {
+            double lo = INFINITY, hi = -INFINITY;
+            for (int j = i; j < n_rows && strcmp(rows[j].scene, rows[i].scene) == 0; j++) {
+                double v = strtod(rows[j].load, NULL);
+                if (!isnan(v))
+                    lo = fmin(lo, v), hi = fmax(hi, v);
+            }
+            fprintf(f, "%s %s %.2f–%.2f", i ? ";" : "", rows[i].scene, lo, hi);
+        }
+    fprintf(f, ".\n");
+    (void)load1;
     fclose(f);
+    write_tsv();
     if (rename("bench/results/nerf_compare.md.tmp", "bench/results/nerf_compare.md") < 0)
         perror("bench/results/nerf_compare.md");
 }
@@ -104,6 +181,10 @@ static void add(const char *scene, const char *method, const sci_result *r, int 
     const sci_trace_entry *e = &r->trace.e[r->trace.len - 1];
     w->psnr = e->psnr_peak1, w->ssim = e->ssim, w->wall_s = e->wall_s, w->iters = r->iters_done, w->rays = rays;
     w->pose_rot = w->pose_trans = NAN;
+    char la[64];
+    loadavg(la, sizeof la);
+    la[strcspn(la, " ")] = 0;
+    snprintf(w->load, sizeof w->load, "%s", la);
     if (poses) {
         nerf_poses *pp;
         if (nerf_poses_new(&pp, NERF_POSES_PER_FRAME, p->mask->n, poses, 0, 0, 0, NULL) == 0) {
@@ -164,7 +245,25 @@ static void optimised_poses_rf(sci_rayformer_params *q)
     q->pose_lr = 1e-3, q->pose_lr_final = 1e-4;
 }
 
-static void one_scene(const char *name)
+/* patch-size study: the full method, the same number of rays per step */
+static void patch_study(const char *name, const sci_problem *p, const sci_rayformer_params *qf)
+{
+    const sci_rayformer_params q = *qf;
+    const int rays = q.patches_per_step * q.patch * q.patch;
+    const int sizes[] = {2, 4, 16};
+    for (int i = 0; i < 3; i++) {
+        sci_rayformer_params v = q;
+        v.patch = sizes[i];
+        v.patches_per_step = rays / (sizes[i] * sizes[i]) > 0 ? rays / (sizes[i] * sizes[i]) : 1;
+        if (p->mask->w < v.patch || p->mask->h < v.patch)
+            continue;
+        char label[96];
+        snprintf(label, sizeof label, "rayformer full, patch %d", sizes[i]);
+        rayformer_row(name, p, label, &v);
+    }
+}
+
+static void one_scene(const char *name, const char *parts)
 {
     char path[256];
     snprintf(path, sizeof path, "etc/scenes/static3d_%s.json", name);
@@ -214,20 +313,12 @@ static void one_scene(const char *name)
         sci_rayformer_params_ablation(&q, s, tv);
         rayformer_row(name, p, ladder[s], &q);
     }
-    /* patch-size study: the full method, the same number of rays per step */
-    const int rays = q.patches_per_step * q.patch * q.patch, patch0 = q.patch;
-    const int sizes[] = {2, 4, 16};
-    for (int i = 0; i < 3; i++) {
-        sci_rayformer_params v = q;
-        v.patch = sizes[i];
-        v.patches_per_step = rays / (sizes[i] * sizes[i]) > 0 ? rays / (sizes[i] * sizes[i]) : 1;
-        if (p->mask->w < v.patch || p->mask->h < v.patch)
-            continue;
-        char label[96];
-        snprintf(label, sizeof label, "rayformer full, patch %d", sizes[i]);
-        rayformer_row(name, p, label, &v);
+    if (strstr(parts, "patch"))
+        patch_study(name, p, &q);
+    if (!strstr(parts, "poses")) {
+        sci_problem_array_free(ps, k);
+        return;
     }
-    (void)patch0;
     /* only the intrinsics known: poses optimised from the identity */
     sci_scinerf_params sp = sn;
     sp.pose_mode = NERF_POSES_LINEAR, sp.pose_init_identity = 1;
@@ -243,7 +334,7 @@ static void one_scene(const char *name)
 int main(int argc, char **argv)
 {
     int run = 0;
-    char scenes[128] = "corridor,orbit,noisy";
+    char scenes[128] = "corridor,orbit,noisy", parts[64] = "ladder,patch,poses";
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--run") == 0)
             run = 1;
@@ -251,8 +342,10 @@ int main(int argc, char **argv)
             snprintf(preset, sizeof preset, "%s", argv[++i]);
         else if (strcmp(argv[i], "--scenes") == 0 && i + 1 < argc)
             snprintf(scenes, sizeof scenes, "%s", argv[++i]);
+        else if (strcmp(argv[i], "--parts") == 0 && i + 1 < argc)
+            snprintf(parts, sizeof parts, "%s", argv[++i]);
         else {
-            fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c]\n");
+            fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c] [--parts ladder,patch,poses]\n");
             return 2;
         }
     }
@@ -269,7 +362,8 @@ int main(int argc, char **argv)
         return 2;
     }
     loadavg(load0, sizeof load0);
+    read_tsv(scenes);
     for (char *s = strtok(scenes, ","); s; s = strtok(NULL, ","))
-        one_scene(s);
+        one_scene(s, parts);
     return 0;
 }

@@ -31,6 +31,7 @@
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
 #include "recon/nerf/rayformer_solve.h"
+#include "recon/nerf/scinerf_solve.h"
 #include "sim/simulate.h"
 
 extern char **environ;
@@ -72,7 +73,7 @@ static void usage(FILE *f)
             "  --csv FILE        every point (default bench/results.csv)\n"
             "  --data DIR        where drop40_cacti.mat is (default $SCICAP_DATA, else ../shared/data)\n"
             "  --scenes DIR      example scenes (default etc/scenes)\n"
-            "  --methods LIST    comma-separated subset of gap-tv,admm-tv,rayformer\n"
+            "  --methods LIST    comma-separated subset of gap-tv,admm-tv,rayformer,scinerf\n"
             "  -j, --threads N   OpenMP threads per point (default: all cores)\n"
             "  -h, --help        this text\n");
 }
@@ -121,17 +122,46 @@ static int run_point(const char *spec)
             q.tv_iters = (int)json_integer_value(tvi);
         q.metrics_every = q.ssim_every = 0;
         rc = sci_admmtv_solve(p[0], &q, &r, NULL, NULL);
-    } else {
+    } else if (strcmp(method, "rayformer") == 0) {
+        /* a preset, then the knobs the point names; a patch size keeps the rays per step */
         sci_rayformer_params q;
         sci_rayformer_params_default(&q);
-        q.iters = iters;
         json_t *v;
-        if ((v = json_object_get(params, "patch")))
-            q.patch = (int)json_integer_value(v);
+        const char *preset = json_string_value(json_object_get(params, "preset"));
+        if (preset && sci_rayformer_params_preset(&q, preset) < 0) {
+            fprintf(stderr, "scicap bench --point: unknown preset '%s'\n", preset);
+            return 2;
+        }
+        if (iters > 0)
+            q.iters = iters;
+        if ((v = json_object_get(params, "patch"))) {
+            int rays = q.patches_per_step * q.patch * q.patch, pt = (int)json_integer_value(v);
+            q.patch = pt;
+            q.patches_per_step = rays / (pt * pt) > 0 ? rays / (pt * pt) : 1;
+        }
         if ((v = json_object_get(params, "samples")))
             q.samples = (int)json_integer_value(v);
+        if ((v = json_object_get(params, "table")))
+            q.log2_table = (int)json_integer_value(v);
         q.metrics_every = q.ssim_every = 0;
         rc = sci_rayformer_solve(p[0], &q, &r, NULL, NULL);
+    } else {
+        sci_scinerf_params q;
+        sci_scinerf_params_default(&q);
+        json_t *v;
+        const char *preset = json_string_value(json_object_get(params, "preset"));
+        if (preset && sci_scinerf_params_preset(&q, preset) < 0) {
+            fprintf(stderr, "scicap bench --point: unknown preset '%s'\n", preset);
+            return 2;
+        }
+        if (iters > 0)
+            q.iters = iters;
+        if ((v = json_object_get(params, "samples")))
+            q.samples = (int)json_integer_value(v);
+        if ((v = json_object_get(params, "rays")))
+            q.rays_per_step = (int)json_integer_value(v);
+        q.metrics_every = 0;
+        rc = sci_scinerf_solve(p[0], &q, &r, NULL, NULL);
     }
     json_t *out;
     if (rc < 0 || r.trace.len == 0) {
@@ -229,8 +259,12 @@ static int add_point(bench_point **pts, int *n, int *cap, int scene, const char 
     json_t *v;
     size_t off = 0;
     json_object_foreach(params, key, v) {
-        off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%lld", off ? " " : "", key,
-                                (long long)json_integer_value(v));
+        if (json_is_string(v))
+            off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%s", off ? " " : "", key,
+                                    json_string_value(v));
+        else
+            off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%lld", off ? " " : "", key,
+                                    (long long)json_integer_value(v));
         if (off >= sizeof p->setting)
             break;
     }
@@ -486,10 +520,10 @@ int cli_bench_main(int argc, char **argv)
     int np = 0, cap = 0;
     static const int it_full[] = {5, 10, 20, 50, 100, 200}, it_quick[] = {10, 50};
     static const int tvi_full[] = {2, 5}, tvi_quick[] = {5};
-    static const int rf_full[] = {100, 300, 800}, rf_quick[] = {20};
-    const int *its = quick ? it_quick : it_full, *tvis = quick ? tvi_quick : tvi_full, *rfs = quick ? rf_quick : rf_full;
-    int nit = quick ? 2 : 6, ntvi = quick ? 1 : 2, nrf = quick ? 1 : 3;
-    const char *const methods[] = {"gap-tv", "admm-tv", "rayformer"};
+    const int *its = quick ? it_quick : it_full, *tvis = quick ? tvi_quick : tvi_full;
+    int nit = quick ? 2 : 6, ntvi = quick ? 1 : 2;
+    const char *const methods[] = {"gap-tv", "admm-tv", "rayformer", "scinerf"};
+    enum { N_METHODS = 4 };
     for (int s = 0; s < ns; s++) {
         for (int m = 0; m < 2; m++) {
             if (!method_enabled(methods_arg, methods[m]))
@@ -499,10 +533,39 @@ int cli_bench_main(int argc, char **argv)
                     add_point(&pts, &np, &cap, s, methods[m],
                               json_pack("{s:i, s:i}", "iters", its[a], "tv_iters", tvis[b]));
         }
-        if (sc[s].has_camera && method_enabled(methods_arg, "rayformer"))
-            for (int a = 0; a < nrf; a++)
+        if (!sc[s].has_camera)
+            continue;
+        /* The NeRF methods on the fast preset (rayformer 1500 steps, scinerf 1000 ≈ 3.5 min each here): fewer
+         * steps, and at 300 steps one other knob at a time: samples per ray, patch size (same rays per step),
+         * hash table size (levels × features is the transformer width, so the table is rayformer's hash knob).
+         * About 10 minutes per scene on 2 cores; the presets balanced/best (9–30 min each) are measured by
+         * bench_nerf_recon instead, to keep this report under 30 minutes. */
+        if (method_enabled(methods_arg, "rayformer")) {
+            if (quick)
+                add_point(&pts, &np, &cap, s, "rayformer", json_pack("{s:s, s:i}", "preset", "fast", "iters", 20));
+            else {
+                add_point(&pts, &np, &cap, s, "rayformer", json_pack("{s:s}", "preset", "fast"));
+                add_point(&pts, &np, &cap, s, "rayformer", json_pack("{s:s, s:i}", "preset", "fast", "iters", 100));
+                add_point(&pts, &np, &cap, s, "rayformer", json_pack("{s:s, s:i}", "preset", "fast", "iters", 300));
                 add_point(&pts, &np, &cap, s, "rayformer",
-                          json_pack("{s:i, s:i, s:i}", "iters", rfs[a], "patch", 8, "samples", 32));
+                          json_pack("{s:s, s:i, s:i}", "preset", "fast", "iters", 300, "samples", 16));
+                add_point(&pts, &np, &cap, s, "rayformer",
+                          json_pack("{s:s, s:i, s:i}", "preset", "fast", "iters", 300, "patch", 4));
+                add_point(&pts, &np, &cap, s, "rayformer",
+                          json_pack("{s:s, s:i, s:i}", "preset", "fast", "iters", 300, "table", 14));
+            }
+        }
+        if (method_enabled(methods_arg, "scinerf")) {
+            if (quick)
+                add_point(&pts, &np, &cap, s, "scinerf", json_pack("{s:s, s:i}", "preset", "fast", "iters", 20));
+            else {
+                add_point(&pts, &np, &cap, s, "scinerf", json_pack("{s:s}", "preset", "fast"));
+                add_point(&pts, &np, &cap, s, "scinerf", json_pack("{s:s, s:i}", "preset", "fast", "iters", 100));
+                add_point(&pts, &np, &cap, s, "scinerf", json_pack("{s:s, s:i}", "preset", "fast", "iters", 300));
+                add_point(&pts, &np, &cap, s, "scinerf",
+                          json_pack("{s:s, s:i, s:i}", "preset", "fast", "iters", 300, "samples", 16));
+            }
+        }
     }
 
     fprintf(stderr, "scicap bench: %d points on %d scenes, %d threads each\n", np, ns, threads);
@@ -557,7 +620,7 @@ int cli_bench_main(int argc, char **argv)
         fprintf(md, "#### %s\n\n![PSNR against wall time: %s](%s/psnr_time_%s.png)\n\n", sc[s].what, sc[s].name,
                 out, sc[s].name);
         fprintf(md, "| method | setting | PSNR dB | SSIM | wall s | CPU s | peak MiB | |\n|---|---|---:|---:|---:|---:|---:|---|\n");
-        for (int m = 0; m < 3; m++) {
+        for (int m = 0; m < N_METHODS; m++) {
             bench_point *sel[512];
             int k = 0;
             for (int i = 0; i < np && k < 512; i++)
@@ -570,7 +633,7 @@ int cli_bench_main(int argc, char **argv)
                         sel[i]->recommended ? "**cheapest within 0.5 dB of best**" : "front");
         }
         fprintf(md, "\n");
-        int rc = write_plot(out, &sc[s], s, pts, np, methods, 3);
+        int rc = write_plot(out, &sc[s], s, pts, np, methods, N_METHODS);
         if (rc < 0)
             fprintf(stderr, "scicap bench: plot for %s failed (is gnuplot installed?)\n", sc[s].name);
     }

@@ -3,6 +3,7 @@
 #include <getopt.h>
 #include <math.h>
 #include <omp.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -10,6 +11,8 @@
 #include <unistd.h>
 
 #include "base/clock.h"
+#include "base/error.h"
+#include "base/file.h"
 #include "cli/client.h"
 #include "cli/commands.h"
 #include "cli/progress.h"
@@ -47,6 +50,11 @@ static void usage(FILE *f)
             "  rayformer, scinerf:  --preset fast|balanced|best (default balanced; the options below override it)\n"
             "              --samples L (per ray)  --lr X  --pose-mode known|linear|per-frame  --seed S\n"
             "              (--iters applies too; rayformer also --patch P (2,4,8,16) --patches-per-step B --tv-weight)\n"
+            "              --ablation STEP   rayformer: the paper's ladder, baseline|patch|inter|intra|tv (tv: the\n"
+            "                                full method; each step adds its switch to the ones before)\n"
+            "              --checkpoint FILE write a checkpoint every --checkpoint-every K steps (default 100), at\n"
+            "                                the end, and when interrupted (Ctrl-C, SIGTERM)\n"
+            "              --resume FILE     continue a run from its checkpoint (same input and options)\n"
             "      --metrics-every K  PSNR against truth in the trace every K iterations (default 1)\n"
             "      --ssim-every K     SSIM in the trace every K iterations (default 10; 0 = last only)\n"
             "  -j, --threads N        OpenMP threads (default: all cores)\n"
@@ -55,7 +63,8 @@ static void usage(FILE *f)
             "\n"
             "Defaults are the PnP-SCI benchmark settings (accelerated GAP, lambda 1, 100 iterations, TV weight\n"
             "0.07, 5 TV passes). PSNR 'peak = frame max' uses each truth frame's maximum (the MATLAB reference's\n"
-            "convention); 'peak = 1' uses the data's white level. Exit status: 0 ok, 1 failure, 2 usage.\n");
+            "convention); 'peak = 1' uses the data's white level. Exit status: 0 ok, 1 failure, 2 usage,\n"
+            "130 interrupted.\n");
 }
 
 typedef struct recon_opts {
@@ -66,6 +75,41 @@ typedef struct recon_opts {
     sci_scinerf_params sn;
     int quiet;
 } recon_opts;
+
+/* Ctrl-C / SIGTERM: the progress callback asks the solver to stop; a NeRF run first hands over its checkpoint. */
+static volatile sig_atomic_t stop_requested;
+
+static void on_stop_signal(int sig)
+{
+    (void)sig;
+    stop_requested = 1;
+}
+
+/* The NeRF checkpoint callback: the blob goes to path.tmp, then replaces path (never a half-written checkpoint). */
+typedef struct ckpt_file {
+    const char *path;
+    int written, iter;
+} ckpt_file;
+
+static int write_checkpoint(const void *blob, size_t bytes, int iter, void *user)
+{
+    ckpt_file *c = user;
+    char tmp[4200];
+    snprintf(tmp, sizeof tmp, "%s.tmp", c->path);
+    FILE *f = fopen(tmp, "wb");
+    if (!f)
+        return -errno;
+    int ok = fwrite(blob, 1, bytes, f) == bytes;
+    ok &= fflush(f) == 0 && fsync(fileno(f)) == 0;
+    ok &= fclose(f) == 0;
+    if (!ok || rename(tmp, c->path) != 0) {
+        int e = errno ? -errno : -EIO;
+        unlink(tmp);
+        return e;
+    }
+    c->written++, c->iter = iter;
+    return 0;
+}
 
 static int parse_int(const char *s, const char *opt, int lo, int hi, int *out)
 {
@@ -100,14 +144,17 @@ static json_t *params_json(const recon_opts *o)
                          o->gap.lambda, "accelerate", o->gap.accelerate, "tv_weight", o->gap.tv_weight, "tv_iters",
                          o->gap.tv_iters);
     if (o->method == 3)
-        return json_pack("{s:s, s:i, s:i, s:i, s:f, s:i, s:I}", "method", "scinerf", "iters", o->sn.iters, "rays_per_step",
-                         o->sn.rays_per_step, "samples", o->sn.samples, "lr", o->sn.lr, "pose_mode",
-                         (int)o->sn.pose_mode, "seed", (json_int_t)o->sn.seed);
+        return json_pack("{s:s, s:i, s:i, s:i, s:i, s:f, s:i, s:I, s:b}", "method", "scinerf", "iters", o->sn.iters,
+                         "rays_per_step", o->sn.rays_per_step, "samples", o->sn.samples, "fine_samples",
+                         o->sn.fine_samples, "lr", o->sn.lr, "pose_mode", (int)o->sn.pose_mode, "seed",
+                         (json_int_t)o->sn.seed, "resumed", o->sn.resume != NULL);
     if (o->method == 2)
-        return json_pack("{s:s, s:i, s:i, s:i, s:i, s:f, s:f, s:i, s:I}", "method", "rayformer", "iters", o->rf.iters,
-                         "patch", o->rf.patch, "patches_per_step", o->rf.patches_per_step, "samples", o->rf.samples,
-                         "lr", o->rf.lr, "tv_weight", o->rf.tv_weight, "pose_mode", (int)o->rf.pose_mode, "seed",
-                         (json_int_t)o->rf.seed);
+        return json_pack("{s:s, s:i, s:i, s:i, s:i, s:i, s:f, s:f, s:b, s:b, s:b, s:i, s:I, s:b}", "method",
+                         "rayformer", "iters", o->rf.iters, "patch", o->rf.patch, "patches_per_step",
+                         o->rf.patches_per_step, "samples", o->rf.samples, "log2_table", o->rf.log2_table, "lr",
+                         o->rf.lr, "tv_weight", o->rf.tv_weight, "patch_sampling", o->rf.patch_sampling, "inter_ray",
+                         o->rf.inter_ray, "intra_ray", o->rf.intra_ray, "pose_mode", (int)o->rf.pose_mode, "seed",
+                         (json_int_t)o->rf.seed, "resumed", o->rf.resume != NULL);
     return json_pack("{s:s, s:i, s:f, s:f, s:f, s:i}", "method", "admm-tv", "iters", o->admm.iters, "lambda",
                      o->admm.lambda, "gamma", o->admm.gamma, "tv_weight", o->admm.tv_weight, "tv_iters",
                      o->admm.tv_iters);
@@ -141,12 +188,14 @@ int cli_recon_main(int argc, char **argv)
     sci_rayformer_params_default(&o.rf);
     sci_scinerf_params_default(&o.sn);
     const char *preset = NULL;
-    int nf_patch = 0, nf_pps = 0, nf_samples = 0, nf_pose = -1, nf_seed = -1;
+    int nf_patch = 0, nf_pps = 0, nf_samples = 0, nf_pose = -1, nf_seed = -1, nf_ablation = -1, ckpt_every = 100;
+    const char *ckpt_path = NULL, *resume_path = NULL;
     double nf_lr = NAN;
     const char *out = NULL;
     int force = 0, snapshot = 0, threads = 0, iters = -1, tv_iters = -1, metrics_every = -1, ssim_every = -1;
     double lambda = NAN, tv_weight = NAN;
-    enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET };
+    enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET,
+           OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME };
     static const struct option longopts[] = {
         {"method", required_argument, 0, 'm'},   {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},          {"snapshot", required_argument, 0, 's'},
@@ -158,7 +207,9 @@ int cli_recon_main(int argc, char **argv)
         {"patch", required_argument, 0, OPT_PATCH}, {"patches-per-step", required_argument, 0, OPT_PPS},
         {"samples", required_argument, 0, OPT_SAMPLES}, {"lr", required_argument, 0, OPT_LR},
         {"pose-mode", required_argument, 0, OPT_POSE}, {"seed", required_argument, 0, OPT_SEED},
-        {"preset", required_argument, 0, OPT_PRESET},
+        {"preset", required_argument, 0, OPT_PRESET}, {"ablation", required_argument, 0, OPT_ABLATION},
+        {"checkpoint", required_argument, 0, OPT_CKPT}, {"checkpoint-every", required_argument, 0, OPT_CKPT_EVERY},
+        {"resume", required_argument, 0, OPT_RESUME},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
     };
     optind = 1;
@@ -209,6 +260,21 @@ int cli_recon_main(int argc, char **argv)
                 bad = -1;
             }
             break;
+        case OPT_ABLATION: {
+            static const char *const steps[] = {"baseline", "patch", "inter", "intra", "tv"};
+            for (int k = 0; k < 5; k++)
+                if (strcmp(optarg, steps[k]) == 0 || strcmp(optarg, sci_rayformer_ablation_names[k]) == 0)
+                    nf_ablation = k;
+            if (nf_ablation < 0) {
+                fprintf(stderr, "scicap recon: --ablation wants baseline, patch, inter, intra or tv, got '%s'\n",
+                        optarg);
+                bad = -1;
+            }
+            break;
+        }
+        case OPT_CKPT: ckpt_path = optarg; break;
+        case OPT_CKPT_EVERY: bad = parse_int(optarg, "--checkpoint-every", 1, 1 << 30, &ckpt_every); break;
+        case OPT_RESUME: resume_path = optarg; break;
         case OPT_SEED: {
             bad = parse_int(optarg, "--seed", 0, 1 << 30, &nf_seed);
             break;
@@ -231,6 +297,8 @@ int cli_recon_main(int argc, char **argv)
         fprintf(stderr, "scicap recon: unknown preset '%s' (fast, balanced, best)\n", preset);
         return 2;
     }
+    if (nf_ablation >= 0)
+        sci_rayformer_params_ablation(&o.rf, nf_ablation, o.rf.tv_weight);
     if (nf_patch)
         o.rf.patch = nf_patch;
     if (nf_pps)
@@ -267,6 +335,10 @@ int cli_recon_main(int argc, char **argv)
         fprintf(stderr, "scicap recon: %s\n", err.msg);
         return 2;
     }
+    if ((ckpt_path || resume_path || nf_ablation >= 0) && o.method < 2) {
+        fprintf(stderr, "scicap recon: --checkpoint, --resume and --ablation are for rayformer and scinerf\n");
+        return 2;
+    }
     if (access(out, F_OK) == 0 && !force) {
         fprintf(stderr, "scicap recon: %s already exists (use --force to replace it)\n", out);
         return 1;
@@ -284,6 +356,33 @@ int cli_recon_main(int argc, char **argv)
         return 2;
     }
     int first = snapshot ? snapshot - 1 : 0, last = snapshot ? snapshot - 1 : k - 1, status = 0;
+    if ((ckpt_path || resume_path) && first != last) {
+        fprintf(stderr, "scicap recon: %s has %d snapshots; a checkpoint belongs to one (add --snapshot J)\n", input,
+                k);
+        sci_problem_array_free(probs, k);
+        return 2;
+    }
+    ckpt_file ck = {.path = ckpt_path};
+    void *resume_blob = NULL;
+    size_t resume_bytes = 0;
+    if (resume_path) {
+        if (sci_file_read(resume_path, (size_t)16 << 30, &resume_blob, &resume_bytes, &err) < 0) {
+            fprintf(stderr, "scicap recon: --resume: %s\n", err.msg);
+            sci_problem_array_free(probs, k);
+            return 1;
+        }
+        o.rf.resume = o.sn.resume = resume_blob;
+        o.rf.resume_bytes = o.sn.resume_bytes = resume_bytes;
+    }
+    if (ckpt_path) {
+        o.rf.checkpoint_fn = o.sn.checkpoint_fn = write_checkpoint;
+        o.rf.checkpoint_user = o.sn.checkpoint_user = &ck;
+        o.rf.checkpoint_every = o.sn.checkpoint_every = ckpt_every;
+    }
+    struct sigaction sa = {.sa_handler = on_stop_signal}, old_int, old_term;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, &old_int);
+    sigaction(SIGTERM, &sa, &old_term);
     json_t *params = params_json(&o);
     for (int j = first; j <= last && status == 0; j++) {
         const sci_problem *p = probs[j];
@@ -294,6 +393,7 @@ int cli_recon_main(int argc, char **argv)
         cli_progress prog;
         const int total = o.method == 0 ? o.gap.iters : o.method == 1 ? o.admm.iters : o.method == 2 ? o.rf.iters : o.sn.iters;
         cli_progress_init(&prog, o.quiet ? -1 : 2, total);
+        prog.stop = &stop_requested;
         sci_result r = {0};
         int64_t t0 = sci_clock_mono_ns();
         int rc = o.method == 0   ? sci_gaptv_solve(p, &o.gap, &r, cli_progress_update, &prog)
@@ -302,6 +402,17 @@ int cli_recon_main(int argc, char **argv)
                                  : sci_scinerf_solve(p, &o.sn, &r, cli_progress_update, &prog);
         double secs = sci_clock_s(t0, sci_clock_mono_ns());
         cli_progress_done(&prog);
+        if (rc == SCI_ECANCELED) {
+            fprintf(stderr, "scicap recon: interrupted after %d iterations; nothing written to %s", r.iters_done,
+                    out);
+            if (ck.written)
+                fprintf(stderr, "; checkpoint of step %d in %s (continue with --resume %s)", ck.iter, ck.path,
+                        ck.path);
+            fprintf(stderr, "\n");
+            sci_result_free_contents(&r);
+            status = 130;
+            break;
+        }
         if (rc < 0) {
             fprintf(stderr, "scicap recon: %s\n", r.error.msg);
             sci_result_free_contents(&r);
@@ -329,7 +440,12 @@ int cli_recon_main(int argc, char **argv)
         }
         sci_result_free_contents(&r);
     }
+    sigaction(SIGINT, &old_int, NULL);
+    sigaction(SIGTERM, &old_term, NULL);
+    if (ckpt_path && ck.written && status == 0)
+        printf("  checkpoint of step %d in %s\n", ck.iter, ckpt_path);
     json_decref(params);
+    free(resume_blob);
     sci_problem_array_free(probs, k);
     return status;
 }

@@ -176,12 +176,13 @@ json_t *sci_curves_setting_json(const char *setting)
             return NULL;
         }
         *eq = 0;
-        long long v = strtoll(eq + 1, &end, 10);
-        if (*end || eq == tok) {
+        if (eq == tok || !eq[1]) {
             json_decref(o);
             return NULL;
         }
-        json_object_set_new(o, tok, json_integer(v));
+        long long v = strtoll(eq + 1, &end, 10);
+        /* integers stay integers; a word ("preset=fast") is a string */
+        json_object_set_new(o, tok, *end ? json_string(eq + 1) : json_integer(v));
     }
     return o;
 }

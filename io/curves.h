@@ -38,7 +38,8 @@ void sci_curves_free(sci_curves *c);
 int sci_curves_pick(const sci_curves *c, const char *method, int has_camera, double voxels, double budget_s,
                     sci_curve_choice *out, sci_error *err);
 
-/* The setting as a JSON object of integers ({"iters": 100, "tv_iters": 5}); new reference, NULL if malformed. */
+/* The setting as a JSON object ({"iters": 100, "tv_iters": 5}; a non-numeric value such as preset=fast becomes a
+ * string); new reference, NULL if malformed (a token without "=", an empty key or value). */
 json_t *sci_curves_setting_json(const char *setting);
 
 #endif

@@ -53,7 +53,7 @@ int sci_rayformer_params_preset(sci_rayformer_params *p, const char *name)
     } t[] = {
         {"fast", 1500, 4, 16, 512},
         {"balanced", 2000, 8, 16, 512},
-        {"best", 4000, 8, 18, 1024},
+        {"best", 3000, 8, 18, 1024},
     };
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (strcmp(name, t[i].name) == 0) {
@@ -172,14 +172,12 @@ int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_param
     snprintf(result->method, sizeof result->method, "rayformer");
     sci_error *err = &result->error;
     int rc = sci_rayformer_params_check(params, err);
-    if (rc == 0)
-        rc = sci_problem_validate(problem, err);
     if (rc < 0)
         return rc;
-    if (!problem->camera || problem->camera->n != problem->mask->n)
-        return sci_error_set(err, -EINVAL, "rayformer: %s: needs a camera with one pose per frame", problem->name);
     nerf_train_config tc;
     train_config(params, &tc);
+    if ((rc = nerf_train_prepare(problem, &tc, err)) < 0)
+        return rc;
     nerf_rayformer_config cfg = nerf_rayformer_config_default();
     cfg.grid.log2_table = params->log2_table;
     cfg.grid.finest_res = params->finest_res;
@@ -188,10 +186,8 @@ int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_param
     cfg.sh_degree = params->sh_degree;
     cfg.inter_ray = params->inter_ray;
     cfg.intra_ray = params->intra_ray;
-    if ((rc = nerf_train_scene_box(problem, &tc, cfg.aabb_min, cfg.aabb_max, err)) < 0)
-        return rc;
-    memcpy(tc.box_lo, cfg.aabb_min, sizeof tc.box_lo);
-    memcpy(tc.box_hi, cfg.aabb_max, sizeof tc.box_hi);
+    memcpy(cfg.aabb_min, tc.box_lo, sizeof cfg.aabb_min);
+    memcpy(cfg.aabb_max, tc.box_hi, sizeof cfg.aabb_max);
     rf_model m = {0};
     const int groups = params->patches_per_step * problem->mask->n;
     const int threads = params->threads > 0 ? params->threads : omp_get_max_threads();

@@ -47,7 +47,7 @@ int sci_scinerf_params_preset(sci_scinerf_params *p, const char *name)
     } t[] = {
         {"fast", 1000, 1024, 0},
         {"balanced", 1500, 2048, 0},
-        {"best", 1500, 2048, 32},
+        {"best", 1000, 2048, 32},
     };
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (strcmp(name, t[i].name) == 0) {
@@ -184,19 +184,15 @@ int sci_scinerf_solve_ex(const sci_problem *problem, const sci_scinerf_params *p
     snprintf(result->method, sizeof result->method, "scinerf");
     sci_error *err = &result->error;
     int rc = sci_scinerf_params_check(params, err);
-    if (rc == 0)
-        rc = sci_problem_validate(problem, err);
     if (rc < 0)
         return rc;
-    if (!problem->camera || problem->camera->n != problem->mask->n)
-        return sci_error_set(err, -EINVAL, "scinerf: %s: needs a camera with one pose per frame", problem->name);
     nerf_train_config tc;
     train_config(params, &tc);
-    nerf_mlp_config mc = mlp_config(params);
-    if ((rc = nerf_train_scene_box(problem, &tc, mc.aabb_min, mc.aabb_max, err)) < 0)
+    if ((rc = nerf_train_prepare(problem, &tc, err)) < 0)
         return rc;
-    memcpy(tc.box_lo, mc.aabb_min, sizeof tc.box_lo);
-    memcpy(tc.box_hi, mc.aabb_max, sizeof tc.box_hi);
+    nerf_mlp_config mc = mlp_config(params);
+    memcpy(mc.aabb_min, tc.box_lo, sizeof mc.aabb_min);
+    memcpy(mc.aabb_max, tc.box_hi, sizeof mc.aabb_max);
     const int groups = tc.groups_per_step * problem->mask->n, R = GROUP * GROUP;
     const int threads = params->threads > 0 ? params->threads : omp_get_max_threads();
     mlp_model m[2] = {{0}, {0}};

@@ -93,6 +93,16 @@ int nerf_train_scene_box(const sci_problem *pb, const nerf_train_config *c, floa
     return 0;
 }
 
+int nerf_train_prepare(const sci_problem *pb, nerf_train_config *c, sci_error *err)
+{
+    int rc = sci_problem_validate(pb, err);
+    if (rc < 0)
+        return rc;
+    if (!pb->camera || pb->camera->n != pb->mask->n)
+        return sci_error_set(err, -EINVAL, "%s: %s: needs a camera with one pose per frame", c->method, pb->name);
+    return nerf_train_scene_box(pb, c, c->box_lo, c->box_hi, err);
+}
+
 /* ------------------------------------------------------------------ run state (trainer_run.h) */
 
 static void pass_free(pass *p)

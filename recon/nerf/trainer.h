@@ -113,6 +113,10 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err);
 int nerf_train_scene_box(const sci_problem *pb, const nerf_train_config *c, float lo[3], float hi[3],
                          sci_error *err);
 
+/* What both solvers do before building their models: the problem validated (sci_problem_validate), a camera with
+ * one pose per frame required (-EINVAL), and c->box_lo/box_hi set by nerf_train_scene_box. Errors name c->method. */
+int nerf_train_prepare(const sci_problem *pb, nerf_train_config *c, sci_error *err);
+
 /* Train `coarse` (and `fine`, or NULL) on the problem and render the frames into result (solver contract of
  * problem.h). The models' n_params, n_hash and max_groups must fit the config (max_groups >= N·B; the fine model
  * is called with L = samples + fine_samples). poses_out (N × 12, or NULL) gets the final poses on success and

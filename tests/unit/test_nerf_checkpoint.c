@@ -15,41 +15,7 @@
 #include "recon/nerf/rayformer_solve.h"
 #include "recon/nerf/scinerf_solve.h"
 #include "sim/simulate.h"
-
-static unsigned long long test_seed(void)
-{
-    const char *s = getenv("SCICAP_TEST_SEED");
-    unsigned long long seed = s ? strtoull(s, NULL, 0) : 7;
-    printf("seed %llu (set SCICAP_TEST_SEED to change)\n", seed);
-    return seed;
-}
-
-/* A w×w×4 static3d scene: a textured sphere before a noise wall, the camera sliding and panning. */
-static sci_problem *tiny_problem(int w, unsigned long long seed)
-{
-    char text[2048];
-    snprintf(text, sizeof text,
-             "{\"kind\": \"static3d\", \"width\": %d, \"height\": %d, \"frames\": 4, \"seed\": %llu,"
-             " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, -3], \"radius\": 0.8,"
-             "   \"texture\": {\"type\": \"checkerboard\", \"cell\": 16}},"
-             "  {\"type\": \"plane\", \"center\": [0, 0, -5], \"size\": [8, 8], \"texture\": {\"type\": \"noise\", \"cell\": 32}}],"
-             " \"camera\": {\"fx\": %d, \"cx\": %g, \"cy\": %g, \"near\": 1.5, \"far\": 6,"
-             "   \"start\": {\"position\": [-0.15, 0, 0], \"look_at\": [0, 0, -3]},"
-             "   \"end\": {\"position\": [0.15, 0.05, 0], \"look_at\": [0, 0, -3]}}}",
-             w, w, seed, w, w / 2.0, w / 2.0);
-    sim_scene *sc = NULL;
-    sci_error err = {0};
-    if (sim_scene_load_string(&sc, "tiny.json", text, NULL, &err) < 0)
-        fail_msg("%s", err.msg);
-    sci_problem **p;
-    int k;
-    if (sim_run(sc, &p, &k, NULL, NULL, NULL, &err) < 0)
-        fail_msg("%s", err.msg);
-    sci_problem *one = p[0];
-    free(p);
-    sim_scene_free(sc);
-    return one;
-}
+#include "tests/helpers/nerf_scene.h"
 
 /* Keeps the newest checkpoint, or the one of step `want` when it is set. */
 typedef struct store {
@@ -116,8 +82,8 @@ static void expect_same_run(const sci_result *a, const sci_result *b, int from, 
 static void test_rayformer_cancel_resume(void **state)
 {
     (void)state;
-    unsigned long long seed = test_seed();
-    sci_problem *p = tiny_problem(16, seed);
+    unsigned long long seed = test_seed_env(7);
+    sci_problem *p = nerf_tiny_problem(16, seed);
     const int n = p->mask->n;
     double(*poses_a)[12] = malloc((size_t)n * sizeof *poses_a), (*poses_b)[12] = malloc((size_t)n * sizeof *poses_b);
     sci_rayformer_params prm;
@@ -157,8 +123,8 @@ static void test_rayformer_cancel_resume(void **state)
 static void test_scinerf_periodic_resume(void **state)
 {
     (void)state;
-    unsigned long long seed = test_seed();
-    sci_problem *p = tiny_problem(16, seed);
+    unsigned long long seed = test_seed_env(7);
+    sci_problem *p = nerf_tiny_problem(16, seed);
     sci_scinerf_params prm;
     sci_scinerf_params_default(&prm);
     prm.iters = 12, prm.rays_per_step = 64, prm.samples = 8, prm.fine_samples = 8, prm.log2_table = 12;
@@ -191,7 +157,7 @@ static void test_scinerf_periodic_resume(void **state)
 static void test_bad_checkpoints(void **state)
 {
     (void)state;
-    sci_problem *p = tiny_problem(16, 3);
+    sci_problem *p = nerf_tiny_problem(16, 3);
     sci_rayformer_params prm;
     small_rf(&prm, 3);
     prm.iters = 4;
@@ -253,7 +219,7 @@ static void test_bad_checkpoints(void **state)
     sci_result_free_contents(&r);
     /* a different problem size */
     prm.log2_table = 12;
-    sci_problem *q = tiny_problem(24, 3);
+    sci_problem *q = nerf_tiny_problem(24, 3);
     r = (sci_result){0};
     assert_int_equal(sci_rayformer_solve(q, &prm, &r, NULL, NULL), SCI_ESHAPE);
     assert_non_null(strstr(r.error.msg, "problem"));

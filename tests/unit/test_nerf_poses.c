@@ -16,40 +16,7 @@
 #include "recon/nerf/scinerf_solve.h"
 #include "recon/nerf/se3.h"
 #include "sim/simulate.h"
-
-static unsigned long long test_seed(void)
-{
-    const char *s = getenv("SCICAP_TEST_SEED");
-    unsigned long long seed = s ? strtoull(s, NULL, 0) : 1;
-    printf("seed %llu (set SCICAP_TEST_SEED to change)\n", seed);
-    return seed;
-}
-
-static sci_problem *tiny_problem(unsigned long long seed)
-{
-    char text[2048];
-    snprintf(text, sizeof text,
-             "{\"kind\": \"static3d\", \"width\": 32, \"height\": 32, \"frames\": 4, \"seed\": %llu,"
-             " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, -3], \"radius\": 0.8,"
-             "   \"texture\": {\"type\": \"checkerboard\", \"cell\": 16}},"
-             "  {\"type\": \"plane\", \"center\": [0, 0, -5], \"size\": [8, 8], \"texture\": {\"type\": \"noise\", \"cell\": 32}}],"
-             " \"camera\": {\"fx\": 32, \"cx\": 16, \"cy\": 16, \"near\": 1.5, \"far\": 6,"
-             "   \"start\": {\"position\": [-0.15, 0, 0], \"look_at\": [0, 0, -3]},"
-             "   \"end\": {\"position\": [0.15, 0.05, 0], \"look_at\": [0, 0, -3]}}}",
-             seed);
-    sim_scene *sc = NULL;
-    sci_error err = {0};
-    if (sim_scene_load_string(&sc, "tiny.json", text, NULL, &err) < 0)
-        fail_msg("%s", err.msg);
-    sci_problem **p;
-    int k;
-    if (sim_run(sc, &p, &k, NULL, NULL, NULL, &err) < 0)
-        fail_msg("%s", err.msg);
-    sci_problem *one = p[0];
-    free(p);
-    sim_scene_free(sc);
-    return one;
-}
+#include "tests/helpers/nerf_scene.h"
 
 /* The relative error ignores a rigid motion of the whole trajectory, and a common scale shows up as `scale` with
  * no scaled error; a real change of the motion does show. */
@@ -139,8 +106,8 @@ static int keep(const void *blob, size_t bytes, int iter, void *user)
 static void test_poses_move_toward_truth(void **state)
 {
     (void)state;
-    unsigned long long seed = test_seed();
-    sci_problem *p = tiny_problem(7);
+    unsigned long long seed = test_seed_env(1);
+    sci_problem *p = nerf_tiny_problem(32, 7);
     sci_scinerf_params prm;
     sci_scinerf_params_default(&prm);
     prm.iters = 120, prm.rays_per_step = 128, prm.samples = 16, prm.log2_table = 12, prm.finest_res = 64;

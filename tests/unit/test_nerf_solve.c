@@ -15,58 +15,7 @@
 #include "recon/nerf/rayformer_solve.h"
 #include "recon/sci_ops.h"
 #include "sim/simulate.h"
-
-static unsigned long long test_seed(void)
-{
-    const char *s = getenv("SCICAP_TEST_SEED");
-    unsigned long long seed = s ? strtoull(s, NULL, 0) : 7;
-    printf("seed %llu (set SCICAP_TEST_SEED to change)\n", seed);
-    return seed;
-}
-
-/* A 32×32×4 static3d scene: a textured sphere before a noise wall, the camera sliding and panning. */
-static sci_problem *tiny_problem(unsigned long long seed)
-{
-    char text[2048];
-    snprintf(text, sizeof text,
-             "{\"kind\": \"static3d\", \"width\": 32, \"height\": 32, \"frames\": 4, \"seed\": %llu,"
-             " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, -3], \"radius\": 0.8,"
-             "   \"texture\": {\"type\": \"checkerboard\", \"cell\": 16}},"
-             "  {\"type\": \"plane\", \"center\": [0, 0, -5], \"size\": [8, 8], \"texture\": {\"type\": \"noise\", \"cell\": 32}}],"
-             " \"camera\": {\"fx\": 32, \"cx\": 16, \"cy\": 16, \"near\": 1.5, \"far\": 6,"
-             "   \"start\": {\"position\": [-0.15, 0, 0], \"look_at\": [0, 0, -3]},"
-             "   \"end\": {\"position\": [0.15, 0.05, 0], \"look_at\": [0, 0, -3]}}}",
-             seed);
-    sim_scene *sc = NULL;
-    sci_error err = {0};
-    if (sim_scene_load_string(&sc, "tiny.json", text, NULL, &err) < 0)
-        fail_msg("%s", err.msg);
-    sci_problem **p;
-    int k;
-    if (sim_run(sc, &p, &k, NULL, NULL, NULL, &err) < 0)
-        fail_msg("%s", err.msg);
-    assert_int_equal(k, 1);
-    sci_problem *one = p[0];
-    free(p);
-    sim_scene_free(sc);
-    return one;
-}
-
-static double mean_frame_psnr(const sci_problem *p)
-{
-    sci_cube *x, *phi;
-    assert_int_equal(sci_cube_new(&x, p->mask->w, p->mask->h, p->mask->n, NULL), 0);
-    assert_int_equal(sci_cube_new(&phi, p->mask->w, p->mask->h, 1, NULL), 0);
-    sci_op_phi_sum(p->mask, phi);
-    size_t fs = sci_cube_frame_size(x);
-    for (int i = 0; i < x->n; i++)
-        for (size_t k = 0; k < fs; k++)
-            x->data[i * fs + k] = phi->data[k] > 0 ? p->meas->data[k] / phi->data[k] : 0;
-    double psnr = sci_psnr(x, p->truth, SCI_PEAK_FIXED, p->peak, NULL);
-    sci_cube_free(x);
-    sci_cube_free(phi);
-    return psnr;
-}
+#include "tests/helpers/nerf_scene.h"
 
 static void small_params(sci_rayformer_params *prm, unsigned long long seed)
 {
@@ -98,7 +47,7 @@ static void test_params_check(void **state)
 static void test_needs_camera(void **state)
 {
     (void)state;
-    sci_problem *p = tiny_problem(1);
+    sci_problem *p = nerf_tiny_problem(32, 1);
     sci_camera *cam = p->camera;
     p->camera = NULL;
     sci_rayformer_params prm;
@@ -125,8 +74,8 @@ static double mean_loss(const sci_trace *t, size_t from, size_t to)
 static void test_learns_tiny_scene(void **state)
 {
     (void)state;
-    unsigned long long seed = test_seed();
-    sci_problem *p = tiny_problem(seed);
+    unsigned long long seed = test_seed_env(7);
+    sci_problem *p = nerf_tiny_problem(32, seed);
     sci_rayformer_params prm;
     small_params(&prm, seed);
     prm.iters = 150;
@@ -137,7 +86,7 @@ static void test_learns_tiny_scene(void **state)
     assert_non_null(r.frames);
     assert_int_equal((int)r.trace.len, prm.iters);
     double first = mean_loss(&r.trace, 0, 10), last = mean_loss(&r.trace, r.trace.len - 10, r.trace.len);
-    double base = mean_frame_psnr(p), psnr = r.trace.e[r.trace.len - 1].psnr_peak1;
+    double base = nerf_mean_frame_psnr(p), psnr = r.trace.e[r.trace.len - 1].psnr_peak1;
     printf("loss %.4g -> %.4g; PSNR %.2f dB vs mean frame %.2f dB; %.1f s\n", first, last, psnr, base,
            r.trace.e[r.trace.len - 1].wall_s);
     assert_true(last < 0.5 * first);
@@ -155,7 +104,7 @@ static int cancel_at_3(const sci_trace_entry *e, void *user)
 static void test_cancel_keeps_frames(void **state)
 {
     (void)state;
-    sci_problem *p = tiny_problem(2);
+    sci_problem *p = nerf_tiny_problem(32, 2);
     sci_rayformer_params prm;
     small_params(&prm, 2);
     prm.iters = 50;
@@ -173,8 +122,8 @@ static void test_cancel_keeps_frames(void **state)
 static void test_ablation_ladder(void **state)
 {
     (void)state;
-    sci_problem *p = tiny_problem(5);
-    double base = mean_frame_psnr(p);
+    sci_problem *p = nerf_tiny_problem(32, 5);
+    double base = nerf_mean_frame_psnr(p);
     for (int step = 0; step <= 4; step++) {
         sci_rayformer_params prm;
         small_params(&prm, 5);

@@ -1,0 +1,224 @@
+/* `scicap recon --method rayformer|scinerf` as a user runs it, through the real binary on a tiny static3d scene
+ * from `scicap sim`: periodic checkpoints, Ctrl-C (SIGINT) mid-training leaves a checkpoint and no output folder
+ * (exit 130), --resume continues from it to a full result, and the ablation switches reach the solver (they are
+ * recorded in result.json). Correctness of resume itself (resumed == uninterrupted) is test_nerf_checkpoint's. */
+#include <errno.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+#include <jansson.h>
+
+static char dir[] = "/tmp/scicap-test-cli-nerf-XXXXXX";
+static char scicap[1024];
+
+static const char scene[] =
+    "{\"kind\": \"static3d\", \"width\": 24, \"height\": 24, \"frames\": 4, \"seed\": 5,"
+    " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, -3], \"radius\": 0.8,"
+    "   \"texture\": {\"type\": \"checkerboard\", \"cell\": 12}},"
+    "  {\"type\": \"plane\", \"center\": [0, 0, -5], \"size\": [8, 8], \"texture\": {\"type\": \"noise\", \"cell\": 24}}],"
+    " \"camera\": {\"fx\": 24, \"cx\": 12, \"cy\": 12, \"near\": 1.5, \"far\": 6,"
+    "   \"start\": {\"position\": [-0.15, 0, 0], \"look_at\": [0, 0, -3]},"
+    "   \"end\": {\"position\": [0.15, 0.05, 0], \"look_at\": [0, 0, -3]}}}";
+
+/* Small and quick: 2 windows of 8×8 per step, 8 samples, a 2^12 hash table. */
+#define SMALL "--patch 8 --patches-per-step 2 --samples 8 --metrics-every 0 -j 1"
+
+static int run(const char *fmt, ...)
+{
+    char cmd[4096];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(cmd, sizeof cmd, fmt, ap);
+    va_end(ap);
+    int rc = system(cmd);
+    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+static int exists(const char *fmt, const char *name)
+{
+    char path[2048];
+    snprintf(path, sizeof path, fmt, dir, name);
+    return access(path, F_OK) == 0;
+}
+
+static json_t *result_params(const char *out)
+{
+    char path[2048];
+    snprintf(path, sizeof path, "%s/%s/result.json", dir, out);
+    json_error_t je;
+    json_t *j = json_load_file(path, 0, &je);
+    if (!j)
+        fail_msg("%s: %s", path, je.text);
+    json_t *p = json_object_get(j, "params");
+    if (!p)
+        fail_msg("%s has no params", path);
+    json_incref(p);
+    json_decref(j);
+    return p;
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    const char *build = getenv("BUILD");
+    snprintf(scicap, sizeof scicap, "%s/scicap", build ? build : "build");
+    if (!mkdtemp(dir))
+        return -1;
+    char path[2048];
+    snprintf(path, sizeof path, "%s/tiny.json", dir);
+    FILE *f = fopen(path, "w");
+    if (!f)
+        return -1;
+    fputs(scene, f);
+    fclose(f);
+    return run("%s sim %s/tiny.json -o %s/prob >/dev/null 2>&1", scicap, dir, dir) == 0 ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    return run("rm -rf '%s'", dir);
+}
+
+/* Periodic checkpoints, then a resumed run to more steps. */
+static void test_checkpoint_then_resume(void **state)
+{
+    (void)state;
+    assert_int_equal(run("%s recon --method rayformer " SMALL " --iters 8 --checkpoint %s/ck --checkpoint-every 4 -q "
+                         "%s/prob -o %s/a >%s/a.log 2>&1",
+                         scicap, dir, dir, dir, dir),
+                     0);
+    assert_true(exists("%s/%s", "a/result.json"));
+    assert_true(exists("%s/%s", "ck"));
+    assert_false(exists("%s/%s", "ck.tmp"));
+    assert_int_equal(run("%s recon --method rayformer " SMALL " --iters 12 --resume %s/ck -q %s/prob -o %s/b >%s/b.log "
+                         "2>&1",
+                         scicap, dir, dir, dir, dir),
+                     0);
+    json_t *p = result_params("b");
+    assert_true(json_is_true(json_object_get(p, "resumed")));
+    json_decref(p);
+    /* 12 steps in all: the trace of the resumed run ends at step 12 */
+    assert_int_equal(run("grep -q '^  12 iterations' %s/b.log", dir), 0);
+    /* a damaged checkpoint is refused with a message, not trained from */
+    assert_int_equal(run("head -c 100 %s/ck > %s/bad && %s recon --method rayformer " SMALL " --iters 12 --resume %s/bad "
+                         "-q %s/prob -o %s/c >%s/c.log 2>&1",
+                         dir, dir, scicap, dir, dir, dir, dir),
+                     1);
+    assert_int_equal(run("grep -qi 'checkpoint' %s/c.log", dir), 0);
+    assert_false(exists("%s/%s", "c"));
+}
+
+/* Ctrl-C mid-training: exit 130, a checkpoint, no output folder; resuming finishes the run. */
+static void test_interrupt_and_resume(void **state)
+{
+    (void)state;
+    char out[2048], ck[2048], log[2048];
+    snprintf(out, sizeof out, "%s/int", dir);
+    snprintf(ck, sizeof ck, "%s/ck_int", dir);
+    snprintf(log, sizeof log, "%s/int.log", dir);
+    char prob[2048];
+    snprintf(prob, sizeof prob, "%s/prob", dir);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        FILE *f = freopen(log, "w", stderr);
+        (void)f;
+        execl(scicap, scicap, "recon", "--method", "scinerf", "--samples", "8", "--metrics-every", "0", "-j", "1",
+              "--iters", "1000000", "--checkpoint", ck, "--checkpoint-every", "1000000", "-q", prob, "-o", out,
+              (char *)NULL);
+        _exit(127);
+    }
+    /* wait until it has installed its SIGINT handler (SigCgt bit 1), then give it a few steps */
+    char status[64];
+    snprintf(status, sizeof status, "/proc/%d/status", (int)pid);
+    int caught = 0;
+    for (int i = 0; i < 3000 && !caught; i++) {
+        FILE *f = fopen(status, "r");
+        char line[256];
+        while (f && fgets(line, sizeof line, f))
+            if (strncmp(line, "SigCgt:", 7) == 0)
+                caught = (strtoull(line + 7, NULL, 16) >> (SIGINT - 1)) & 1;
+        if (f)
+            fclose(f);
+        if (!caught)
+            nanosleep(&(struct timespec){0, 10000000}, NULL);
+    }
+    assert_true(caught);
+    nanosleep(&(struct timespec){0, 500000000}, NULL);
+    kill(pid, SIGINT);
+    int ws;
+    assert_int_equal(waitpid(pid, &ws, 0), pid);
+    if (!WIFEXITED(ws) || WEXITSTATUS(ws) != 130) {
+        run("cat %s >&2", log);
+        fail_msg("interrupted run: expected exit 130");
+    }
+    assert_int_equal(access(ck, R_OK), 0);
+    assert_int_not_equal(access(out, F_OK), 0);
+    int step = 0;
+    FILE *f = fopen(log, "r");
+    char line[1024];
+    while (f && fgets(line, sizeof line, f)) {
+        const char *s = strstr(line, "checkpoint of step ");
+        if (s)
+            step = atoi(s + strlen("checkpoint of step "));
+    }
+    if (f)
+        fclose(f);
+    printf("interrupted at step %d\n", step);
+    assert_true(step >= 1);
+    /* resume to 3 steps past the interruption */
+    assert_int_equal(run("%s recon --method scinerf --samples 8 --metrics-every 0 -j 1 --iters %d --resume %s -q %s -o "
+                         "%s >%s/res.log 2>&1",
+                         scicap, step + 3, ck, prob, out, dir),
+                     0);
+    assert_int_equal(access(out, F_OK), 0);
+}
+
+/* --ablation reaches the solver; the classical methods refuse the NeRF-only options. */
+static void test_ablation_and_usage(void **state)
+{
+    (void)state;
+    assert_int_equal(run("%s recon --method rayformer " SMALL " --iters 2 --ablation baseline -q %s/prob -o %s/abl "
+                         ">/dev/null 2>&1",
+                         scicap, dir, dir),
+                     0);
+    json_t *p = result_params("abl");
+    assert_true(json_is_false(json_object_get(p, "patch_sampling")));
+    assert_true(json_is_false(json_object_get(p, "inter_ray")));
+    assert_true(json_is_false(json_object_get(p, "intra_ray")));
+    assert_true(json_real_value(json_object_get(p, "tv_weight")) == 0);
+    json_decref(p);
+    assert_int_equal(run("%s recon --method rayformer --ablation +inter --iters 2 " SMALL " -q %s/prob -o %s/abl2 "
+                         ">/dev/null 2>&1",
+                         scicap, dir, dir),
+                     0);
+    p = result_params("abl2");
+    assert_true(json_is_true(json_object_get(p, "patch_sampling")));
+    assert_true(json_is_true(json_object_get(p, "inter_ray")));
+    assert_true(json_is_false(json_object_get(p, "intra_ray")));
+    json_decref(p);
+    assert_int_equal(run("%s recon --method rayformer --ablation sideways %s/prob -o %s/x 2>/dev/null", scicap, dir, dir),
+                     2);
+    assert_int_equal(run("%s recon --method gap-tv --checkpoint %s/ck2 %s/prob -o %s/x 2>/dev/null", scicap, dir, dir, dir),
+                     2);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_checkpoint_then_resume),
+        cmocka_unit_test(test_interrupt_and_resume),
+        cmocka_unit_test(test_ablation_and_usage),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
