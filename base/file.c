@@ -28,6 +28,7 @@ int sci_file_read(const char *path, size_t max_bytes, void **out, size_t *len, s
             }
             buf = t;
         }
+        errno = 0;
         size_t got = fread(buf + n, 1, cap - 1 - n, f);
         n += got;
         if (n > max_bytes) {

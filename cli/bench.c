@@ -136,6 +136,10 @@ static int run_point(const char *spec)
             q.iters = iters;
         if ((v = json_object_get(params, "patch"))) {
             int rays = q.patches_per_step * q.patch * q.patch, pt = (int)json_integer_value(v);
+            if (pt < 1 || pt > 64) {
+                fprintf(stderr, "scicap bench --point: bad patch %d\n", pt);
+                return 2;
+            }
             q.patch = pt;
             q.patches_per_step = rays / (pt * pt) > 0 ? rays / (pt * pt) : 1;
         }
@@ -145,7 +149,7 @@ static int run_point(const char *spec)
             q.log2_table = (int)json_integer_value(v);
         q.metrics_every = q.ssim_every = 0;
         rc = sci_rayformer_solve(p[0], &q, &r, NULL, NULL);
-    } else {
+    } else if (strcmp(method, "scinerf") == 0) {
         sci_scinerf_params q;
         sci_scinerf_params_default(&q);
         json_t *v;
@@ -162,6 +166,9 @@ static int run_point(const char *spec)
             q.rays_per_step = (int)json_integer_value(v);
         q.metrics_every = 0;
         rc = sci_scinerf_solve(p[0], &q, &r, NULL, NULL);
+    } else {
+        fprintf(stderr, "scicap bench --point: unknown method '%s'\n", method);
+        return 2;
     }
     json_t *out;
     if (rc < 0 || r.trace.len == 0) {

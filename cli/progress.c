@@ -9,7 +9,7 @@
 void cli_progress_init(cli_progress *p, int fd, int total)
 {
     *p = (cli_progress){.fd = fd, .tty = fd >= 0 && isatty(fd), .total = total, .last_pct = -1,
-                        .t0_ns = sci_clock_mono_ns(), .last_psnr = NAN, .last_ssim = NAN};
+                        .t0_ns = sci_clock_mono_ns(), .last_psnr = NAN, .last_ssim = NAN, .iter0 = -1};
 }
 
 int cli_progress_update(const sci_trace_entry *e, void *user)
@@ -23,11 +23,14 @@ int cli_progress_update(const sci_trace_entry *e, void *user)
         p->last_psnr = e->psnr;
     if (!isnan(e->ssim))
         p->last_ssim = e->ssim;
+    if (p->iter0 < 0)
+        p->iter0 = e->iter - 1;
     int64_t now = sci_clock_mono_ns();
     int pct = p->total > 0 ? (int)(100.0 * e->iter / p->total) : 0;
     double el = sci_clock_s(p->t0_ns, now);
-    double eta = e->iter > 0 ? el * (p->total - e->iter) / e->iter : 0;
-    double rate = el > 0 ? e->iter / el : 0;
+    const int done = e->iter - p->iter0; /* iterations run by this process */
+    double eta = done > 0 ? el * (p->total - e->iter) / done : 0;
+    double rate = el > 0 ? done / el : 0;
     if (p->tty && now - p->last_ns < 100000000 && e->iter < p->total)
         return 0; /* at most 10 redraws a second */
     if (!p->tty && pct / 10 == p->last_pct / 10 && e->iter != p->total)

@@ -15,6 +15,7 @@ typedef struct cli_progress {
     int total;      /* expected iterations */
     int last_pct;   /* last percentage printed (non-TTY) */
     int64_t t0_ns, last_ns;
+    int iter0;      /* the iteration before the first one seen (a resumed run starts past 0); -1: none yet */
     double last_psnr, last_ssim;
     const volatile sig_atomic_t *stop; /* nonzero (set by a signal handler): ask the solver to stop; NULL: never */
 } cli_progress;

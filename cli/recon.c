@@ -63,8 +63,8 @@ static void usage(FILE *f)
             "\n"
             "Defaults are the PnP-SCI benchmark settings (accelerated GAP, lambda 1, 100 iterations, TV weight\n"
             "0.07, 5 TV passes). PSNR 'peak = frame max' uses each truth frame's maximum (the MATLAB reference's\n"
-            "convention); 'peak = 1' uses the data's white level. Exit status: 0 ok, 1 failure, 2 usage,\n"
-            "130 interrupted.\n");
+            "convention); 'peak = 1' uses the data's white level. Exit status: 0 ok, 1 failure, 2 usage; on\n"
+            "SIGINT/SIGTERM it stops, writes nothing more, and dies of that signal.\n");
 }
 
 typedef struct recon_opts {
@@ -76,13 +76,14 @@ typedef struct recon_opts {
     int quiet;
 } recon_opts;
 
-/* Ctrl-C / SIGTERM: the progress callback asks the solver to stop; a NeRF run first hands over its checkpoint. */
-static volatile sig_atomic_t stop_requested;
+/* Ctrl-C / SIGTERM: the progress callback asks the solver to stop (a NeRF run first hands over its checkpoint);
+ * nothing more is written and the process then dies of the same signal, so a calling shell loop stops too. The
+ * handler is one-shot: a second Ctrl-C kills at once. */
+static volatile sig_atomic_t stop_requested; /* the signal number, 0 while none */
 
 static void on_stop_signal(int sig)
 {
-    (void)sig;
-    stop_requested = 1;
+    stop_requested = sig;
 }
 
 /* The NeRF checkpoint callback: the blob goes to path.tmp, then replaces path (never a half-written checkpoint). */
@@ -335,8 +336,12 @@ int cli_recon_main(int argc, char **argv)
         fprintf(stderr, "scicap recon: %s\n", err.msg);
         return 2;
     }
-    if ((ckpt_path || resume_path || nf_ablation >= 0) && o.method < 2) {
-        fprintf(stderr, "scicap recon: --checkpoint, --resume and --ablation are for rayformer and scinerf\n");
+    if ((ckpt_path || resume_path) && o.method < 2) {
+        fprintf(stderr, "scicap recon: --checkpoint and --resume are for rayformer and scinerf\n");
+        return 2;
+    }
+    if (nf_ablation >= 0 && o.method != 2) {
+        fprintf(stderr, "scicap recon: --ablation is for rayformer\n");
         return 2;
     }
     if (access(out, F_OK) == 0 && !force) {
@@ -379,7 +384,7 @@ int cli_recon_main(int argc, char **argv)
         o.rf.checkpoint_user = o.sn.checkpoint_user = &ck;
         o.rf.checkpoint_every = o.sn.checkpoint_every = ckpt_every;
     }
-    struct sigaction sa = {.sa_handler = on_stop_signal}, old_int, old_term;
+    struct sigaction sa = {.sa_handler = on_stop_signal, .sa_flags = SA_RESETHAND}, old_int, old_term;
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, &old_int);
     sigaction(SIGTERM, &sa, &old_term);
@@ -402,15 +407,17 @@ int cli_recon_main(int argc, char **argv)
                                  : sci_scinerf_solve(p, &o.sn, &r, cli_progress_update, &prog);
         double secs = sci_clock_s(t0, sci_clock_mono_ns());
         cli_progress_done(&prog);
-        if (rc == SCI_ECANCELED) {
-            fprintf(stderr, "scicap recon: interrupted after %d iterations; nothing written to %s", r.iters_done,
-                    out);
+        if (rc == SCI_ECANCELED || (rc == 0 && stop_requested)) {
+            fprintf(stderr, "scicap recon: interrupted after %d iterations; %s not written", r.iters_done,
+                    first == last ? out : "this snapshot");
+            if (j > first)
+                fprintf(stderr, " (snapshots %d to %d are in %s)", first + 1, j, out);
             if (ck.written)
                 fprintf(stderr, "; checkpoint of step %d in %s (continue with --resume %s)", ck.iter, ck.path,
                         ck.path);
             fprintf(stderr, "\n");
             sci_result_free_contents(&r);
-            status = 130;
+            status = 1;
             break;
         }
         if (rc < 0) {
@@ -442,10 +449,16 @@ int cli_recon_main(int argc, char **argv)
     }
     sigaction(SIGINT, &old_int, NULL);
     sigaction(SIGTERM, &old_term, NULL);
+    const int sig = stop_requested;
     if (ckpt_path && ck.written && status == 0)
         printf("  checkpoint of step %d in %s\n", ck.iter, ckpt_path);
     json_decref(params);
     free(resume_blob);
     sci_problem_array_free(probs, k);
+    if (sig) {
+        fflush(NULL);
+        signal(sig, SIG_DFL);
+        raise(sig);
+    }
     return status;
 }

@@ -202,6 +202,12 @@ static int apply_budget(const scicapd_config *cfg, const sci_json_doc *doc, cons
     json_t *params = sci_curves_setting_json(ch.setting);
     json_t *it = json_object_get(params, "iters"), *tvi = json_object_get(params, "tv_iters");
     out->method = strcmp(ch.method, "admm-tv") == 0 ? SCICAPD_METHOD_ADMMTV : SCICAPD_METHOD_GAPTV;
+    /* the curves file is data a user may edit: anything but a positive integer is refused, not read as 0 */
+    if (!params || (it && (!json_is_integer(it) || json_integer_value(it) < 1 || json_integer_value(it) > 1000000)) ||
+        (tvi && (!json_is_integer(tvi) || json_integer_value(tvi) < 1 || json_integer_value(tvi) > 100000))) {
+        json_decref(params);
+        return sci_json_fail(doc, err, path, "recon_curves: setting '%s' of %s is malformed", ch.setting, ch.method);
+    }
     if (it)
         out->gap.iters = out->admm.iters = (int)json_integer_value(it);
     if (tvi)
