@@ -7,7 +7,7 @@
  *
  * It takes hours on the 2-core machine (every NeRF row trains a whole preset), so `make bench` only prints how to
  * run it:  build/bench/bench_nerf_compare --run [--preset fast|balanced|best] [--scenes corridor,orbit,noisy]
- *                                         [--parts ladder,patch,poses]
+ *                                         [--parts classic,scinerf,ladder,patch,poses]
  * Run from the repository root (it reads etc/scenes/ and writes bench/results/). Rows persist in
  * bench/results/nerf_compare.tsv: a run replaces the rows of the scenes it measures and keeps the others, so the
  * scenes can be measured in separate sittings; each row keeps the load average at its end.
@@ -72,8 +72,64 @@ static void write_tsv(void)
         perror(TSV);
 }
 
-/* Keeps the stored rows of scenes not in the comma-separated list `redo`. */
-static void read_tsv(const char *redo)
+/* The part of the comparison a row belongs to, by its method label. */
+static const char *row_part(const char *method)
+{
+    if (strncmp(method, "GAP-TV", 6) == 0 || strncmp(method, "ADMM-TV", 7) == 0)
+        return "classic";
+    if (strstr(method, "poses optimised"))
+        return "poses";
+    if (strncmp(method, "scinerf", 7) == 0)
+        return "scinerf";
+    if (strncmp(method, "rayformer full, patch", 21) == 0)
+        return "patch";
+    return "ladder";
+}
+
+/* Rows in the order of the scenes' first appearance, then of the parts (classic, scinerf, ladder, patch, poses),
+ * then as measured. */
+static int part_rank(const char *method)
+{
+    static const char *const order[] = {"classic", "scinerf", "ladder", "patch", "poses"};
+    for (int i = 0; i < 5; i++)
+        if (strcmp(row_part(method), order[i]) == 0)
+            return i;
+    return 5;
+}
+
+static void sort_rows(void)
+{
+    /* insertion sort: stable, a few dozen rows */
+    char first[MAX_ROWS][32];
+    int nf = 0;
+    for (int i = 0; i < n_rows; i++) {
+        int k;
+        for (k = 0; k < nf && strcmp(first[k], rows[i].scene) != 0; k++)
+            ;
+        if (k == nf)
+            snprintf(first[nf++], sizeof first[0], "%s", rows[i].scene);
+    }
+    for (int i = 1; i < n_rows; i++) {
+        row r = rows[i];
+        int sr = 0, pr = part_rank(r.method);
+        while (strcmp(first[sr], r.scene) != 0)
+            sr++;
+        int j = i - 1;
+        for (; j >= 0; j--) {
+            int sj = 0;
+            while (strcmp(first[sj], rows[j].scene) != 0)
+                sj++;
+            if (sj < sr || (sj == sr && part_rank(rows[j].method) <= pr))
+                break;
+            rows[j + 1] = rows[j];
+        }
+        rows[j + 1] = r;
+    }
+}
+
+/* Keeps the stored rows, except those of a scene in the comma-separated list `redo` that belong to a part in
+ * `parts` (they are measured again). */
+static void read_tsv(const char *redo, const char *parts)
 {
     FILE *f = fopen(TSV, "r");
     if (!f)
@@ -100,7 +156,7 @@ static void read_tsv(const char *redo)
         snprintf(key, sizeof key, ",%s,", fld[0]);
         char list[160];
         snprintf(list, sizeof list, ",%s,", redo);
-        if (strstr(list, key))
+        if (strstr(list, key) && strstr(parts, row_part(fld[1])))
             continue;
         snprintf(r.scene, sizeof r.scene, "%s", fld[0]);
         snprintf(r.method, sizeof r.method, "%s", fld[1]);
@@ -115,6 +171,7 @@ static void read_tsv(const char *redo)
 
 static void write_md(void)
 {
+    sort_rows();
     FILE *f = fopen("bench/results/nerf_compare.md.tmp", "w");
     if (!f) {
         perror("bench/results/nerf_compare.md.tmp");
@@ -280,26 +337,29 @@ static void one_scene(const char *name, const char *parts)
     const sci_problem *p = ps[0];
     printf("%s: %dx%dx%d\n", path, p->mask->w, p->mask->h, p->mask->n);
 
-    sci_result r = {0};
-    sci_gaptv_params g;
-    sci_gaptv_params_default(&g);
-    g.metrics_every = 0;
-    if (sci_gaptv_solve(p, &g, &r, NULL, NULL) == 0)
-        add(name, "GAP-TV (100 iterations)", &r, 0, p, NULL);
-    sci_result_free_contents(&r);
-    r = (sci_result){0};
-    sci_admmtv_params a;
-    sci_admmtv_params_default(&a);
-    a.metrics_every = 0;
-    if (sci_admmtv_solve(p, &a, &r, NULL, NULL) == 0)
-        add(name, "ADMM-TV (100 iterations)", &r, 0, p, NULL);
-    sci_result_free_contents(&r);
+    if (strstr(parts, "classic")) {
+        sci_result r = {0};
+        sci_gaptv_params g;
+        sci_gaptv_params_default(&g);
+        g.metrics_every = 0;
+        if (sci_gaptv_solve(p, &g, &r, NULL, NULL) == 0)
+            add(name, "GAP-TV (100 iterations)", &r, 0, p, NULL);
+        sci_result_free_contents(&r);
+        r = (sci_result){0};
+        sci_admmtv_params a;
+        sci_admmtv_params_default(&a);
+        a.metrics_every = 0;
+        if (sci_admmtv_solve(p, &a, &r, NULL, NULL) == 0)
+            add(name, "ADMM-TV (100 iterations)", &r, 0, p, NULL);
+        sci_result_free_contents(&r);
+    }
 
     sci_scinerf_params sn;
     sci_scinerf_params_default(&sn);
     sci_scinerf_params_preset(&sn, preset);
     sn.metrics_every = 0;
-    scinerf_row(name, p, "scinerf, known poses", &sn);
+    if (strstr(parts, "scinerf"))
+        scinerf_row(name, p, "scinerf, known poses", &sn);
 
     sci_rayformer_params q;
     sci_rayformer_params_default(&q);
@@ -311,7 +371,8 @@ static void one_scene(const char *name, const char *parts)
                                           "rayformer + intra-ray attention", "rayformer + TV (full), patch 8"};
     for (int s = 0; s <= 4; s++) {
         sci_rayformer_params_ablation(&q, s, tv);
-        rayformer_row(name, p, ladder[s], &q);
+        if (strstr(parts, "ladder"))
+            rayformer_row(name, p, ladder[s], &q);
     }
     if (strstr(parts, "patch"))
         patch_study(name, p, &q);
@@ -334,7 +395,7 @@ static void one_scene(const char *name, const char *parts)
 int main(int argc, char **argv)
 {
     int run = 0;
-    char scenes[128] = "corridor,orbit,noisy", parts[64] = "ladder,patch,poses";
+    char scenes[128] = "corridor,orbit,noisy", parts[64] = "classic,scinerf,ladder,patch,poses";
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--run") == 0)
             run = 1;
@@ -345,7 +406,7 @@ int main(int argc, char **argv)
         else if (strcmp(argv[i], "--parts") == 0 && i + 1 < argc)
             snprintf(parts, sizeof parts, "%s", argv[++i]);
         else {
-            fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c] [--parts ladder,patch,poses]\n");
+            fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c] [--parts classic,scinerf,ladder,patch,poses]\n");
             return 2;
         }
     }
@@ -362,7 +423,7 @@ int main(int argc, char **argv)
         return 2;
     }
     loadavg(load0, sizeof load0);
-    read_tsv(scenes);
+    read_tsv(scenes, parts);
     for (char *s = strtok(scenes, ","); s; s = strtok(NULL, ","))
         one_scene(s, parts);
     return 0;

@@ -50,6 +50,7 @@ static void usage(FILE *f)
             "  rayformer, scinerf:  --preset fast|balanced|best (default balanced; the options below override it)\n"
             "              --samples L (per ray)  --lr X  --pose-mode known|linear|per-frame  --seed S\n"
             "              (--iters applies too; rayformer also --patch P (2,4,8,16) --patches-per-step B --tv-weight)\n"
+            "              --net-lr-scale X  rayformer: the transformer learns at lr × X, the hash table at lr\n"
             "              --ablation STEP   rayformer: the paper's ladder, baseline|patch|inter|intra|tv (tv: the\n"
             "                                full method; each step adds its switch to the ones before)\n"
             "              --checkpoint FILE write a checkpoint every --checkpoint-every K steps (default 100), at\n"
@@ -150,10 +151,10 @@ static json_t *params_json(const recon_opts *o)
                          o->sn.fine_samples, "lr", o->sn.lr, "pose_mode", (int)o->sn.pose_mode, "seed",
                          (json_int_t)o->sn.seed, "resumed", o->sn.resume != NULL);
     if (o->method == 2)
-        return json_pack("{s:s, s:i, s:i, s:i, s:i, s:i, s:f, s:f, s:b, s:b, s:b, s:i, s:I, s:b}", "method",
+        return json_pack("{s:s, s:i, s:i, s:i, s:i, s:i, s:f, s:f, s:f, s:b, s:b, s:b, s:i, s:I, s:b}", "method",
                          "rayformer", "iters", o->rf.iters, "patch", o->rf.patch, "patches_per_step",
                          o->rf.patches_per_step, "samples", o->rf.samples, "log2_table", o->rf.log2_table, "lr",
-                         o->rf.lr, "tv_weight", o->rf.tv_weight, "patch_sampling", o->rf.patch_sampling, "inter_ray",
+                         o->rf.lr, "net_lr_scale", o->rf.net_lr_scale > 0 ? o->rf.net_lr_scale : 1, "tv_weight", o->rf.tv_weight, "patch_sampling", o->rf.patch_sampling, "inter_ray",
                          o->rf.inter_ray, "intra_ray", o->rf.intra_ray, "pose_mode", (int)o->rf.pose_mode, "seed",
                          (json_int_t)o->rf.seed, "resumed", o->rf.resume != NULL);
     return json_pack("{s:s, s:i, s:f, s:f, s:f, s:i}", "method", "admm-tv", "iters", o->admm.iters, "lambda",
@@ -191,12 +192,12 @@ int cli_recon_main(int argc, char **argv)
     const char *preset = NULL;
     int nf_patch = 0, nf_pps = 0, nf_samples = 0, nf_pose = -1, nf_seed = -1, nf_ablation = -1, ckpt_every = 100;
     const char *ckpt_path = NULL, *resume_path = NULL;
-    double nf_lr = NAN;
+    double nf_lr = NAN, nf_net_lr = NAN;
     const char *out = NULL;
     int force = 0, snapshot = 0, threads = 0, iters = -1, tv_iters = -1, metrics_every = -1, ssim_every = -1;
     double lambda = NAN, tv_weight = NAN;
     enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET,
-           OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME };
+           OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME, OPT_NET_LR };
     static const struct option longopts[] = {
         {"method", required_argument, 0, 'm'},   {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},          {"snapshot", required_argument, 0, 's'},
@@ -210,7 +211,7 @@ int cli_recon_main(int argc, char **argv)
         {"pose-mode", required_argument, 0, OPT_POSE}, {"seed", required_argument, 0, OPT_SEED},
         {"preset", required_argument, 0, OPT_PRESET}, {"ablation", required_argument, 0, OPT_ABLATION},
         {"checkpoint", required_argument, 0, OPT_CKPT}, {"checkpoint-every", required_argument, 0, OPT_CKPT_EVERY},
-        {"resume", required_argument, 0, OPT_RESUME},
+        {"resume", required_argument, 0, OPT_RESUME}, {"net-lr-scale", required_argument, 0, OPT_NET_LR},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
     };
     optind = 1;
@@ -276,6 +277,7 @@ int cli_recon_main(int argc, char **argv)
         case OPT_CKPT: ckpt_path = optarg; break;
         case OPT_CKPT_EVERY: bad = parse_int(optarg, "--checkpoint-every", 1, 1 << 30, &ckpt_every); break;
         case OPT_RESUME: resume_path = optarg; break;
+        case OPT_NET_LR: bad = parse_double(optarg, "--net-lr-scale", &nf_net_lr); break;
         case OPT_SEED: {
             bad = parse_int(optarg, "--seed", 0, 1 << 30, &nf_seed);
             break;
@@ -308,6 +310,8 @@ int cli_recon_main(int argc, char **argv)
         o.rf.samples = o.sn.samples = nf_samples;
     if (!isnan(nf_lr))
         o.rf.lr = o.sn.lr = nf_lr;
+    if (!isnan(nf_net_lr))
+        o.rf.net_lr_scale = nf_net_lr;
     if (nf_pose >= 0)
         o.rf.pose_mode = o.sn.pose_mode = (nerf_poses_mode)nf_pose;
     if (nf_seed >= 0)

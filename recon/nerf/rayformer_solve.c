@@ -24,6 +24,9 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
                                 .sh_degree = 4,
                                 .lr = 1e-2,
                                 .lr_final = 1e-3,
+                                /* the attention blocks at the hash table's 1e-2 collapsed on two scenes of three
+                                 * (noisy, +inter: 15.3 dB; at 0.1× the same run reaches 24.9 dB by step 1050) */
+                                .net_lr_scale = 0.1,
                                 .tv_weight = 0.01,
                                 .tv_eps = 0,
                                 .patch_sampling = 1,
@@ -87,6 +90,7 @@ static void train_config(const sci_rayformer_params *p, nerf_train_config *c)
                              .fine_samples = 0,
                              .lr = p->lr,
                              .lr_final = p->lr_final,
+                             .net_lr_scale = p->net_lr_scale,
                              .adam_beta2 = 0.99,
                              .adam_eps = 1e-15,
                              .tv_weight = p->tv_weight,

@@ -36,6 +36,8 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
     if (!(c->lr > 0) || !(c->lr < 10) || !(c->lr_final > 0) || !(c->lr_final < 10))
         return sci_error_set(err, -EINVAL, "%s: lr and lr-final must be in (0, 10) (got %g, %g)", m, c->lr,
                              c->lr_final);
+    if (!(c->net_lr_scale >= 0 && c->net_lr_scale <= 10))
+        return sci_error_set(err, -EINVAL, "%s: net-lr-scale must be in [0, 10] (got %g)", m, c->net_lr_scale);
     if (!(c->adam_beta2 >= 0 && c->adam_beta2 < 1) || !(c->adam_eps > 0) || !isfinite(c->adam_eps))
         return sci_error_set(err, -EINVAL, "%s: Adam beta2 %g must be in [0, 1), eps %g > 0", m, c->adam_beta2,
                              c->adam_eps);
@@ -415,7 +417,8 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
         if ((rc = pass_backward(r, p, pose_grads)) < 0)
             return rc;
         nerf_adam_step(p->adam, p->params, p->grad, 0, p->m->n_hash, lr, 1, 0);
-        nerf_adam_step(p->adam, p->params, p->grad, p->m->n_hash, p->m->n_params, lr, 0, 0);
+        nerf_adam_step(p->adam, p->params, p->grad, p->m->n_hash, p->m->n_params,
+                       lr * (c->net_lr_scale > 0 ? c->net_lr_scale : 1), 0, 0);
     }
     if (pose_grads) {
         double plr = c->pose_lr > 0 ? lr_at(c->pose_lr, c->pose_lr_final > 0 ? c->pose_lr_final : c->pose_lr, it,

@@ -82,6 +82,7 @@ typedef struct nerf_train_config {
     int samples;                  /* L (coarse) stratified samples per ray */
     int fine_samples;             /* importance samples of the fine pass (needs a fine model), 0: none */
     double lr, lr_final;          /* network Adam, exponential decay over the run */
+    double net_lr_scale;          /* the weights after the hash table learn at lr × this (0: 1, the same lr) */
     double adam_beta2, adam_eps;  /* network Adam β2, ε (β1 = 0.9) */
     double tv_weight, tv_eps;     /* λ and the Charbonnier ε of the TV term (patch sampling only) */
     nerf_poses_mode pose_mode;    /* KNOWN: problem->camera poses; LINEAR / PER_FRAME: optimised */
