@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bench/bench_load.h"
 #include "base/clock.h"
 #include "base/rng.h"
 #include "recon/nerf/act.h"
@@ -77,19 +78,6 @@ static void add_row(const char *name, double n_points, double best, double media
     r->cpu_ratio = cr;
     printf("%-48s %8.3f Mpts/s (median %7.3f)  %7.0f B/pt  cpu/wall %.2f\n", name, r->best * 1e-6,
            r->median * 1e-6, bytes_per_pt, cr);
-}
-
-static void loadavg(char *buf, size_t n)
-{
-    FILE *f = fopen("/proc/loadavg", "r");
-    buf[0] = 0;
-    if (f) {
-        if (!fgets(buf, (int)n, f)) buf[0] = 0;
-        fclose(f);
-    }
-    char *sp = buf;
-    for (int k = 0; k < 3 && sp; k++) sp = strchr(sp + 1, ' ');
-    if (sp) *sp = 0;
 }
 
 /* ---------------------------------------------------------------- per-block contexts */
@@ -359,7 +347,7 @@ int main(void)
     omp_set_dynamic(0);
     int reps = 9;
     char load0[64], load1[64];
-    loadavg(load0, sizeof load0);
+    bench_loadavg(load0, sizeof load0);
     printf("nerf blocks, %d points per call, %d threads; load average %s\n", NPTS, NT, load0);
 
     /* whole network first, so that peak RSS is its own */
@@ -454,7 +442,7 @@ int main(void)
     rd.ds = k.y, rd.drgb = k.dx;
     s = time_it(run_render, &rd, reps, &cr, &med);
     add_row("volume rendering (32 samples/ray)", NPTS, s, med, 0.0, cr);
-    loadavg(load1, sizeof load1);
+    bench_loadavg(load1, sizeof load1);
     int64_t rss_all = sci_clock_peak_rss_bytes();
 
     FILE *f = fopen("bench/results/nerf.md", "w");

@@ -6,8 +6,10 @@
  * the step time is the median over the steps after the first two, the render time the final render / N.
  * Part 2: PSNR and SSIM against wall time of each preset run to its end on static3d_corridor (known poses),
  * sampled every 1/8 of the run (the evaluation renders are excluded from the wall time, as in every trace).
- * Writes bench/results/nerf_recon.md; records the load average before and after (2 shared cores: timings vary
- * with what else runs). `bench_nerf_recon --quick` does part 1 only.
+ * Part 1 writes bench/results/nerf_recon.md, part 2 bench/results/nerf_recon_curves.md; each records the load
+ * average before and after (2 shared cores: timings vary with what else runs). Part 2 takes about an hour (the
+ * presets' own times: 3.5 + 3.5 + 9 + 10 + 16 + 20 min). `--quick`: part 1 only; `--curves-only
+ * [--presets fast,balanced]`: part 2 only, for the presets named.
  */
 #include <errno.h>
 #include <math.h>
@@ -18,6 +20,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "bench/bench_load.h"
 #include "recon/nerf/rayformer_solve.h"
 #include "recon/nerf/scinerf_solve.h"
 #include "sim/simulate.h"
@@ -33,22 +36,6 @@ typedef struct measure {
     long n_params;
     char err[256];
 } measure;
-
-static void loadavg(char *buf, size_t n)
-{
-    FILE *f = fopen("/proc/loadavg", "r");
-    buf[0] = 0;
-    if (f) {
-        if (!fgets(buf, (int)n, f))
-            buf[0] = 0;
-        fclose(f);
-    }
-    char *sp = buf;
-    for (int k = 0; k < 3 && sp; k++)
-        sp = strchr(sp + 1, ' ');
-    if (sp)
-        *sp = 0;
-}
 
 static int cmpd(const void *a, const void *b)
 {
@@ -168,20 +155,38 @@ static int measure_in_child(const char *method, const char *preset, const char *
     return got == sizeof *m && WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -EIO;
 }
 
-int main(int argc, char **argv)
+/* Closes md (written to path.tmp) and renames it over path: a killed run leaves the previous file intact. */
+static int publish(FILE *md, const char *path)
 {
-    const int quick = argc > 1 && strcmp(argv[1], "--quick") == 0;
-    const char *methods[] = {"rayformer", "scinerf"}, *presets[] = {"fast", "balanced", "best"};
+    char tmp[256];
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    if (fclose(md) != 0 || rename(tmp, path) < 0) {
+        perror(path);
+        return -1;
+    }
+    return 0;
+}
+
+static FILE *open_tmp(const char *path)
+{
+    char tmp[256];
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    FILE *f = fopen(tmp, "w");
+    if (!f)
+        perror(tmp);
+    return f;
+}
+
+/* Part 1: cost per step, render and memory of every preset at both sizes. */
+static int part_costs(const char *const *methods, const char *const *presets)
+{
     const char *scenes[] = {"etc/scenes/static3d_corridor.json", "etc/scenes/static3d_tabletop.json"};
     const int sizes[] = {128, 256};
     char load0[64], load1[64];
-    loadavg(load0, sizeof load0);
-    printf("NeRF reconstruction presets, 2 threads; load average %s\n", load0);
-    FILE *md = fopen("bench/results/nerf_recon.md.tmp", "w");
-    if (!md) {
-        perror("bench/results/nerf_recon.md.tmp");
+    bench_loadavg(load0, sizeof load0);
+    FILE *md = open_tmp("bench/results/nerf_recon.md");
+    if (!md)
         return 1;
-    }
     fprintf(md, "Measured by `make bench` (bench/bench_nerf_recon.c): each preset trained for %d steps in its own "
                 "process on static3d_corridor (128×128) and static3d_tabletop (256×256), N = 8, 2 threads; step "
                 "time = median step after the first two; render = the final window-wise render of all N frames, "
@@ -206,40 +211,79 @@ int main(int argc, char **argv)
                        presets[pi], sizes[si], m.step_s, m.render_s_per_frame, rss / 1024.0);
                 fprintf(md, "| %s | %s | %d² | %.3f | %.2f | %.0f |\n", methods[mi], presets[pi], sizes[si],
                         m.step_s, m.render_s_per_frame, rss / 1024.0);
-                fflush(md);
             }
-    if (!quick) {
-        fprintf(md, "\nPSNR (peak = 1) and SSIM against wall time, each preset run to its end on static3d_corridor "
-                    "(128×128×8, known poses; evaluation renders excluded from the time):\n\n");
-        fprintf(md, "| method | preset | step | wall s | PSNR dB | SSIM |\n|---|---|---:|---:|---:|---:|\n");
-        /* cheapest presets first: a run cut short still has them */
-        for (int pi = 0; pi < 3; pi++)
-            for (int mi = 0; mi < 2; mi++) {
-                measure m;
-                long rss = 0;
-                int rc = measure_in_child(methods[mi], presets[pi], scenes[0], 1, &m, &rss);
-                if (rc < 0 || !m.ok) {
-                    printf("%s %s full run failed: %s\n", methods[mi], presets[pi], m.err);
-                    status = 1;
-                    continue;
-                }
-                for (int k = 0; k < m.n_curve; k++) {
-                    const double *c = m.curve[k];
-                    printf("%-9s %-8s step %5.0f  %7.1f s  PSNR %.2f dB  SSIM %.4f\n", methods[mi], presets[pi], c[0],
-                           c[1], c[2], c[3]);
-                    fprintf(md, "| %s | %s | %.0f | %.1f | %.2f | %.4f |\n", methods[mi], presets[pi], c[0], c[1],
-                            c[2], c[3]);
-                }
-                fflush(md);
-            }
-    }
-    loadavg(load1, sizeof load1);
-    fprintf(md, "\nLoad average %s at the start, %s at the end (2 cores, shared with other jobs).\n", load0, load1);
-    fclose(md);
-    if (rename("bench/results/nerf_recon.md.tmp", "bench/results/nerf_recon.md") < 0) {
-        perror("bench/results/nerf_recon.md");
+    bench_loadavg(load1, sizeof load1);
+    fprintf(md, "\nLoad average %s at the start, %s at the end (2 cores).\n", load0, load1);
+    return publish(md, "bench/results/nerf_recon.md") < 0 ? 1 : status;
+}
+
+/* Part 2: PSNR and SSIM against wall time of the presets in `which` (comma-separated), each run to its end. */
+static int part_curves(const char *const *methods, const char *const *presets, const char *which)
+{
+    char load0[64], load1[64];
+    bench_loadavg(load0, sizeof load0);
+    FILE *md = open_tmp("bench/results/nerf_recon_curves.md");
+    if (!md)
         return 1;
+    fprintf(md, "PSNR (peak = 1) and SSIM against wall time, each preset (%s) run to its end on static3d_corridor "
+                "(128×128×8, known poses, 2 threads; every 1/8 of the run; evaluation renders excluded from the "
+                "time, the final render included in the last row):\n\n",
+            which);
+    fprintf(md, "| method | preset | step | wall s | PSNR dB | SSIM |\n|---|---|---:|---:|---:|---:|\n");
+    int status = 0;
+    /* cheapest presets first: a run cut short still has them */
+    for (int pi = 0; pi < 3; pi++) {
+        char key[32], list[128];
+        snprintf(key, sizeof key, ",%s,", presets[pi]);
+        snprintf(list, sizeof list, ",%s,", which);
+        if (!strstr(list, key))
+            continue;
+        for (int mi = 0; mi < 2; mi++) {
+            measure m;
+            long rss = 0;
+            int rc = measure_in_child(methods[mi], presets[pi], "etc/scenes/static3d_corridor.json", 1, &m, &rss);
+            if (rc < 0 || !m.ok) {
+                printf("%s %s full run failed: %s\n", methods[mi], presets[pi], m.err);
+                status = 1;
+                continue;
+            }
+            for (int k = 0; k < m.n_curve; k++) {
+                const double *c = m.curve[k];
+                printf("%-9s %-8s step %5.0f  %7.1f s  PSNR %.2f dB  SSIM %.4f\n", methods[mi], presets[pi], c[0],
+                       c[1], c[2], c[3]);
+                fprintf(md, "| %s | %s | %.0f | %.1f | %.2f | %.4f |\n", methods[mi], presets[pi], c[0], c[1], c[2],
+                        c[3]);
+            }
+            fflush(stdout);
+        }
     }
-    printf("load average %s → %s; wrote bench/results/nerf_recon.md\n", load0, load1);
+    bench_loadavg(load1, sizeof load1);
+    fprintf(md, "\nLoad average %s at the start, %s at the end (2 cores).\n", load0, load1);
+    return publish(md, "bench/results/nerf_recon_curves.md") < 0 ? 1 : status;
+}
+
+int main(int argc, char **argv)
+{
+    int costs = 1, curves = 1;
+    char which[128] = "fast,balanced,best";
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "--quick") == 0)
+            curves = 0;
+        else if (strcmp(argv[i], "--curves-only") == 0)
+            costs = 0;
+        else if (strcmp(argv[i], "--presets") == 0 && i + 1 < argc)
+            snprintf(which, sizeof which, "%s", argv[++i]);
+        else {
+            fprintf(stderr, "usage: bench_nerf_recon [--quick | --curves-only] [--presets fast,balanced,best]\n");
+            return 2;
+        }
+    }
+    const char *methods[] = {"rayformer", "scinerf"}, *presets[] = {"fast", "balanced", "best"};
+    int status = 0;
+    if (costs)
+        status |= part_costs(methods, presets);
+    if (curves)
+        status |= part_curves(methods, presets, which);
+    printf("wrote%s%s\n", costs ? " bench/results/nerf_recon.md" : "", curves ? " bench/results/nerf_recon_curves.md" : "");
     return status;
 }
