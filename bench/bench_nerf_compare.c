@@ -37,7 +37,6 @@ typedef struct row {
 static row rows[MAX_ROWS];
 static int n_rows;
 static char preset[16] = "fast";
-static char load0[64];
 
 static void write_tsv(void)
 {
@@ -162,8 +161,6 @@ static void write_md(void)
         perror("bench/results/nerf_compare.md.tmp");
         return;
     }
-    char load1[64];
-    bench_loadavg(load1, sizeof load1);
     fprintf(f, "Measured by bench/bench_nerf_compare.c (`--run`, preset `%s`, 2 threads): each row one reconstruction "
                "of the scene's single snapshot (N = 8), PSNR with peak = 1 and SSIM averaged over the 8 frames, wall "
                "time of the method (training and the final render; trace evaluations excluded). Known poses: the "
@@ -206,7 +203,6 @@ static void write_md(void)
             fprintf(f, "%s %s %.2f–%.2f", i ? ";" : "", rows[i].scene, lo, hi);
         }
     fprintf(f, ".\n");
-    (void)load1;
     fclose(f);
     write_tsv();
     if (rename("bench/results/nerf_compare.md.tmp", "bench/results/nerf_compare.md") < 0)
@@ -408,7 +404,6 @@ int main(int argc, char **argv)
         fprintf(stderr, "unknown preset '%s'\n", preset);
         return 2;
     }
-    bench_loadavg(load0, sizeof load0);
     read_tsv(scenes, parts);
     for (char *s = strtok(scenes, ","); s; s = strtok(NULL, ","))
         one_scene(s, parts);
