@@ -166,7 +166,7 @@ static void write_md(void)
                "time of the method (training and the final render; trace evaluations excluded). Known poses: the "
                "simulator's camera poses are given; optimised: only the intrinsics, poses from the identity (pose "
                "error = gauge-blind relative rotation and scale-aligned translation against the truth). RayFormer's "
-               "transformer learns at 0.1× the hash table's rate (a row measured before that change says so).\n\n",
+               "transformer learns at 0.1× the hash table's rate.\n\n",
             preset);
     fprintf(f, "| scene | method | steps | rays/step | PSNR dB | SSIM | wall s |\n|---|---|---:|---:|---:|---:|---:|\n");
     for (int i = 0; i < n_rows; i++) {
