@@ -251,6 +251,24 @@ static void v4l2_identity(void *state, camera_identity *out)
     out->version = c->cap.version;
 }
 
+/* Nothing asked and no monochrome format offered: a colour sensor's raw Bayer mosaic, most bits first, unpacked
+ * containers before MIPI-packed (as for mono), whatever the filter order. -ENOTSUP when none is offered. */
+static int v4l2_choose_bayer(const v4l2_util_fmtdesc *offered, int n, enum pixfmt *out)
+{
+    static const enum pixfmt by_depth[] = {PIXFMT_Y16, PIXFMT_Y12, PIXFMT_Y10, PIXFMT_Y10P, PIXFMT_GREY};
+    static const enum pixfmt_cfa cfas[] = {PIXFMT_CFA_RGGB, PIXFMT_CFA_GRBG, PIXFMT_CFA_GBRG, PIXFMT_CFA_BGGR};
+    for (size_t d = 0; d < sizeof by_depth / sizeof by_depth[0]; d++)
+        for (size_t k = 0; k < sizeof cfas / sizeof cfas[0]; k++) {
+            enum pixfmt pf = pixfmt_with_cfa(by_depth[d], cfas[k]);
+            for (int i = 0; i < n; i++)
+                if (offered[i].fourcc == pixfmt_info_get(pf)->fourcc && !(offered[i].flags & V4L2_FMT_FLAG_COMPRESSED)) {
+                    *out = pf;
+                    return 0;
+                }
+        }
+    return -ENOTSUP;
+}
+
 static int v4l2_set_format(void *state, const camera_config *want, camera_format *out, sci_error *err)
 {
     v4l2_cam *c = state;
@@ -265,7 +283,8 @@ static int v4l2_set_format(void *state, const camera_config *want, camera_format
         offered[n] = (v4l2_util_fmtdesc){.fourcc = d.pixelformat, .flags = d.flags};
     }
     enum pixfmt pf;
-    if ((rc = v4l2_util_choose_format(offered, n, want->pixfmt, c->path, &pf, err)) < 0)
+    if ((rc = v4l2_util_choose_format(offered, n, want->pixfmt, c->path, &pf, err)) < 0 &&
+        (want->pixfmt != PIXFMT_NONE || v4l2_choose_bayer(offered, n, &pf) < 0))
         return rc;
     uint32_t fourcc = pixfmt_info_get(pf)->fourcc;
     v4l2_util_framesize sizes[V4L2_MAX_SIZES];

@@ -4,10 +4,12 @@
  * a node whose VIDIOC_QUERYCAP card and/or bus_info equal cfg.card / cfg.bus_info. The node must have
  * V4L2_CAP_VIDEO_CAPTURE and V4L2_CAP_STREAMING (device_caps when given); -ENOTTY otherwise, naming the node.
  *
- * Format: enumerated with ENUM_FMT / ENUM_FRAMESIZES and chosen by v4l2_util_choose_format/_size (colour and
- * compressed formats refused with the reason); S_FMT's answer is checked (a driver that changes the format or
- * size is an error, not a surprise), its bytesperline honoured; frame interval with S_PARM when the driver has
- * V4L2_CAP_TIMEPERFRAME.
+ * Format: enumerated with ENUM_FMT / ENUM_FRAMESIZES and chosen by v4l2_util_choose_format/_size (YUV/RGB and
+ * compressed formats refused with the reason). Raw Bayer formats (SRGGB8 ... SBGGR16, S*10P) are taken when asked
+ * for, or, with no format asked, when the device offers no monochrome one (a colour sensor): most bits first; the
+ * frames stay raw mosaics (camera_frame.pixfmt names the filter order). S_FMT's answer is checked (a driver that
+ * changes the format or size is an error, not a surprise), its bytesperline honoured; frame interval with S_PARM
+ * when the driver has V4L2_CAP_TIMEPERFRAME.
  * Exposure: V4L2_CID_EXPOSURE_AUTO set to manual, then V4L2_CID_EXPOSURE_ABSOLUTE in 100 µs units (the value is
  * rounded to the nearest 100 µs, at least 1 unit, and the applied value is read back). Gain: V4L2_CID_AUTOGAIN
  * off when the device has it (else the gain read back is the automatic one), then V4L2_CID_GAIN, or

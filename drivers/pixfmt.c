@@ -6,15 +6,29 @@
 #include <string.h>
 #include <strings.h>
 
+#define MONO(id_, name_, fcc, bits, lay) [id_] = {.id = id_, .name = name_, .fourcc = fcc, .bits_per_sample = bits, \
+                                              .cfa = PIXFMT_CFA_NONE, .layout = PIXFMT_LAYOUT_##lay}
+#define BAYER(cfa_, bits, lay, suffix)                                                                               \
+    [PIXFMT_S##cfa_##suffix] = {.id = PIXFMT_S##cfa_##suffix, .name = "S" #cfa_ #suffix,                           \
+                                .fourcc = V4L2_PIX_FMT_S##cfa_##suffix, .bits_per_sample = bits,                   \
+                                .cfa = PIXFMT_CFA_##cfa_, .layout = PIXFMT_LAYOUT_##lay}
+#define BAYER4(bits, lay, suffix) BAYER(RGGB, bits, lay, suffix), BAYER(GRBG, bits, lay, suffix), \
+                                  BAYER(GBRG, bits, lay, suffix), BAYER(BGGR, bits, lay, suffix)
+
 static const pixfmt_info pixfmt_table[PIXFMT_COUNT] = {
-    [PIXFMT_GREY] = {.id = PIXFMT_GREY, .name = "GREY", .fourcc = V4L2_PIX_FMT_GREY, .bits_per_sample = 8},
-    [PIXFMT_Y10] = {.id = PIXFMT_Y10, .name = "Y10", .fourcc = V4L2_PIX_FMT_Y10, .bits_per_sample = 10},
-    [PIXFMT_Y12] = {.id = PIXFMT_Y12, .name = "Y12", .fourcc = V4L2_PIX_FMT_Y12, .bits_per_sample = 12},
-    [PIXFMT_Y16] = {.id = PIXFMT_Y16, .name = "Y16", .fourcc = V4L2_PIX_FMT_Y16, .bits_per_sample = 16},
-    [PIXFMT_Y10P] = {.id = PIXFMT_Y10P, .name = "Y10P", .fourcc = V4L2_PIX_FMT_Y10P, .bits_per_sample = 10},
+    MONO(PIXFMT_GREY, "GREY", V4L2_PIX_FMT_GREY, 8, U8),
+    MONO(PIXFMT_Y10, "Y10", V4L2_PIX_FMT_Y10, 10, LE16),
+    MONO(PIXFMT_Y12, "Y12", V4L2_PIX_FMT_Y12, 12, LE16),
+    MONO(PIXFMT_Y16, "Y16", V4L2_PIX_FMT_Y16, 16, LE16),
+    MONO(PIXFMT_Y10P, "Y10P", V4L2_PIX_FMT_Y10P, 10, RAW10P),
+    BAYER4(8, U8, 8),
+    BAYER4(10, LE16, 10),
+    BAYER4(12, LE16, 12),
+    BAYER4(16, LE16, 16),
+    BAYER4(10, RAW10P, 10P),
 };
 
-#define PIXFMT_ACCEPTED "GREY, Y10, Y12, Y16, Y10P"
+#define PIXFMT_ACCEPTED "GREY, Y10, Y12, Y16, Y10P or Bayer S{RGGB,GRBG,GBRG,BGGR}{8,10,12,16,10P}"
 
 const pixfmt_info *pixfmt_info_get(enum pixfmt f)
 {
@@ -27,6 +41,29 @@ const char *pixfmt_name(enum pixfmt f)
 {
     const pixfmt_info *in = pixfmt_info_get(f);
     return in ? in->name : "none";
+}
+
+const char *pixfmt_cfa_name(enum pixfmt_cfa cfa)
+{
+    switch (cfa) {
+    case PIXFMT_CFA_RGGB: return "RGGB";
+    case PIXFMT_CFA_GRBG: return "GRBG";
+    case PIXFMT_CFA_GBRG: return "GBRG";
+    case PIXFMT_CFA_BGGR: return "BGGR";
+    default: return "none";
+    }
+}
+
+enum pixfmt pixfmt_with_cfa(enum pixfmt f, enum pixfmt_cfa cfa)
+{
+    const pixfmt_info *in = pixfmt_info_get(f);
+    if (!in || (int)cfa < PIXFMT_CFA_NONE || cfa > PIXFMT_CFA_BGGR)
+        return PIXFMT_NONE;
+    for (int g = PIXFMT_NONE + 1; g < PIXFMT_COUNT; g++)
+        if (pixfmt_table[g].layout == in->layout && pixfmt_table[g].bits_per_sample == in->bits_per_sample &&
+            pixfmt_table[g].cfa == cfa)
+            return (enum pixfmt)g;
+    return PIXFMT_NONE;
 }
 
 int pixfmt_from_name(const char *name, enum pixfmt *out, sci_error *err)
@@ -80,11 +117,11 @@ enum pixfmt_kind pixfmt_classify_fourcc(uint32_t fourcc, int compressed_flag)
         V4L2_PIX_FMT_NV21,   V4L2_PIX_FMT_NV16,   V4L2_PIX_FMT_NV61,   V4L2_PIX_FMT_YUV420, V4L2_PIX_FMT_YVU420,
         V4L2_PIX_FMT_YUV422P, V4L2_PIX_FMT_RGB24, V4L2_PIX_FMT_BGR24,  V4L2_PIX_FMT_RGB565, V4L2_PIX_FMT_RGB32,
         V4L2_PIX_FMT_BGR32,  V4L2_PIX_FMT_ABGR32, V4L2_PIX_FMT_XBGR32, V4L2_PIX_FMT_ARGB32, V4L2_PIX_FMT_XRGB32,
-        V4L2_PIX_FMT_SBGGR8, V4L2_PIX_FMT_SGBRG8, V4L2_PIX_FMT_SGRBG8, V4L2_PIX_FMT_SRGGB8, V4L2_PIX_FMT_SBGGR10,
-        V4L2_PIX_FMT_SGBRG10, V4L2_PIX_FMT_SGRBG10, V4L2_PIX_FMT_SRGGB10, V4L2_PIX_FMT_SBGGR10P,
-        V4L2_PIX_FMT_SGBRG10P, V4L2_PIX_FMT_SGRBG10P, V4L2_PIX_FMT_SRGGB10P, V4L2_PIX_FMT_SBGGR12,
-        V4L2_PIX_FMT_SGBRG12, V4L2_PIX_FMT_SGRBG12, V4L2_PIX_FMT_SRGGB12, V4L2_PIX_FMT_SBGGR16,
-        V4L2_PIX_FMT_SGBRG16, V4L2_PIX_FMT_SGRBG16, V4L2_PIX_FMT_SRGGB16,
+        /* Bayer layouts without an unpacker here (12-bit packed, 14-bit, compressed A-law/DPCM) */
+        V4L2_PIX_FMT_SBGGR12P, V4L2_PIX_FMT_SGBRG12P, V4L2_PIX_FMT_SGRBG12P, V4L2_PIX_FMT_SRGGB12P,
+        V4L2_PIX_FMT_SBGGR14, V4L2_PIX_FMT_SGBRG14, V4L2_PIX_FMT_SGRBG14, V4L2_PIX_FMT_SRGGB14,
+        V4L2_PIX_FMT_SBGGR10ALAW8, V4L2_PIX_FMT_SGBRG10ALAW8, V4L2_PIX_FMT_SGRBG10ALAW8, V4L2_PIX_FMT_SRGGB10ALAW8,
+        V4L2_PIX_FMT_SBGGR10DPCM8, V4L2_PIX_FMT_SGBRG10DPCM8, V4L2_PIX_FMT_SGRBG10DPCM8, V4L2_PIX_FMT_SRGGB10DPCM8,
     };
     if (compressed_flag || fourcc_in(fourcc, compressed, sizeof compressed / sizeof compressed[0]))
         return PIXFMT_KIND_COMPRESSED;
@@ -104,7 +141,7 @@ int pixfmt_check_fourcc(uint32_t fourcc, int compressed_flag, const char *device
     switch (pixfmt_classify_fourcc(fourcc, compressed_flag)) {
     case PIXFMT_KIND_MONO: return 0;
     case PIXFMT_KIND_COMPRESSED: why = "is compressed (lossy or not sensor counts)"; break;
-    case PIXFMT_KIND_COLOUR: why = "is a colour format (YUV/RGB/Bayer), not raw monochrome counts"; break;
+    case PIXFMT_KIND_COLOUR: why = "is a colour format (YUV/RGB, or a Bayer layout without an unpacker), not raw counts"; break;
     case PIXFMT_KIND_MONO_OTHER: why = "is monochrome but has no unpacker in scicap"; break;
     default: why = "is unknown to scicap"; break;
     }
@@ -114,12 +151,11 @@ int pixfmt_check_fourcc(uint32_t fourcc, int compressed_flag, const char *device
 
 size_t pixfmt_min_stride(enum pixfmt f, uint32_t width)
 {
-    switch (f) {
-    case PIXFMT_GREY: return width;
-    case PIXFMT_Y10:
-    case PIXFMT_Y12:
-    case PIXFMT_Y16: return (size_t)width * 2;
-    case PIXFMT_Y10P: return ((size_t)width + 3) / 4 * 5;
+    const pixfmt_info *in = pixfmt_info_get(f);
+    switch (in ? in->layout : 0) {
+    case PIXFMT_LAYOUT_U8: return width;
+    case PIXFMT_LAYOUT_LE16: return (size_t)width * 2;
+    case PIXFMT_LAYOUT_RAW10P: return ((size_t)width + 3) / 4 * 5;
     default: return 0;
     }
 }
@@ -179,25 +215,26 @@ int pixfmt_unpack(enum pixfmt f, const uint8_t *src, size_t len, size_t stride, 
     int rc = check_geometry(f, len, stride, w, h, err);
     if (rc < 0)
         return rc;
+    const pixfmt_info *in = pixfmt_info_get(f); /* not NULL: check_geometry passed */
+    uint16_t mask = (uint16_t)((1u << in->bits_per_sample) - 1u);
     for (uint32_t y = 0; y < h; y++) {
         const uint8_t *s = src + (size_t)y * stride;
         uint16_t *d = dst + (size_t)y * w;
-        switch (f) {
-        case PIXFMT_GREY:
+        switch (in->layout) {
+        case PIXFMT_LAYOUT_U8:
             for (uint32_t x = 0; x < w; x++)
                 d[x] = s[x];
             break;
-        case PIXFMT_Y10: unpack_le16(s, w, 0x03ff, d); break;
-        case PIXFMT_Y12: unpack_le16(s, w, 0x0fff, d); break;
-        case PIXFMT_Y16:
+        case PIXFMT_LAYOUT_LE16:
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-            memcpy(d, s, (size_t)w * 2); /* already the host's layout */
-#else
-            unpack_le16(s, w, 0xffff, d);
+            if (mask == 0xffff) {
+                memcpy(d, s, (size_t)w * 2); /* already the host's layout */
+                break;
+            }
 #endif
+            unpack_le16(s, w, mask, d);
             break;
-        case PIXFMT_Y10P: unpack_y10p_row(s, w, d); break;
-        default: break; /* excluded by check_geometry */
+        case PIXFMT_LAYOUT_RAW10P: unpack_y10p_row(s, w, d); break;
         }
     }
     return 0;
@@ -209,27 +246,26 @@ int pixfmt_pack(enum pixfmt f, const uint16_t *src, uint32_t w, uint32_t h, uint
     int rc = check_geometry(f, len, stride, w, h, err);
     if (rc < 0)
         return rc;
-    uint16_t mask = (uint16_t)((1u << pixfmt_info_get(f)->bits_per_sample) - 1u);
+    const pixfmt_info *in = pixfmt_info_get(f);
+    uint16_t mask = (uint16_t)((1u << in->bits_per_sample) - 1u);
     for (uint32_t y = 0; y < h; y++) {
         const uint16_t *s = src + (size_t)y * w;
         uint8_t *d = dst + (size_t)y * stride;
         size_t row = (y + 1 < h) ? stride : pixfmt_min_stride(f, w);
         memset(d, 0, row);
-        switch (f) {
-        case PIXFMT_GREY:
+        switch (in->layout) {
+        case PIXFMT_LAYOUT_U8:
             for (uint32_t x = 0; x < w; x++)
                 d[x] = (uint8_t)(s[x] & mask);
             break;
-        case PIXFMT_Y10:
-        case PIXFMT_Y12:
-        case PIXFMT_Y16:
+        case PIXFMT_LAYOUT_LE16:
             for (uint32_t x = 0; x < w; x++) {
                 uint16_t v = s[x] & mask;
                 d[2 * x] = (uint8_t)(v & 0xff);
                 d[2 * x + 1] = (uint8_t)(v >> 8);
             }
             break;
-        case PIXFMT_Y10P:
+        case PIXFMT_LAYOUT_RAW10P:
             for (uint32_t x = 0; x < w; x++) {
                 uint16_t v = s[x] & mask;
                 uint8_t *b = d + 5 * (size_t)(x / 4);
