@@ -1,5 +1,5 @@
 # scicap — one build for everything (GNU make).
-# Targets: all deps demo check check-vm bench fuzz install clean.  `make help` lists them.
+# Targets: all deps demo check check-gv check-vm bench fuzz install clean.  `make help` lists them.
 
 PREFIX  ?= /usr/local
 DESTDIR ?=
@@ -49,13 +49,14 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             libcmocka-dev libopenblas-dev libhidapi-dev libusb-1.0-0-dev libgpiod-dev gpiod libsystemd-dev \
             gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools
 
-.PHONY: all deps demo check check-vm bench bench-report fuzz install clean help tests benches
+.PHONY: all deps demo check check-gv check-vm bench bench-report fuzz install clean help tests benches
 all: $(BINS)
 
 help:
 	@echo "make deps      install missing Debian packages (apt-get)"
 	@echo "make demo      build and run the main job on its embedded default"
 	@echo "make check     build and run every test"
+	@echo "make check-gv  the GenICam (Aravis) backend against a fake GigE Vision camera on loopback"
 	@echo "make check-vm  run the device tests against real kernel drivers under qemu"
 	@echo "make bench     run the benchmarks and print the figures (writes bench/results/)"
 	@echo "make bench-report  accuracy against time for every method (bench/results.csv, report, plots)"
@@ -105,6 +106,13 @@ check: deps
 demo: deps
 	@$(MAKE) --no-print-directory all
 	@BUILD=$(BUILD) cli/demo-daemon.sh
+
+# GenICam over GigE Vision on loopback (tests/aravis-gv/): Aravis's arv-fake-gv-camera-0.8 serves a camera on
+# 127.0.0.1 and the Aravis backend captures from it; the script starts and stops the camera, bounded in time.
+GV_TEST_BIN := $(patsubst %.c,$(BUILD)/%,$(wildcard tests/aravis-gv/test_*.c))
+check-gv: deps
+	@$(MAKE) --no-print-directory $(GV_TEST_BIN)
+	@BUILD=$(BUILD) tests/aravis-gv/run $(GV_TEST_BIN)
 
 # Kernel-level device tests under qemu (tests/vm/, README "Kernel-level tests"): the drivers against the real
 # V4L2 (vivid), hidraw (uhid) and GPIO (gpio-sim) subsystems. VM_CACHE keeps downloads and builds between runs.
@@ -161,4 +169,4 @@ fuzz: deps
 clean:
 	rm -rf $(BUILD)
 
--include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d)
+-include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d) $(GV_TEST_BIN:=.d)

@@ -58,6 +58,7 @@ typedef struct aravis_cam {
     int buffer_count;
     aravis_slot slots[CAMERA_MAX_BUFFERS];
     int streaming;
+    int ids_from_camera;      /* GigE / USB3 Vision: frame ids are the camera's, numbering every frame it sent */
     /* loss accounting for the current stream (camera_aravis.h, "sequence") */
     uint64_t underruns_at_start, last_mark;
     uint64_t discarded, id_gaps, lost_reported;
@@ -150,6 +151,7 @@ static int aravis_connect(aravis_cam *c, sci_error *err)
     atomic_store(&c->control_lost, 0);
     c->lost_handler = g_signal_connect(arv_camera_get_device(c->cam), "control-lost",
                                        G_CALLBACK(aravis_on_control_lost), c);
+    c->ids_from_camera = arv_camera_is_gv_device(c->cam) || arv_camera_is_uv_device(c->cam);
     camera_identity *id = &c->ident;
     memset(id, 0, sizeof *id);
     snprintf(id->backend, sizeof id->backend, "aravis");
@@ -657,7 +659,11 @@ static int aravis_wait_frame(void *state, int64_t timeout_ns, camera_frame *out,
             c->id_gaps += aravis_id_gap(c->last_frame_id, id);
         c->last_frame_id = id;
         c->have_frame_id = 1;
-        uint64_t by_buffers = under + c->discarded, lost = by_buffers > c->id_gaps ? by_buffers : c->id_gaps;
+        /* A camera on a wire numbers every frame it sends, so its id gaps are the losses (frames that found no
+         * buffer and damaged ones included); Aravis's underrun count is no frame count there (GigE Vision counts
+         * every packet of a frame that found no buffer). The in-process fake numbers only frames it filled, so
+         * there the losses are the underruns, attributed by the push marks, and the discarded buffers. */
+        uint64_t lost = c->ids_from_camera ? c->id_gaps : under + c->discarded;
         uint32_t lost_before = (uint32_t)(lost - c->lost_reported);
         c->lost_reported = lost;
         c->sequence = c->have_sequence ? c->sequence + 1 + lost_before : lost_before;

@@ -45,11 +45,12 @@
  *
  * Frame metadata:
  *   sequence      a count of the frames the camera produced since camera_start, lost ones included, so that the
- *                 front end's sequence-gap counter (drivers/seqgap.h) sees every loss. Losses come from two
- *                 sources and the larger cumulative count wins (one lost frame usually shows in both):
- *                 gaps in the GenICam frame (block) id — 16-bit ids wrap from 65535 to 1, 0 being invalid — and
- *                 buffer underruns (a frame arrived while every buffer was taken: the caller did not keep up),
- *                 attributed to the frame that follows them, plus the discarded error-status buffers.
+ *                 front end's sequence-gap counter (drivers/seqgap.h) sees every loss. GigE / USB3 Vision cameras
+ *                 number every frame they send (the GenICam frame or block id; 16-bit ids wrap from 65535 to 1, 0
+ *                 being invalid), so the gaps in the ids of delivered frames are the losses: frames that found no
+ *                 free buffer (the caller did not keep up), frames lost on the wire, damaged ones. Aravis's
+ *                 in-process fake numbers only the frames it filled: there the losses are Aravis's buffer
+ *                 underruns, attributed to the frame that follows them, plus the discarded damaged buffers.
  *   timestamp_ns  host time at which Aravis received the frame (GigE Vision: its first packet, right after the
  *                 sensor's readout starts), CLOCK_REALTIME mapped to CLOCK_MONOTONIC at camera_wait_frame (the
  *                 mapping moves if the wall clock is stepped between reception and the call); ts_source EOF.

@@ -28,6 +28,16 @@
 #define FAKE "Fake_1"
 #define SEC 1000000000LL
 
+static camera *g_cam; /* the camera open_fake opened, closed by teardown even when a test fails half-way */
+
+static int teardown(void **state)
+{
+    (void)state;
+    camera_close(g_cam);
+    g_cam = NULL;
+    return 0;
+}
+
 static int64_t mono_ns(void)
 {
     struct timespec t;
@@ -43,6 +53,8 @@ static camera *open_fake(camera_config *cfg)
     int rc = camera_open(&cam, &camera_aravis_ops, cfg, &err);
     if (rc < 0)
         fail_msg("camera_open(%s): %d %s", FAKE, rc, err.msg);
+    camera_close(g_cam); /* the previous one of this test, if it was not closed */
+    g_cam = cam;
     return cam;
 }
 
@@ -125,7 +137,7 @@ static void identity_and_missing_device(void **state)
     assert_string_equal(id.card, "Aravis Fake");
     assert_string_equal(id.path, FAKE);
     assert_string_equal(id.driver, "Fake");
-    camera_close(cam);
+    teardown(NULL);
 
     cfg = camera_config_default();
     cfg.device = "Fake_9"; /* an id no interface has: no network name lookup either (not a host name) */
@@ -190,7 +202,7 @@ static void default_format_is_mono16_ramp(void **state)
     assert_int_equal(st.frames, 6);
     assert_int_equal(st.lost, 0);
     camera_frame_release(&fr);
-    camera_close(cam);
+    teardown(NULL);
 }
 
 /* Exposure and gain reach the sensor model: the fake scales its ramp by 1 + gain + log10(exposure / 10 ms).
@@ -257,7 +269,7 @@ static void exposure_gain_scale_mono8_and_timestamps(void **state)
     if (periods < n - 1 - 0.5 || periods > n - 1 + 0.5)
         fail_msg("%d frames at 50 fps span %.2f periods of 20 ms, expected %d", n, periods, n - 1);
     camera_frame_release(&fr);
-    camera_close(cam);
+    teardown(NULL);
 }
 
 /* The four Bayer 8-bit formats: negotiated by name, delivered as the raw mosaic bit for bit (the fake's jet colour
@@ -304,7 +316,7 @@ static void bayer8_raw_mosaic(void **state)
                 }
         }
         camera_frame_release(&fr);
-        camera_close(cam);
+        teardown(NULL);
     }
 }
 
@@ -363,7 +375,7 @@ static void extra_formats_negotiated(void **state)
         guint32 reg = 0;
         assert_true(arv_fake_camera_read_register(fake_of(cam), ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT, &reg));
         assert_int_equal(reg, (guint32)extra[i].code);
-        camera_close(cam);
+        teardown(NULL);
     }
     arv_set_fake_camera_genicam_filename(NULL);
     unlink(path);
@@ -440,7 +452,7 @@ static void underruns_counted_as_lost_frames(void **state)
     camera_frame_release(&a);
     camera_frame_release(&b);
     camera_frame_release(&c);
-    camera_close(cam);
+    teardown(NULL);
 }
 
 /* Software trigger mode sets FrameStart / On / Software on the camera, and each camera_aravis_trigger_software
@@ -469,7 +481,7 @@ static void trigger_modes_reach_the_camera(void **state)
         assert_false(arv_fake_camera_check_and_acknowledge_software_trigger(fake)); /* one command, one latch */
     }
     assert_int_equal(camera_stop(cam, &err), 0);
-    camera_close(cam);
+    teardown(NULL);
 
     opt = (camera_aravis_options){.trigger = CAMERA_ARAVIS_TRIGGER_LINE, .trigger_line = "Line0",
                                   .trigger_activation = "RisingEdge"};
@@ -479,14 +491,14 @@ static void trigger_modes_reach_the_camera(void **state)
     assert_string_equal(arv_camera_get_string(ac, "TriggerMode", NULL), "On");
     assert_string_equal(arv_camera_get_string(ac, "TriggerSource", NULL), "Line0");
     assert_false(arv_fake_camera_is_in_software_trigger_mode(fake_of(cam)));
-    camera_close(cam);
+    teardown(NULL);
 
     opt.trigger_line = "Line7";
     cam = open_fake(&cfg);
     assert_int_equal(camera_start(cam, &err), -ENOTSUP);
     assert_non_null(strstr(err.msg, "TriggerSource Line7"));
     assert_false(camera_is_streaming(cam));
-    camera_close(cam);
+    teardown(NULL);
 
     /* free run switches the trigger off again */
     opt = (camera_aravis_options){.trigger = CAMERA_ARAVIS_TRIGGER_FREE_RUN};
@@ -494,7 +506,7 @@ static void trigger_modes_reach_the_camera(void **state)
     assert_int_equal(camera_start(cam, &err), 0);
     assert_string_equal(arv_camera_get_string(camera_aravis_arv_camera(cam), "TriggerMode", NULL), "Off");
     assert_true(arv_fake_camera_is_in_free_running_mode(fake_of(cam)));
-    camera_close(cam);
+    teardown(NULL);
 
     camera_config other = camera_config_default();
     assert_int_equal(camera_aravis_trigger_software(NULL, &err), -EINVAL);
@@ -517,7 +529,7 @@ static void trigger_profile_features(void **state)
     assert_true(arv_fake_camera_read_register(fake_of(cam), ARV_FAKE_CAMERA_REGISTER_ACQUISITION_FRAME_PERIOD_US,
                                               &reg));
     assert_int_equal(reg, 30000);
-    camera_close(cam);
+    teardown(NULL);
     cfg.trigger_profile[1] = (camera_control){.name = "LineDebouncerTime", .value = 5};
     sci_error err = {0};
     cfg.device = FAKE;
@@ -570,15 +582,15 @@ static void config_from_json(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(identity_and_missing_device),
-        cmocka_unit_test(default_format_is_mono16_ramp),
-        cmocka_unit_test(exposure_gain_scale_mono8_and_timestamps),
-        cmocka_unit_test(bayer8_raw_mosaic),
-        cmocka_unit_test(extra_formats_negotiated),
-        cmocka_unit_test(underruns_counted_as_lost_frames),
-        cmocka_unit_test(trigger_modes_reach_the_camera),
-        cmocka_unit_test(trigger_profile_features),
-        cmocka_unit_test(config_from_json),
+        cmocka_unit_test_teardown(identity_and_missing_device, teardown),
+        cmocka_unit_test_teardown(default_format_is_mono16_ramp, teardown),
+        cmocka_unit_test_teardown(exposure_gain_scale_mono8_and_timestamps, teardown),
+        cmocka_unit_test_teardown(bayer8_raw_mosaic, teardown),
+        cmocka_unit_test_teardown(extra_formats_negotiated, teardown),
+        cmocka_unit_test_teardown(underruns_counted_as_lost_frames, teardown),
+        cmocka_unit_test_teardown(trigger_modes_reach_the_camera, teardown),
+        cmocka_unit_test_teardown(trigger_profile_features, teardown),
+        cmocka_unit_test_teardown(config_from_json, teardown),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
     arv_shutdown();
