@@ -3,7 +3,7 @@
  * Behind the same camera_ops table as V4L2: camera_open(&cam, &camera_aravis_ops, &cfg, &err). What the
  * camera_config fields mean here:
  *
- *   device     Aravis device id ("Basler-21234567", "Aravis-Fake-GV01" as arv-camera-test-0.8 lists it), or a
+ *   device     Aravis device id ("Basler-21234567", "Aravis-Fake-GV01", as arv-camera-test-0.8 prints it), or a
  *              GigE Vision camera's IP address ("192.168.2.10", "127.0.0.1"). "Fake_1" is Aravis's in-process
  *              simulated camera: naming it enables Aravis's "Fake" interface (off by default), nothing else does.
  *              NULL: the first camera whose model equals `card` and/or serial number equals `bus_info`, or with
