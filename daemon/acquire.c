@@ -64,7 +64,7 @@ struct scicapd_acquire {
 
 static void post(scicapd_acquire *a, const scicapd_job *j, const char *name, json_t *data)
 {
-    scicapd_mailbox_post(a->env.mailbox, j ? j->client : 0, 1,
+    scicapd_mailbox_post(a->env.mailbox, j ? j->client : 0, j ? (long)j->owner : SCICAPD_OWNER_ALL, 1,
                          scicapd_event(name, j ? j->id : 0, j ? j->request_id : NULL, data));
 }
 

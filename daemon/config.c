@@ -18,6 +18,9 @@ static void defaults(scicapd_config *c)
     snprintf(c->socket_group, sizeof c->socket_group, "scicap");
     snprintf(c->admin_group, sizeof c->admin_group, "scicap");
     c->max_clients = 32;
+    c->admin_slots = 2;
+    c->request_timeout_ms = 10000;
+    c->idle_timeout_ms = 300000;
     c->max_line_bytes = 65536;
     snprintf(c->storage_root, sizeof c->storage_root, "/var/lib/scicapd");
     snprintf(c->runtime_dir, sizeof c->runtime_dir, "/run/scicapd");
@@ -122,7 +125,7 @@ static int get_obj(const sci_json_doc *doc, const json_t *o, const char *op, con
 static int parse_control(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
     static const char *const keys[] = {"socket", "mode", "group", "admin_group", "max_clients", "max_line_bytes",
-                                       NULL};
+                                       "admin_slots", "request_timeout_ms", "idle_timeout_ms", NULL};
     int rc;
     long long line = (long long)c->max_line_bytes;
     if ((rc = sci_json_check_keys(doc, o, "control", keys, err)) < 0 ||
@@ -130,9 +133,17 @@ static int parse_control(const sci_json_doc *doc, const json_t *o, scicapd_confi
         (rc = get_str(doc, o, "control", "group", c->socket_group, sizeof c->socket_group, err)) < 0 ||
         (rc = get_str(doc, o, "control", "admin_group", c->admin_group, sizeof c->admin_group, err)) < 0 ||
         (rc = get_int(doc, o, "control", "max_clients", 1, 1024, &c->max_clients, err)) < 0 ||
-        (rc = sci_json_get_int(doc, o, "control", "max_line_bytes", 0, 1024, 16 << 20, &line, err)) < 0)
+        (rc = sci_json_get_int(doc, o, "control", "max_line_bytes", 0, 1024, 16 << 20, &line, err)) < 0 ||
+        (rc = get_int(doc, o, "control", "admin_slots", 0, 64, &c->admin_slots, err)) < 0 ||
+        (rc = get_int(doc, o, "control", "request_timeout_ms", 100, 3600000, &c->request_timeout_ms, err)) < 0 ||
+        (rc = get_int(doc, o, "control", "idle_timeout_ms", 0, 86400000, &c->idle_timeout_ms, err)) < 0)
         return rc;
     c->max_line_bytes = (size_t)line;
+    if (c->admin_slots >= c->max_clients && !json_object_get(o, "admin_slots"))
+        c->admin_slots = c->max_clients - 1; /* the default shrinks with a small max_clients */
+    if (c->admin_slots >= c->max_clients)
+        return sci_json_fail(doc, err, "control.admin_slots", "must be smaller than control.max_clients (%d), or "
+                             "no ordinary user could connect", c->max_clients);
     if (c->socket_path[0] != '/')
         return sci_json_fail(doc, err, "control.socket", "must be an absolute path (got \"%s\")", c->socket_path);
     char mode[16] = "";

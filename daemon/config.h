@@ -43,7 +43,14 @@ typedef struct scicapd_config {
     char socket_path[SCICAPD_PATH_MAX];   /* /run/scicapd/control.sock */
     unsigned socket_mode;                 /* 0660 */
     char socket_group[SCICAPD_NAME_MAX];  /* "scicap"; "" = keep the process's group */
-    int max_clients;                      /* 32 */
+    int max_clients;                      /* 32: connections at once, admin_slots included */
+    int admin_slots;                      /* 2: of max_clients, kept for admin peers (root, the daemon's user,
+                                             admin_group), so a flood of connections never locks admins out */
+    int request_timeout_ms;               /* 10000: a request line must be complete this long after its first
+                                             byte (for the first request: after connect); else the connection
+                                             is answered "timeout" and closed */
+    int idle_timeout_ms;                  /* 300000: a connection that is not watching and has no unfinished job
+                                             is closed this long after its last request; 0 = never */
     size_t max_line_bytes;                /* 65536: longest request line */
     char admin_group[SCICAPD_NAME_MAX];   /* members may reload/shutdown (besides root and the daemon's user) */
     /* storage */

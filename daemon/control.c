@@ -12,6 +12,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include "base/clock.h"
 #include "daemon/protocol.h"
 
 #define OUT_MAX ((size_t)16 << 20)
@@ -19,18 +20,58 @@
 struct scicapd_control {
     int lfd;
     char path[108];
-    int max_clients;
-    size_t max_line;
+    scicapd_control_limits lim;
     const sci_log *log;
-    scicapd_line_fn on_line;
-    void *user;
+    scicapd_control_hooks hooks;
     scicapd_client **c;
     int n, cap;
     uint64_t next_id;
 };
 
+static void limits_set(scicapd_control *ctl, const scicapd_control_limits *lim)
+{
+    ctl->lim = *lim;
+    if (ctl->lim.max_clients < 1)
+        ctl->lim.max_clients = 1;
+    if (ctl->lim.admin_slots > ctl->lim.max_clients - 1)
+        ctl->lim.admin_slots = ctl->lim.max_clients - 1;
+    if (ctl->lim.admin_slots < 0)
+        ctl->lim.admin_slots = 0;
+}
+
+static const char *file_kind(mode_t m)
+{
+    return S_ISREG(m) ? "a regular file" : S_ISDIR(m) ? "a folder" : S_ISLNK(m) ? "a symbolic link"
+         : S_ISCHR(m) || S_ISBLK(m) ? "a device node" : S_ISFIFO(m) ? "a FIFO" : "something other than a socket";
+}
+
+/* What stands at path before bind: nothing (0), a stale socket (removed, 0), a live socket (-EADDRINUSE), or
+ * anything else (-EEXIST, left alone: --socket pointed at the wrong file must not destroy it). */
+static int clear_path(const char *path, const struct sockaddr_un *sa, sci_error *err)
+{
+    struct stat st;
+    if (lstat(path, &st) != 0)
+        return errno == ENOENT ? 0 : sci_error_set(err, -errno, "control socket %s: %s", path, strerror(errno));
+    if (!S_ISSOCK(st.st_mode))
+        return sci_error_set(err, -EEXIST, "control socket %s: %s stands there; refusing to replace it (remove it "
+                             "or choose another --socket / control.socket)", path, file_kind(st.st_mode));
+    int probe = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (probe < 0)
+        return sci_error_set(err, -errno, "control socket: socket(): %s", strerror(errno));
+    int rc = connect(probe, (const struct sockaddr *)sa, sizeof *sa) == 0 ? 0 : -errno;
+    close(probe);
+    if (rc == 0)
+        return sci_error_set(err, -EADDRINUSE, "control socket %s: another scicapd is listening on it", path);
+    if (rc != -ECONNREFUSED) /* e.g. EACCES: not ours to judge stale */
+        return sci_error_set(err, rc, "control socket %s: cannot tell whether it is stale: %s", path, strerror(-rc));
+    if (unlink(path) != 0 && errno != ENOENT)
+        return sci_error_set(err, -errno, "control socket %s: cannot remove the stale socket: %s", path,
+                             strerror(errno));
+    return 0;
+}
+
 int scicapd_control_open(scicapd_control **out, const char *path, unsigned mode, const char *group,
-                         int max_clients, size_t max_line, const sci_log *log, scicapd_line_fn on_line, void *user,
+                         const scicapd_control_limits *lim, const scicapd_control_hooks *hooks, const sci_log *log,
                          sci_error *err)
 {
     struct sockaddr_un sa = {.sun_family = AF_UNIX};
@@ -43,25 +84,13 @@ int scicapd_control_open(scicapd_control **out, const char *path, unsigned mode,
         return sci_error_set(err, -ENOMEM, "control: out of memory");
     ctl->lfd = -1;
     snprintf(ctl->path, sizeof ctl->path, "%s", path);
-    ctl->max_clients = max_clients;
-    ctl->max_line = max_line;
+    limits_set(ctl, lim);
     ctl->log = log;
-    ctl->on_line = on_line;
-    ctl->user = user;
+    ctl->hooks = *hooks;
     ctl->next_id = 1;
-    int rc;
-    /* A socket file left by a crash: remove it if nobody answers on it. */
-    int probe = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    if (probe >= 0) {
-        if (connect(probe, (struct sockaddr *)&sa, sizeof sa) == 0) {
-            close(probe);
-            free(ctl);
-            return sci_error_set(err, -EADDRINUSE, "control socket %s: another scicapd is listening on it", path);
-        }
-        close(probe);
-        if (errno == ECONNREFUSED)
-            unlink(path);
-    }
+    int rc, bound = 0;
+    if ((rc = clear_path(path, &sa, err)) < 0)
+        goto fail;
     ctl->lfd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
     if (ctl->lfd < 0) {
         rc = sci_error_set(err, -errno, "control socket: socket(): %s", strerror(errno));
@@ -71,6 +100,7 @@ int scicapd_control_open(scicapd_control **out, const char *path, unsigned mode,
         rc = sci_error_set(err, -errno, "control socket %s: bind: %s", path, strerror(errno));
         goto fail;
     }
+    bound = 1; /* from here the file is ours to remove on failure */
     if (chmod(path, mode) != 0) {
         rc = sci_error_set(err, -errno, "control socket %s: chmod %04o: %s", path, mode, strerror(errno));
         goto fail;
@@ -90,10 +120,10 @@ int scicapd_control_open(scicapd_control **out, const char *path, unsigned mode,
     *out = ctl;
     return 0;
 fail:
-    if (ctl->lfd >= 0) {
+    if (ctl->lfd >= 0)
         close(ctl->lfd);
+    if (bound)
         unlink(path);
-    }
     free(ctl);
     return rc;
 }
@@ -126,10 +156,10 @@ void scicapd_control_close(scicapd_control *ctl)
     free(ctl);
 }
 
-void scicapd_control_set_limits(scicapd_control *ctl, int max_clients, size_t max_line)
+void scicapd_control_set_limits(scicapd_control *ctl, const scicapd_control_limits *lim)
 {
-    ctl->max_clients = max_clients;
-    ctl->max_line = max_line;
+    limits_set(ctl, lim);
+    size_t max_line = ctl->lim.max_line;
     for (int i = 0; i < ctl->n; i++) {
         char *in = realloc(ctl->c[i]->in, max_line + 1);
         if (in)
@@ -204,11 +234,13 @@ void scicapd_control_send(scicapd_control *ctl, uint64_t client, const char *lin
         scicapd_control_send_to(ctl, c, line);
 }
 
-void scicapd_control_broadcast(scicapd_control *ctl, const char *line, uint64_t except)
+void scicapd_control_broadcast(scicapd_control *ctl, const char *line, uint64_t except, long owner)
 {
-    for (int i = 0; i < ctl->n; i++)
-        if (ctl->c[i]->watching && ctl->c[i]->id != except)
-            scicapd_control_send_to(ctl, ctl->c[i], line);
+    for (int i = 0; i < ctl->n; i++) {
+        scicapd_client *c = ctl->c[i];
+        if (c->watching && c->id != except && (owner < 0 || c->admin || (long)c->uid == owner))
+            scicapd_control_send_to(ctl, c, line);
+    }
 }
 
 int scicapd_control_flushing(const scicapd_control *ctl)
@@ -226,9 +258,22 @@ static void accept_one(scicapd_control *ctl)
         return;
     struct ucred cr = {0};
     socklen_t len = sizeof cr;
-    getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &cr, &len);
-    if (ctl->n >= ctl->max_clients) {
-        char *line = scicapd_reply_error(NULL, SCICAPD_E_BUSY, "too many clients");
+    if (getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &cr, &len) != 0) {
+        /* without credentials the peer would pass for uid 0: refuse it */
+        sci_log_write(ctl->log, SCI_LOG_ERR, "refused a connection: SO_PEERCRED: %s", strerror(errno));
+        close(fd);
+        return;
+    }
+    int admin = ctl->hooks.is_admin ? ctl->hooks.is_admin(ctl->hooks.user, cr.uid, cr.gid) : 0;
+    int limit = admin ? ctl->lim.max_clients : ctl->lim.max_clients - ctl->lim.admin_slots;
+    if (ctl->n >= limit) {
+        char msg[160];
+        if (admin || ctl->lim.admin_slots == 0)
+            snprintf(msg, sizeof msg, "too many clients (%d)", ctl->n);
+        else
+            snprintf(msg, sizeof msg, "too many clients (%d; the other %d slots are kept for admins)", ctl->n,
+                     ctl->lim.admin_slots);
+        char *line = scicapd_reply_error(NULL, SCICAPD_E_BUSY, msg);
         if (line) {
             ssize_t w = send(fd, line, strlen(line), MSG_NOSIGNAL | MSG_DONTWAIT);
             (void)w;
@@ -241,7 +286,7 @@ static void accept_one(scicapd_control *ctl)
     }
     scicapd_client *c = calloc(1, sizeof *c);
     if (c)
-        c->in = malloc(ctl->max_line + 1);
+        c->in = malloc(ctl->lim.max_line + 1);
     if (ctl->n == ctl->cap) {
         int nc = ctl->cap ? ctl->cap * 2 : 16;
         scicapd_client **v = realloc(ctl->c, (size_t)nc * sizeof *v);
@@ -262,6 +307,8 @@ static void accept_one(scicapd_control *ctl)
     c->pid = cr.pid;
     c->uid = cr.uid;
     c->gid = cr.gid;
+    c->admin = admin;
+    c->line_start_ns = c->last_request_ns = sci_clock_mono_ns(); /* the first request is due like any line */
     ctl->c[ctl->n++] = c;
     sci_log_write(ctl->log, SCI_LOG_INFO, "client %llu connected: pid %d uid %d gid %d", (unsigned long long)c->id,
                   (int)c->pid, (int)c->uid, (int)c->gid);
@@ -271,21 +318,24 @@ static void accept_one(scicapd_control *ctl)
 static int read_client(scicapd_control *ctl, scicapd_client *c)
 {
     for (;;) {
-        if (c->in_len == ctl->max_line + 1 || (c->in_len > ctl->max_line)) {
+        if (c->in_len == ctl->lim.max_line + 1 || (c->in_len > ctl->lim.max_line)) {
             /* check 1: a line longer than the limit */
             char msg[96];
-            snprintf(msg, sizeof msg, "request line longer than %zu bytes", ctl->max_line);
+            snprintf(msg, sizeof msg, "request line longer than %zu bytes", ctl->lim.max_line);
             char *line = scicapd_reply_error(NULL, SCICAPD_E_TOO_LONG, msg);
             scicapd_control_send_to(ctl, c, line);
             free(line);
             c->in_len = 0;
             c->skipping = 1;
         }
-        ssize_t r = recv(c->fd, c->in + c->in_len, ctl->max_line + 1 - c->in_len, MSG_DONTWAIT);
+        ssize_t r = recv(c->fd, c->in + c->in_len, ctl->lim.max_line + 1 - c->in_len, MSG_DONTWAIT);
         if (r < 0)
             return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR ? 0 : -1;
         if (r == 0)
             return -1;
+        int64_t now = sci_clock_mono_ns();
+        if (!c->line_start_ns)
+            c->line_start_ns = now; /* the first byte of a line starts its deadline; later bytes do not move it */
         size_t start = 0, end = c->in_len + (size_t)r;
         for (size_t i = c->in_len; i < end; i++) {
             if (c->in[i] != '\n')
@@ -295,9 +345,13 @@ static int read_client(scicapd_control *ctl, scicapd_client *c)
                 len--;
             if (c->skipping)
                 c->skipping = 0;
-            else if (len > 0)
-                ctl->on_line(ctl->user, c, c->in + start, len);
+            else if (len > 0) {
+                c->last_request_ns = now;
+                ctl->hooks.on_line(ctl->hooks.user, c, c->in + start, len);
+            }
             start = i + 1;
+            /* bytes after this newline, if any, begin the next line now */
+            c->line_start_ns = end > start ? now : 0;
             if (c->closing)
                 return 0;
         }
@@ -308,6 +362,84 @@ static int read_client(scicapd_control *ctl, scicapd_client *c)
             c->in_len = end - start;
         }
     }
+}
+
+/* Free the connections marked closing whose output is written (or that are broken). */
+static void reap(scicapd_control *ctl)
+{
+    int w = 0;
+    for (int i = 0; i < ctl->n; i++) {
+        scicapd_client *c = ctl->c[i];
+        if (c->closing == 2 || (c->closing && c->out_len <= c->out_off)) {
+            sci_log_write(ctl->log, SCI_LOG_INFO, "client %llu (pid %d) disconnected", (unsigned long long)c->id,
+                          (int)c->pid);
+            client_free(c);
+            continue;
+        }
+        ctl->c[w++] = c;
+    }
+    ctl->n = w;
+}
+
+/* The CLOCK_MONOTONIC time at which c is due to be closed, or 0 when no deadline runs. idle_ok: count the idle
+ * deadline (the caller decides whether watching or jobs in flight exempt it). */
+static int64_t deadline_of(const scicapd_control *ctl, const scicapd_client *c, int idle_ok)
+{
+    if (c->closing)
+        return 0;
+    if (c->line_start_ns)
+        return c->line_start_ns + (int64_t)ctl->lim.request_timeout_ms * 1000000;
+    if (idle_ok && ctl->lim.idle_timeout_ms > 0)
+        return c->last_request_ns + (int64_t)ctl->lim.idle_timeout_ms * 1000000;
+    return 0;
+}
+
+static int idle_applies(const scicapd_control *ctl, const scicapd_client *c)
+{
+    return !c->watching && !(ctl->hooks.busy && ctl->hooks.busy(ctl->hooks.user, c));
+}
+
+void scicapd_control_expire(scicapd_control *ctl, int64_t now_ns)
+{
+    int closed = 0;
+    for (int i = 0; i < ctl->n; i++) {
+        scicapd_client *c = ctl->c[i];
+        int64_t due = deadline_of(ctl, c, 1);
+        if (!due || now_ns < due)
+            continue;
+        if (!c->line_start_ns && !idle_applies(ctl, c)) {
+            c->last_request_ns = now_ns; /* waiting for its job: kept, and the idle count starts again */
+            continue;
+        }
+        char msg[128];
+        if (c->line_start_ns)
+            snprintf(msg, sizeof msg, "request not complete within %d ms; closing", ctl->lim.request_timeout_ms);
+        else
+            snprintf(msg, sizeof msg, "idle for %d ms with nothing in flight; closing", ctl->lim.idle_timeout_ms);
+        sci_log_write(ctl->log, SCI_LOG_NOTICE, "client %llu (pid %d uid %d): %s", (unsigned long long)c->id,
+                      (int)c->pid, (int)c->uid, msg);
+        char *line = scicapd_reply_error(NULL, SCICAPD_E_TIMEOUT, msg);
+        scicapd_control_send_to(ctl, c, line); /* into the kernel's buffer if there is room; never waited for */
+        free(line);
+        c->closing = 2;
+        closed++;
+    }
+    if (closed)
+        reap(ctl);
+}
+
+int scicapd_control_next_deadline_ms(const scicapd_control *ctl, int64_t now_ns)
+{
+    int64_t best = 0;
+    for (int i = 0; i < ctl->n; i++) {
+        /* without asking busy(): expire restarts the idle count of a connection it keeps */
+        int64_t due = deadline_of(ctl, ctl->c[i], !ctl->c[i]->watching);
+        if (due && (!best || due < best))
+            best = due;
+    }
+    if (!best)
+        return -1;
+    return best <= now_ns ? 0 : (int)((best - now_ns + 999999) / 1000000);
 }
 
 int scicapd_control_pollfds(scicapd_control *ctl, struct pollfd *fds, int max)
@@ -340,18 +472,7 @@ void scicapd_control_dispatch(scicapd_control *ctl, const struct pollfd *fds, in
         if ((fds[k].revents & (POLLIN | POLLHUP | POLLERR)) && !c->closing && read_client(ctl, c) < 0)
             c->closing = 2;
     }
-    int w = 0;
-    for (int i = 0; i < ctl->n; i++) {
-        scicapd_client *c = ctl->c[i];
-        if (c->closing == 2 || (c->closing && c->out_len <= c->out_off)) {
-            sci_log_write(ctl->log, SCI_LOG_INFO, "client %llu (pid %d) disconnected", (unsigned long long)c->id,
-                          (int)c->pid);
-            client_free(c);
-            continue;
-        }
-        ctl->c[w++] = c;
-    }
-    ctl->n = w;
+    reap(ctl);
     if (n > 0 && ctl->lfd >= 0 && fds[0].fd == ctl->lfd && (fds[0].revents & POLLIN))
         for (int i = 0; i < 16; i++) {
             int before = ctl->n;

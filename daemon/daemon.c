@@ -56,6 +56,13 @@ struct scicapd {
 };
 
 /* ---- configuration ---- */
+static scicapd_control_limits control_limits(const scicapd_config *c)
+{
+    return (scicapd_control_limits){.max_clients = c->max_clients, .admin_slots = c->admin_slots,
+                                    .max_line = c->max_line_bytes, .request_timeout_ms = c->request_timeout_ms,
+                                    .idle_timeout_ms = c->idle_timeout_ms};
+}
+
 
 static int load_config(scicapd *d, scicapd_config **out, sci_error *err)
 {
@@ -89,7 +96,8 @@ static int reload(scicapd *d, json_t **restart, sci_error *err)
     json_t *keys = scicapd_config_restart_keys(d->cfg, c);
     scicapd_config_free(d->cfg);
     d->cfg = c;
-    scicapd_control_set_limits(d->ctl, c->max_clients, c->max_line_bytes);
+    scicapd_control_limits lim = control_limits(c);
+    scicapd_control_set_limits(d->ctl, &lim);
     scicapd_queue_resize(d->acq_q, c->capture_queue);
     scicapd_queue_resize(d->recon_q, c->recon_queue);
     scicapd_store_set_previews(d->store, c->previews);
@@ -123,7 +131,7 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
         scicapd_job_settle(d->jobs, j, 0);
         if (scicapd_job_state_get(d->jobs, j) == SCICAPD_JOB_RUNNING)
             scicapd_job_set_state(d->jobs, j, SCICAPD_JOB_FAILED, err->msg);
-        scicapd_mailbox_post(d->mailbox, j->client, 1,
+        scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1,
                              scicapd_event("capture.failed", j->id, j->request_id,
                                            json_pack("{s:i, s:s}", "index", s->index, "error", err->msg)));
         scicapd_snapshot_free(d->jobs, s);
@@ -132,14 +140,14 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
     atomic_fetch_add(&d->stored, 1);
     scicapd_job_add_output(d->jobs, j, s->capture_id);
     double latency_ms = (double)(sci_clock_mono_ns() - j->submitted_ns) * 1e-6;
-    scicapd_mailbox_post(d->mailbox, j->client, 1,
+    scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1,
                          scicapd_event("capture.stored", j->id, j->request_id,
                                        json_pack("{s:s, s:s, s:i, s:b, s:f}", "capture", s->capture_id, "dir", s->dir,
                                                  "index", s->index, "broken", s->broken, "latency_ms", latency_ms)));
     if (c->reconstruct) {
         scicapd_job *r;
         const char *why = NULL;
-        if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_RECONSTRUCT, j->client, j->request_id, &r) < 0) {
+        if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_RECONSTRUCT, j->client, j->owner, j->request_id, &r) < 0) {
             why = "out of memory";
         } else {
             snprintf(r->recon.capture_id, sizeof r->recon.capture_id, "%s", s->capture_id);
@@ -150,7 +158,7 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
                 scicapd_jobs_forget(d->jobs, r);
                 scicapd_job_unref(d->jobs, r);
             } else {
-                scicapd_mailbox_post(d->mailbox, j->client, 1,
+                scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1,
                                      scicapd_event("recon.queued", r->id, r->request_id,
                                                    json_pack("{s:s, s:s, s:I}", "capture", s->capture_id, "method",
                                                              scicapd_method_name(c->recon.method), "capture_job",
@@ -158,7 +166,7 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
             }
         }
         if (why)
-            scicapd_mailbox_post(d->mailbox, j->client, 1,
+            scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1,
                                  scicapd_event("recon.rejected", j->id, j->request_id,
                                                json_pack("{s:s, s:s}", "capture", s->capture_id, "reason", why)));
     }
@@ -166,24 +174,25 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
     if (scicapd_job_settle(d->jobs, j, 1) == c->count && scicapd_job_state_get(d->jobs, j) == SCICAPD_JOB_RUNNING) {
         scicapd_job_set_state(d->jobs, j, SCICAPD_JOB_DONE, NULL);
         json_t *o = scicapd_job_json(d->jobs, j);
-        scicapd_mailbox_post(d->mailbox, j->client, 1, scicapd_event("capture.done", j->id, j->request_id, o));
+        scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1, scicapd_event("capture.done", j->id, j->request_id, o));
     }
     scicapd_snapshot_free(d->jobs, s);
 }
 
 /* ---- requests ---- */
 
-static int is_admin(const scicapd *d, const scicapd_client *c)
+/* Root, the daemon's own user, or a member of control.admin_group (primary or supplementary). */
+static int is_admin_cred(const scicapd *d, uid_t uid, gid_t gid)
 {
-    if (c->uid == 0 || c->uid == geteuid())
+    if (uid == 0 || uid == geteuid())
         return 1;
     const char *gname = d->cfg->admin_group;
     struct group *g = gname[0] ? getgrnam(gname) : NULL;
     if (!g)
         return 0;
-    if (c->gid == g->gr_gid)
+    if (gid == g->gr_gid)
         return 1;
-    struct passwd *pw = getpwuid(c->uid);
+    struct passwd *pw = getpwuid(uid);
     if (!pw)
         return 0;
     gid_t groups[256];
@@ -194,6 +203,15 @@ static int is_admin(const scicapd *d, const scicapd_client *c)
         if (groups[i] == g->gr_gid)
             return 1;
     return 0;
+}
+
+static int is_admin(const scicapd *d, const scicapd_client *c) { return is_admin_cred(d, c->uid, c->gid); }
+
+/* control hooks */
+static int hook_is_admin(void *user, uid_t uid, gid_t gid) { return is_admin_cred(user, uid, gid); }
+static int hook_busy(void *user, const scicapd_client *c)
+{
+    return scicapd_jobs_client_busy(((scicapd *)user)->jobs, c->id);
 }
 
 static void reply(scicapd *d, scicapd_client *c, char *line)
@@ -290,7 +308,9 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
     switch (r.cmd) {
     case SCICAPD_CMD_STATUS: reply(d, c, scicapd_reply_ok(r.id, status_json(d))); break;
     case SCICAPD_CMD_DEVICES: reply(d, c, scicapd_reply_ok(r.id, scicapd_acquire_devices_json(d->acq))); break;
-    case SCICAPD_CMD_JOBS: reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:o}", "jobs", scicapd_jobs_json(d->jobs)))); break;
+    case SCICAPD_CMD_JOBS: /* a user sees their own jobs; admins see everyone's */
+        reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:o}", "jobs", scicapd_jobs_json(d->jobs, c->uid, is_admin(d, c)))));
+        break;
     case SCICAPD_CMD_WATCH:
         c->watching = 1;
         reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:b}", "watching", 1)));
@@ -298,7 +318,7 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
     case SCICAPD_CMD_CAPTURE:
     case SCICAPD_CMD_CALIBRATE:
         if (scicapd_jobs_create(d->jobs, r.cmd == SCICAPD_CMD_CAPTURE ? SCICAPD_JOB_CAPTURE : SCICAPD_JOB_CALIBRATE,
-                                c->id, r.id, &j) < 0) {
+                                c->id, c->uid, r.id, &j) < 0) {
             reply_err(d, c, r.id, SCICAPD_E_FAILED, "out of memory");
             break;
         }
@@ -312,7 +332,7 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
             reply_err(d, c, r.id, SCICAPD_E_NOT_FOUND, err.msg);
             break;
         }
-        if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_RECONSTRUCT, c->id, r.id, &j) < 0) {
+        if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_RECONSTRUCT, c->id, c->uid, r.id, &j) < 0) {
             reply_err(d, c, r.id, SCICAPD_E_FAILED, "out of memory");
             break;
         }
@@ -326,6 +346,16 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
             char msg[64];
             snprintf(msg, sizeof msg, "no job %llu", (unsigned long long)job_id);
             reply_err(d, c, r.id, SCICAPD_E_NOT_FOUND, msg);
+            break;
+        }
+        if (t->owner != c->uid && !is_admin(d, c)) {
+            char msg[160];
+            snprintf(msg, sizeof msg, "job %llu belongs to uid %d; only its owner, root or group \"%s\" may cancel it",
+                     (unsigned long long)job_id, (int)t->owner, d->cfg->admin_group);
+            sci_log_write(d->log, SCI_LOG_WARNING, "client %llu (uid %d): %s", (unsigned long long)c->id, (int)c->uid,
+                          msg);
+            reply_err(d, c, r.id, SCICAPD_E_PERMISSION, msg);
+            scicapd_job_unref(d->jobs, t);
             break;
         }
         atomic_store(&t->cancel, 1);
@@ -431,8 +461,10 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
     if ((rc = scicapd_acquire_new(&d->acq, d->cfg, &ae, err)) < 0)
         goto fail;
     /* 6. the control socket */
-    if ((rc = scicapd_control_open(&d->ctl, d->cfg->socket_path, d->cfg->socket_mode, d->cfg->socket_group,
-                                   d->cfg->max_clients, d->cfg->max_line_bytes, log, on_line, d, err)) < 0)
+    scicapd_control_limits lim = control_limits(d->cfg);
+    scicapd_control_hooks hooks = {.on_line = on_line, .is_admin = hook_is_admin, .busy = hook_busy, .user = d};
+    if ((rc = scicapd_control_open(&d->ctl, d->cfg->socket_path, d->cfg->socket_mode, d->cfg->socket_group, &lim,
+                                   &hooks, log, err)) < 0)
         goto fail;
     /* 7. threads: writer, reconstruction workers, acquisition */
     scicapd_store_set_previews(d->store, d->cfg->previews);
@@ -473,7 +505,7 @@ static void deliver(scicapd *d)
         if (p->client)
             scicapd_control_send(d->ctl, p->client, p->line);
         if (p->broadcast)
-            scicapd_control_broadcast(d->ctl, p->line, p->client);
+            scicapd_control_broadcast(d->ctl, p->line, p->client, p->owner);
     }
     scicapd_letters_free(l);
 }
@@ -481,6 +513,7 @@ static void deliver(scicapd *d)
 static void housekeeping(scicapd *d)
 {
     int64_t now = sci_clock_mono_ns();
+    scicapd_control_expire(d->ctl, now);
     int64_t period = scicapd_notify_watchdog_period_ns(&d->notify);
     if (period > 0 && now - d->notify.last_ping_ns >= period) {
         /* only when the acquisition thread shows signs of life within the watchdog interval */
@@ -518,6 +551,9 @@ int scicapd_run(scicapd *d)
             int64_t left = d->notify.last_ping_ns + period - sci_clock_mono_ns();
             timeout = left <= 0 ? 0 : left / 1000000 < timeout ? (int)(left / 1000000) + 1 : timeout;
         }
+        int due = scicapd_control_next_deadline_ms(d->ctl, sci_clock_mono_ns());
+        if (due >= 0 && due < timeout)
+            timeout = due;
         int pr = poll(fds, (nfds_t)(FIXED + n), timeout);
         if (pr < 0 && errno != EINTR) {
             free(fds);

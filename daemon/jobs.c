@@ -79,14 +79,15 @@ static void trim(scicapd_jobs *t)
     t->len = w;
 }
 
-int scicapd_jobs_create(scicapd_jobs *t, scicapd_job_kind kind, uint64_t client, const json_t *request_id,
-                        scicapd_job **out)
+int scicapd_jobs_create(scicapd_jobs *t, scicapd_job_kind kind, uint64_t client, uid_t owner,
+                        const json_t *request_id, scicapd_job **out)
 {
     scicapd_job *j = calloc(1, sizeof *j);
     if (!j)
         return -ENOMEM;
     j->kind = kind;
     j->client = client;
+    j->owner = owner;
     j->request_id = request_id ? json_incref((json_t *)request_id) : json_null();
     j->outputs = json_array();
     j->psnr = NAN;
@@ -203,10 +204,10 @@ scicapd_job_state scicapd_job_state_get(scicapd_jobs *t, scicapd_job *j)
 static json_t *job_json(const scicapd_job *j)
 {
     int64_t now = sci_clock_mono_ns();
-    json_t *o = json_pack("{s:I, s:s, s:s, s:i, s:i, s:O, s:f}", "job", (json_int_t)j->id, "kind",
+    json_t *o = json_pack("{s:I, s:s, s:s, s:i, s:i, s:O, s:f, s:I}", "job", (json_int_t)j->id, "kind",
                           scicapd_job_kind_name(j->kind), "state", scicapd_job_state_name(j->state), "done", j->done,
                           "total", j->total, "outputs", j->outputs, "age_s",
-                          (double)(now - j->submitted_ns) * 1e-9);
+                          (double)(now - j->submitted_ns) * 1e-9, "owner", (json_int_t)j->owner);
     if (!o)
         return NULL;
     if (!isnan(j->psnr))
@@ -235,14 +236,25 @@ json_t *scicapd_job_json(scicapd_jobs *t, scicapd_job *j)
     return o;
 }
 
-json_t *scicapd_jobs_json(scicapd_jobs *t)
+json_t *scicapd_jobs_json(scicapd_jobs *t, uid_t owner, int all)
 {
     json_t *a = json_array();
     pthread_mutex_lock(&t->mu);
     for (int i = 0; i < t->len; i++)
-        json_array_append_new(a, job_json(t->v[i]));
+        if (all || t->v[i]->owner == owner)
+            json_array_append_new(a, job_json(t->v[i]));
     pthread_mutex_unlock(&t->mu);
     return a;
+}
+
+int scicapd_jobs_client_busy(scicapd_jobs *t, uint64_t client)
+{
+    int busy = 0;
+    pthread_mutex_lock(&t->mu);
+    for (int i = 0; i < t->len && !busy; i++)
+        busy = t->v[i]->client == client && !finished(t->v[i]);
+    pthread_mutex_unlock(&t->mu);
+    return busy;
 }
 
 void scicapd_jobs_count(scicapd_jobs *t, int *queued, int *running, int *fin)

@@ -6,6 +6,9 @@
  * reference-counted: the table holds one reference, a queue or a worker another.
  * Cancel sets an atomic flag the runner checks between snapshots and between solver iterations.
  * The table keeps every unfinished job and the most recent SCICAPD_JOBS_HISTORY finished ones.
+ * Ownership: each job records the peer uid of its submitter (SO_PEERCRED); the daemon shows and cancels a job
+ * only for that uid or an admin (daemon/daemon.c). Jobs the daemon makes itself inherit their origin's owner:
+ * a capture's reconstructions its capture's, a resumed reconstruction the uid persisted with it.
  * Thread-safe.
  */
 #ifndef SCICAP_DAEMON_JOBS_H
@@ -15,6 +18,7 @@
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdint.h>
+#include <sys/types.h>
 
 #include "daemon/protocol.h"
 
@@ -32,6 +36,8 @@ typedef struct scicapd_job {
     uint64_t id;               /* 1, 2, ... per daemon run */
     scicapd_job_kind kind;
     uint64_t client;           /* connection that submitted it (0: the daemon itself) */
+    uid_t owner;               /* peer uid of the submitter */
+    char persisted[96];        /* reconstruct: its file under ROOT/recon-queue/ ("" = not persisted) */
     json_t *request_id;        /* the submitter's request id (owned, immutable) */
     int64_t submitted_ns, started_ns, finished_ns; /* CLOCK_MONOTONIC */
     atomic_int cancel;         /* set by cancel / shutdown */
@@ -55,8 +61,8 @@ int scicapd_jobs_new(scicapd_jobs **out);
 void scicapd_jobs_free(scicapd_jobs *t);
 
 /* A new job in state queued, registered in the table, with 2 references (table + caller). -ENOMEM. */
-int scicapd_jobs_create(scicapd_jobs *t, scicapd_job_kind kind, uint64_t client, const json_t *request_id,
-                        scicapd_job **out);
+int scicapd_jobs_create(scicapd_jobs *t, scicapd_job_kind kind, uint64_t client, uid_t owner,
+                        const json_t *request_id, scicapd_job **out);
 /* Take a reference to job `id` (NULL if unknown). */
 scicapd_job *scicapd_jobs_find(scicapd_jobs *t, uint64_t id);
 void scicapd_job_unref(scicapd_jobs *t, scicapd_job *j);
@@ -74,7 +80,10 @@ scicapd_job_state scicapd_job_state_get(scicapd_jobs *t, scicapd_job *j);
 
 /* Snapshot of one job / all jobs as JSON (new references). */
 json_t *scicapd_job_json(scicapd_jobs *t, scicapd_job *j);
-json_t *scicapd_jobs_json(scicapd_jobs *t);
+/* Jobs owned by `owner`, or every job when all != 0. */
+json_t *scicapd_jobs_json(scicapd_jobs *t, uid_t owner, int all);
+/* 1 when connection `client` submitted a job that is not finished (its connection waits for events). */
+int scicapd_jobs_client_busy(scicapd_jobs *t, uint64_t client);
 /* Counts by state (for status and STATUS=). */
 void scicapd_jobs_count(scicapd_jobs *t, int *queued, int *running, int *finished);
 /* Set the cancel flag of every unfinished job. */

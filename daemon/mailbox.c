@@ -52,7 +52,7 @@ void scicapd_mailbox_free(scicapd_mailbox *mb)
 
 int scicapd_mailbox_fd(const scicapd_mailbox *mb) { return mb->fd; }
 
-void scicapd_mailbox_post(scicapd_mailbox *mb, uint64_t client, int broadcast, char *line)
+void scicapd_mailbox_post(scicapd_mailbox *mb, uint64_t client, long owner, int broadcast, char *line)
 {
     if (!line)
         return;
@@ -61,7 +61,7 @@ void scicapd_mailbox_post(scicapd_mailbox *mb, uint64_t client, int broadcast, c
         free(line);
         return;
     }
-    *l = (scicapd_letter){.client = client, .broadcast = broadcast, .line = line};
+    *l = (scicapd_letter){.client = client, .owner = owner, .broadcast = broadcast, .line = line};
     pthread_mutex_lock(&mb->mu);
     *mb->tail = l;
     mb->tail = &l->next;

@@ -13,7 +13,7 @@ static const char *const cmd_names[SCICAPD_CMD_COUNT] = {
 };
 static const char *const err_names[SCICAPD_E_COUNT] = {
     "ok", "too_long", "bad_json", "bad_version", "unknown_command", "bad_arguments", "permission", "busy",
-    "not_found", "failed", "shutting_down", "unsupported",
+    "not_found", "failed", "shutting_down", "unsupported", "timeout",
 };
 
 const char *scicapd_cmd_name(scicapd_cmd c) { return (unsigned)c < SCICAPD_CMD_COUNT ? cmd_names[c] : "?"; }

@@ -15,7 +15,10 @@
  *     3 version   "v" is 1 (absent means 1)                              -> "bad_version"
  *     4 command   "cmd" names a known command                            -> "unknown_command"
  *     5 arguments "args" is an object of the command's keys, typed and in range -> "bad_arguments"
- *     6 permission admin commands need root, the daemon's user or the admin group -> "permission"
+ *     6 permission admin commands need root, the daemon's user or the admin group; cancel needs the job's
+ *                 owner (its submitter's uid) or an admin                 -> "permission"
+ * Before any of them, the connection itself: a line not complete within control.request_timeout_ms of its first
+ * byte, or a connection idle past control.idle_timeout_ms, is answered "timeout" (id null) and closed.
  * The "id" must be an integer or a string of at most 64 bytes when present (else "bad_json" with id null).
  * Pure functions of their inputs; thread-safe.
  */
@@ -68,6 +71,7 @@ typedef enum scicapd_errcode {
     SCICAPD_E_FAILED,        /* the command ran and failed (message says why) */
     SCICAPD_E_SHUTTING_DOWN,
     SCICAPD_E_UNSUPPORTED,   /* e.g. simulate on real hardware */
+    SCICAPD_E_TIMEOUT,       /* the connection missed its request or idle deadline and is closed */
     SCICAPD_E_COUNT
 } scicapd_errcode;
 

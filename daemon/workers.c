@@ -34,7 +34,7 @@ typedef struct run_ctx {
 
 static void post(scicapd_workers *w, const scicapd_job *j, const char *name, json_t *data)
 {
-    scicapd_mailbox_post(w->env.mailbox, j->client, 1, scicapd_event(name, j->id, j->request_id, data));
+    scicapd_mailbox_post(w->env.mailbox, j->client, (long)j->owner, 1, scicapd_event(name, j->id, j->request_id, data));
 }
 
 static int on_progress(const sci_trace_entry *e, void *user)
