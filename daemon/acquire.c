@@ -485,7 +485,11 @@ static void run_capture(scicapd_acquire *a, scicapd_job *j)
             nanosleep(&ts, NULL);
         }
         s->job = scicapd_jobs_find(a->env.jobs, j->id); /* the writer's reference */
-        scicapd_store_reserve_id(a->env.store, s);       /* ids in acquisition order, whichever writer stores it */
+        /* ids in acquisition order, whichever writer stores it; durable before the snapshot goes on */
+        if ((rc = scicapd_store_reserve_id(a->env.store, s, &err)) < 0) {
+            scicapd_snapshot_free(a->env.jobs, s);
+            break;
+        }
         if (scicapd_queue_push_wait(a->env.out, s) < 0) {
             scicapd_snapshot_free(a->env.jobs, s);
             rc = sci_error_set(&err, -EPIPE, "storage writer stopped");

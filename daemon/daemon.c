@@ -27,6 +27,7 @@
 #include "daemon/notify.h"
 #include "daemon/protocol.h"
 #include "daemon/queue.h"
+#include "daemon/reconq.h"
 #include "daemon/store.h"
 #include "daemon/workers.h"
 
@@ -41,6 +42,7 @@ struct scicapd {
     scicapd_notify notify;
     scicapd_store *store;
     scicapd_store_recovery recovered;
+    int resumed;                /* reconstructions read back from ROOT/recon-queue at start */
     scicapd_jobs *jobs;
     scicapd_mailbox *mailbox;
     scicapd_queue *acq_q, *store_q, *recon_q;
@@ -152,9 +154,16 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
         } else {
             snprintf(r->recon.capture_id, sizeof r->recon.capture_id, "%s", s->capture_id);
             r->recon.spec = c->recon;
-            int q = scicapd_queue_push(d->recon_q, r);
+            sci_error e2 = {0};
+            int q = scicapd_reconq_save(d->store, r, &e2);
+            if (q < 0)
+                sci_log_write(d->log, SCI_LOG_ERR, "job %llu: %s", (unsigned long long)r->id, e2.msg);
+            else
+                q = scicapd_queue_push(d->recon_q, r);
             if (q < 0) {
-                why = q == SCI_EBUSY ? "reconstruction queue full" : "daemon stopping";
+                why = q == SCI_EBUSY ? "reconstruction queue full" : q == -EPIPE ? "daemon stopping"
+                                                                                 : "cannot save the queue entry";
+                scicapd_reconq_drop(d->store, r);
                 scicapd_jobs_forget(d->jobs, r);
                 scicapd_job_unref(d->jobs, r);
             } else {
@@ -230,7 +239,7 @@ static json_t *status_json(scicapd *d)
     int q, r, f;
     scicapd_jobs_count(d->jobs, &q, &r, &f);
     return json_pack("{s:s, s:i, s:i, s:f, s:s, s:s, s:s, s:b, s:{s:[i,i], s:[i,i], s:[i,i]}, s:{s:i, s:i, s:i},"
-                     " s:i, s:i, s:I, s:{s:i, s:i}, s:b, s:o}",
+                     " s:i, s:i, s:I, s:{s:i, s:i, s:i}, s:b, s:o}",
                      "version", SCICAP_VERSION, "protocol", SCICAPD_PROTOCOL_VERSION, "pid", (int)getpid(),
                      "uptime_s", sci_clock_s(d->started_ns, sci_clock_mono_ns()), "config",
                      d->cfg->path[0] ? d->cfg->path : "(built-in defaults)", "socket", d->cfg->socket_path,
@@ -241,14 +250,23 @@ static json_t *status_json(scicapd *d)
                      "running", r, "finished", f, "workers_busy", scicapd_workers_busy(d->workers), "clients",
                      scicapd_control_clients(d->ctl), "captures_stored", (json_int_t)atomic_load(&d->stored),
                      "recovered", "captures", d->recovered.captures, "removed_partial", d->recovered.removed,
+                     "reconstructions_resumed", d->resumed,
                      "stopping", atomic_load(&d->stopping), "devices", scicapd_acquire_devices_json(d->acq));
 }
 
 static void submit(scicapd *d, scicapd_client *c, const json_t *id, scicapd_job *j, scicapd_queue *q,
                    const char *what)
 {
+    sci_error err = {0};
+    if (j->kind == SCICAPD_JOB_RECONSTRUCT && scicapd_reconq_save(d->store, j, &err) < 0) {
+        scicapd_jobs_forget(d->jobs, j);
+        scicapd_job_unref(d->jobs, j);
+        reply_err(d, c, id, SCICAPD_E_FAILED, err.msg);
+        return;
+    }
     int rc = scicapd_queue_push(q, j);
     if (rc < 0) {
+        scicapd_reconq_drop(d->store, j);
         char msg[128];
         snprintf(msg, sizeof msg, "%s queue full (%d jobs); try again later", what, scicapd_queue_capacity(q));
         scicapd_jobs_forget(d->jobs, j);
@@ -358,7 +376,8 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
             scicapd_job_unref(d->jobs, t);
             break;
         }
-        atomic_store(&t->cancel, 1);
+        int none = 0; /* a shutdown's mark, if already set, stays */
+        atomic_compare_exchange_strong(&t->cancel, &none, SCICAPD_CANCEL_USER);
         reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:I, s:s}", "job", (json_int_t)t->id, "state",
                                                      scicapd_job_state_name(scicapd_job_state_get(d->jobs, t)))));
         scicapd_job_unref(d->jobs, t);
@@ -392,6 +411,37 @@ out:
 }
 
 /* ---- life ---- */
+
+/* Reconstructions the previous run had queued or running (ROOT/recon-queue): queued again in their order, with
+ * their owners, before any client can add to the queue. The queue grows for them if needed (a smaller
+ * configured capacity refuses new requests until it drains, never these). */
+static int resume_reconstructions(scicapd *d, sci_error *err)
+{
+    scicapd_reconq_item *it;
+    int n, rc;
+    if ((rc = scicapd_reconq_load(d->store, d->log, &it, &n, err)) < 0)
+        return rc;
+    if (n > scicapd_queue_capacity(d->recon_q))
+        scicapd_queue_resize(d->recon_q, n);
+    for (int i = 0; i < n; i++) {
+        scicapd_job *j;
+        if ((rc = scicapd_jobs_create(d->jobs, SCICAPD_JOB_RECONSTRUCT, 0, it[i].owner, NULL, &j)) < 0) {
+            free(it);
+            return sci_error_set(err, rc, "resuming reconstructions: out of memory");
+        }
+        snprintf(j->recon.capture_id, sizeof j->recon.capture_id, "%s", it[i].capture_id);
+        j->recon.spec = it[i].spec;
+        snprintf(j->persisted, sizeof j->persisted, "%s", it[i].file);
+        scicapd_queue_push(d->recon_q, j); /* room was made above */
+        sci_log_write(d->log, SCI_LOG_NOTICE, "job %llu: resumed the reconstruction of %s (%s, uid %d) queued "
+                      "before the last stop", (unsigned long long)j->id, j->recon.capture_id,
+                      scicapd_method_name(j->recon.spec.method), (int)j->owner);
+    }
+    scicapd_queue_resize(d->recon_q, d->cfg->recon_queue);
+    d->resumed = n;
+    free(it);
+    return 0;
+}
 
 /* Threads created before scicapd_new (OpenBLAS starts its pool from a library constructor) do not block the
  * signals; one delivered there is sent on to the main thread (tid == pid), where it is blocked and read from
@@ -437,6 +487,9 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
         sci_error_set(err, rc, "scicapd: %s", sci_strerror(rc));
         goto fail;
     }
+    /* 3b. reconstructions the previous run left queued (no worker runs yet) */
+    if ((rc = resume_reconstructions(d, err)) < 0)
+        goto fail;
     /* 4. signals, before any thread starts so that all inherit the mask */
     sigset_t set;
     sigemptyset(&set);

@@ -277,7 +277,9 @@ void scicapd_jobs_cancel_all(scicapd_jobs *t)
 {
     pthread_mutex_lock(&t->mu);
     for (int i = 0; i < t->len; i++)
-        if (!finished(t->v[i]))
-            atomic_store(&t->v[i]->cancel, 1);
+        if (!finished(t->v[i])) {
+            int none = 0;
+            atomic_compare_exchange_strong(&t->v[i]->cancel, &none, SCICAPD_CANCEL_SHUTDOWN);
+        }
     pthread_mutex_unlock(&t->mu);
 }

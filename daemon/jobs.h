@@ -32,6 +32,10 @@ typedef enum scicapd_job_state {
 const char *scicapd_job_kind_name(scicapd_job_kind k);
 const char *scicapd_job_state_name(scicapd_job_state s);
 
+/* Why a job was told to stop: a user's cancel ends it for good; a shutdown leaves a persisted reconstruction to
+ * be resumed at the next start (daemon/reconq.h). */
+enum { SCICAPD_CANCEL_USER = 1, SCICAPD_CANCEL_SHUTDOWN = 2 };
+
 typedef struct scicapd_job {
     uint64_t id;               /* 1, 2, ... per daemon run */
     scicapd_job_kind kind;
@@ -40,7 +44,7 @@ typedef struct scicapd_job {
     char persisted[96];        /* reconstruct: its file under ROOT/recon-queue/ ("" = not persisted) */
     json_t *request_id;        /* the submitter's request id (owned, immutable) */
     int64_t submitted_ns, started_ns, finished_ns; /* CLOCK_MONOTONIC */
-    atomic_int cancel;         /* set by cancel / shutdown */
+    atomic_int cancel;         /* 0, SCICAPD_CANCEL_USER (cancel command) or SCICAPD_CANCEL_SHUTDOWN */
     /* arguments (immutable) */
     scicapd_capture_args capture;
     scicapd_calib_args calib;
@@ -86,7 +90,7 @@ json_t *scicapd_jobs_json(scicapd_jobs *t, uid_t owner, int all);
 int scicapd_jobs_client_busy(scicapd_jobs *t, uint64_t client);
 /* Counts by state (for status and STATUS=). */
 void scicapd_jobs_count(scicapd_jobs *t, int *queued, int *running, int *finished);
-/* Set the cancel flag of every unfinished job. */
+/* Set the cancel flag of every unfinished job to SCICAPD_CANCEL_SHUTDOWN (a user's cancel stays). */
 void scicapd_jobs_cancel_all(scicapd_jobs *t);
 
 #endif

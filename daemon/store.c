@@ -17,6 +17,10 @@
 #include "io/problem_dir.h"
 
 #define STORE_MAX_WRITERS 16
+/* Ids the durable high-water mark runs ahead of use: one fsync'd write per this many captures. A crash skips at
+ * most this many - 1 ids; a clean close writes the exact mark. */
+#define STORE_ID_BLOCK 16
+#define STORE_IDS_FILE "ids.json"
 
 struct scicapd_store {
     char root[1024];
@@ -25,6 +29,8 @@ struct scicapd_store {
     const sci_log *log;
     pthread_mutex_t mu;
     unsigned long next_capture, next_calib;
+    unsigned long mark_capture, mark_calib; /* durable in ROOT/ids.json: no id above them was handed out */
+    int ids_ok;                             /* the mark was read or written: close may write the exact one */
     pthread_t threads[STORE_MAX_WRITERS];
     int running;            /* writer threads started */
     scicapd_queue *q;
@@ -105,6 +111,83 @@ static void sweep(const char *dir, const char *prefix, unsigned long *max, int *
     closedir(d);
 }
 
+/* ---- the id high-water mark (ROOT/ids.json) ----
+ * Folder names alone cannot say which ids were used: a crash removes the partial folder of a reserved id and a
+ * user may delete the newest capture. So the largest id that may have been handed out is kept in a file, and
+ * made durable (written beside, fsync'd, renamed, folder fsync'd) before any id above the old mark is used. */
+
+static int fsync_path(const char *p);
+
+/* Read the mark; a missing file is an empty mark (storage from before it existed). */
+static int ids_read(scicapd_store *s, sci_error *err)
+{
+    char path[1100];
+    snprintf(path, sizeof path, "%s/" STORE_IDS_FILE, s->root);
+    json_error_t je;
+    json_t *j = json_load_file(path, 0, &je);
+    if (!j) {
+        if (access(path, F_OK) != 0 && errno == ENOENT)
+            return 0;
+        return sci_error_set(err, SCI_EFORMAT, "%s: %s (the capture id high-water mark; ids could be reused "
+                             "without it: repair or remove it knowingly)", path, je.text);
+    }
+    json_t *c = json_object_get(j, "capture"), *k = json_object_get(j, "calibration");
+    int ok = json_is_integer(c) && json_integer_value(c) >= 0 && json_is_integer(k) && json_integer_value(k) >= 0;
+    if (ok) {
+        s->mark_capture = (unsigned long)json_integer_value(c);
+        s->mark_calib = (unsigned long)json_integer_value(k);
+    }
+    json_decref(j);
+    if (!ok)
+        return sci_error_set(err, SCI_EFORMAT, "%s: expected {\"capture\": N, \"calibration\": N} with N >= 0",
+                             path);
+    return 0;
+}
+
+/* Write the mark durably. Lock held (or single-threaded). */
+static int ids_write(scicapd_store *s, unsigned long capture, unsigned long calib, sci_error *err)
+{
+    char path[1100], tmp[1100];
+    snprintf(path, sizeof path, "%s/" STORE_IDS_FILE, s->root);
+    snprintf(tmp, sizeof tmp, "%s/." STORE_IDS_FILE ".tmp", s->root);
+    FILE *f = fopen(tmp, "w");
+    if (!f)
+        return sci_error_set(err, -errno, "%s: %s", tmp, strerror(errno));
+    int bad = fprintf(f, "{\"capture\": %lu, \"calibration\": %lu}\n", capture, calib) < 0;
+    bad |= fflush(f) != 0;
+    if (!bad && s->fsync_on)
+        bad = fsync(fileno(f)) != 0;
+    int e = errno;
+    bad |= fclose(f) != 0;
+    if (bad || rename(tmp, path) != 0) {
+        e = bad ? e : errno;
+        unlink(tmp);
+        return sci_error_set(err, -e, "%s: cannot write the capture id high-water mark: %s", path, strerror(e));
+    }
+    if (s->fsync_on && fsync_path(s->root) < 0)
+        return sci_error_set(err, -EIO, "%s: fsync of the folder failed", s->root);
+    s->mark_capture = capture;
+    s->mark_calib = calib;
+    s->ids_ok = 1;
+    return 0;
+}
+
+/* Take the next id of *next with its durable mark *mark. Lock held. */
+static int ids_take(scicapd_store *s, unsigned long *next, unsigned long *mark, unsigned long *id, sci_error *err)
+{
+    unsigned long n = *next;
+    if (n > *mark) {
+        unsigned long c = s->mark_capture, k = s->mark_calib;
+        *(mark == &s->mark_capture ? &c : &k) = n + STORE_ID_BLOCK - 1;
+        int rc = ids_write(s, c, k, err);
+        if (rc < 0)
+            return rc;
+    }
+    *next = n + 1;
+    *id = n;
+    return 0;
+}
+
 int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, const sci_log *log,
                        scicapd_store_recovery *rec, sci_error *err)
 {
@@ -132,8 +215,16 @@ int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, cons
     sweep(cals, "masks-", &maxk, NULL, &r.removed, 0);
     unsigned long unused = 0;
     sweep(shown, NULL, &unused, NULL, &r.removed, 0);
-    s->next_capture = maxc + 1;
-    s->next_calib = maxk + 1;
+    if ((rc = ids_read(s, err)) < 0) {
+        scicapd_store_close(s);
+        return rc;
+    }
+    /* the larger of what the folders and the mark say: neither alone covers deletions and crashes */
+    s->next_capture = (maxc > s->mark_capture ? maxc : s->mark_capture) + 1;
+    s->next_calib = (maxk > s->mark_calib ? maxk : s->mark_calib) + 1;
+    s->mark_capture = s->next_capture - 1;
+    s->mark_calib = s->next_calib - 1;
+    s->ids_ok = 1;
     if (rec)
         *rec = r;
     *out = s;
@@ -144,20 +235,31 @@ void scicapd_store_close(scicapd_store *s)
 {
     if (!s)
         return;
+    /* exact mark: a clean stop leaves no gap in the numbering (ids reserved and stored are all below next) */
+    if (s->ids_ok) {
+        sci_error err = {0};
+        if (ids_write(s, s->next_capture - 1, s->next_calib - 1, &err) < 0)
+            sci_log_write(s->log, SCI_LOG_WARNING, "%s (the mark stays ahead: ids may skip, never repeat)", err.msg);
+    }
     pthread_mutex_destroy(&s->mu);
     free(s);
 }
 
 const char *scicapd_store_root(const scicapd_store *s) { return s->root; }
+int scicapd_store_fsync_on(const scicapd_store *s) { return s->fsync_on; }
 
 void scicapd_store_set_previews(scicapd_store *s, int on) { atomic_store(&s->previews, on != 0); }
 
-void scicapd_store_reserve_id(scicapd_store *st, scicapd_snapshot *s)
+int scicapd_store_reserve_id(scicapd_store *st, scicapd_snapshot *s, sci_error *err)
 {
+    unsigned long n;
     pthread_mutex_lock(&st->mu);
-    unsigned long n = st->next_capture++;
+    int rc = ids_take(st, &st->next_capture, &st->mark_capture, &n, err);
     pthread_mutex_unlock(&st->mu);
+    if (rc < 0)
+        return rc;
     snprintf(s->capture_id, sizeof s->capture_id, "c%06lu", n);
+    return 0;
 }
 
 void scicapd_snapshot_free(scicapd_jobs *jobs, scicapd_snapshot *s)
@@ -275,8 +377,9 @@ static int write_shown_masks(scicapd_store *st, const sci_cube *m, const char *d
 
 int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_error *err)
 {
-    if (!s->capture_id[0])
-        scicapd_store_reserve_id(st, s);
+    int rc;
+    if (!s->capture_id[0] && (rc = scicapd_store_reserve_id(st, s, err)) < 0)
+        return rc;
     char parent[1100], tmp[1200], path[1400];
     snprintf(parent, sizeof parent, "%s/captures", st->root);
     snprintf(tmp, sizeof tmp, "%s/.%s.partial", parent, s->capture_id);
@@ -285,7 +388,7 @@ int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_erro
     json_object_set_new(s->meta, "capture_id", json_string(s->capture_id));
     json_t *source = json_pack("{s:s, s:s}", "kind", "scicapd-capture", "capture_id", s->capture_id);
     sci_problem *p = s->problem;
-    int rc = sci_problem_dir_write_opt(tmp, &p, 1, source, 0, atomic_load(&st->previews), err);
+    rc = sci_problem_dir_write_opt(tmp, &p, 1, source, 0, atomic_load(&st->previews), err);
     json_decref(source);
     if (rc < 0)
         goto fail;
@@ -331,9 +434,12 @@ int scicapd_store_capture_dir(const scicapd_store *st, const char *id, char *buf
 int scicapd_store_write_calibration(scicapd_store *st, const char *key, const sci_cube *data, const json_t *record,
                                     json_t **record_out, sci_error *err)
 {
+    unsigned long n;
     pthread_mutex_lock(&st->mu);
-    unsigned long n = st->next_calib++;
+    int rc = ids_take(st, &st->next_calib, &st->mark_calib, &n, err);
     pthread_mutex_unlock(&st->mu);
+    if (rc < 0)
+        return rc;
     char parent[1100], id[128], tmp[1300], final[1300], path[1400];
     snprintf(parent, sizeof parent, "%s/calibrations", st->root);
     snprintf(id, sizeof id, "%s-%06lu", key, n);
@@ -342,7 +448,6 @@ int scicapd_store_write_calibration(scicapd_store *st, const char *key, const sc
     json_t *rec = json_deep_copy(record);
     json_object_set_new(rec, "id", json_string(id));
     json_object_set_new(rec, "folder", json_string(final));
-    int rc;
     if ((rc = mkdir_p(tmp, err)) < 0)
         goto fail;
     if (strcmp(key, "dark") == 0) {

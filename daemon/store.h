@@ -14,9 +14,13 @@
  * of every file and of the folder when fsync is on); only then is it announced. A kill -9 leaves at most a
  * dot-named partial folder or a *.tmp-<pid> folder, which scicapd_store_open removes: a reader never sees half a
  * capture, and every announced capture survives.
- * Capture ids are c000001, c000002, ...; numbering continues after the largest id found at open. The
+ * Capture ids are c000001, c000002, ... and are never reused, not after a crash, not after captures are deleted:
+ * ROOT/ids.json holds a durable high-water mark (the largest capture and calibration number that may have been
+ * handed out), written and fsync'd before any id above it is used, STORE_ID_BLOCK (16) at a time; numbering
+ * continues after the larger of the mark and the largest folder found at open. A clean close writes the exact
+ * mark; a crash may leave gaps (up to 15 ids, and those of folders that were never complete). The
  * acquisition thread reserves each snapshot's id before queueing it, so ids follow acquisition order even though
- * `writers` threads write folders in parallel (a crash may leave gaps: ids of folders that were never complete).
+ * `writers` threads write folders in parallel.
  * The writer threads take snapshots from a bounded queue and call on_stored for each (success or failure), in
  * completion order: with several writers, snapshot i+1 may be announced before snapshot i.
  * Thread-safe: ids are allocated under a lock; each folder is written by one thread.
@@ -57,14 +61,19 @@ typedef struct scicapd_store_recovery {
 } scicapd_store_recovery;
 
 /* Create ROOT/captures and ROOT/calibrations if needed, remove partial outputs of a previous run, find the
- * next capture id. Errors: -errno naming the folder. */
+ * next capture id. Errors: -errno naming the folder; SCI_EFORMAT when ROOT/ids.json is unreadable (the daemon
+ * will not guess ids it may already have given out). */
 int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, const sci_log *log,
                        scicapd_store_recovery *rec, sci_error *err);
 void scicapd_store_close(scicapd_store *s);
 const char *scicapd_store_root(const scicapd_store *s);
+/* 1 when files are fsync'd before they count (storage.fsync). */
+int scicapd_store_fsync_on(const scicapd_store *s);
 
-/* Give s the next capture id (s->capture_id). Thread-safe. */
-void scicapd_store_reserve_id(scicapd_store *st, scicapd_snapshot *s);
+/* Give s the next capture id (s->capture_id), after making the high-water mark durable when the id passes it
+ * (may block on fsync, once per STORE_ID_BLOCK ids). Thread-safe. -errno when the mark cannot be written: no id
+ * is handed out then. */
+int scicapd_store_reserve_id(scicapd_store *st, scicapd_snapshot *s, sci_error *err);
 /* Previews (preview_*.png, preview_truth.gif) in the folders written from now on (storage.previews). */
 void scicapd_store_set_previews(scicapd_store *st, int on);
 /* Write one snapshot as a capture folder (reserves an id unless s has one; sets s->dir). Blocks on file I/O. */

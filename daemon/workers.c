@@ -12,6 +12,7 @@
 #include <sys/stat.h>
 
 #include "base/clock.h"
+#include "daemon/reconq.h"
 #include "io/problem_dir.h"
 #include "io/recon_store.h"
 #include "recon/admmtv.h"
@@ -53,6 +54,12 @@ static int on_progress(const sci_trace_entry *e, void *user)
         post(c->w, c->job, "recon.progress", d);
     }
     return atomic_load(&c->job->cancel) || atomic_load(&c->w->stop);
+}
+
+/* Stopped by the daemon's stop rather than by a user: the saved copy stays for the next start. */
+static int stopped_by_daemon(scicapd_workers *w, scicapd_job *j)
+{
+    return atomic_load(&w->stop) || atomic_load(&j->cancel) == SCICAPD_CANCEL_SHUTDOWN;
 }
 
 static void run(scicapd_workers *w, scicapd_job *j)
@@ -121,10 +128,15 @@ static void run(scicapd_workers *w, scicapd_job *j)
 done:
     if (rc < 0) {
         int canceled = rc == SCI_ECANCELED;
+        if (canceled && stopped_by_daemon(w, j))
+            snprintf(err.msg, sizeof err.msg, "daemon stopping after %d iterations; resumed at the next start",
+                     r.iters_done);
         scicapd_job_set_state(w->env.jobs, j, canceled ? SCICAPD_JOB_CANCELED : SCICAPD_JOB_FAILED, err.msg);
         post(w, j, canceled ? "recon.canceled" : "recon.failed",
              json_pack("{s:s, s:s, s:s}", "capture", ra->capture_id, "method", method, "error", err.msg));
     }
+    if (rc >= 0 || !(rc == SCI_ECANCELED && stopped_by_daemon(w, j)))
+        scicapd_reconq_drop(w->env.store, j);
     sci_result_free_contents(&r);
     sci_problem_array_free(pp, k);
 }
@@ -137,9 +149,13 @@ static void *worker_main(void *arg)
     scicapd_job *j;
     while ((j = scicapd_queue_pop(w->env.in, -1))) {
         if (atomic_load(&w->stop) || atomic_load(&j->cancel)) {
-            scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_CANCELED, atomic_load(&w->stop) ? "daemon stopping"
-                                                                                               : "canceled");
-            post(w, j, "recon.canceled", json_pack("{s:s, s:s}", "capture", j->recon.capture_id, "error", "canceled"));
+            int later = stopped_by_daemon(w, j);
+            scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_CANCELED,
+                                  later ? "daemon stopping; resumed at the next start" : "canceled");
+            post(w, j, "recon.canceled", json_pack("{s:s, s:s}", "capture", j->recon.capture_id, "error",
+                                                   later ? "daemon stopping; resumed at the next start" : "canceled"));
+            if (!later)
+                scicapd_reconq_drop(w->env.store, j);
         } else {
             atomic_fetch_add(&w->busy, 1);
             run(w, j);

@@ -4,7 +4,9 @@
  * (recon/gaptv.h, recon/admmtv.h) with a progress callback that updates the job, streams "recon.progress" events
  * (iteration, PSNR when the truth is known, ETA; at most every 100 ms plus the last iteration) and stops at once
  * when the job is canceled or the pool is stopping. A finished run is written to <capture>/recon/<method>/
- * atomically (io/recon_store.h); a canceled or failed run writes nothing.
+ * atomically (io/recon_store.h); a canceled or failed run writes nothing. A job that ends for good (done,
+ * failed, canceled by a user) has its saved copy removed (daemon/reconq.h); one stopped by the daemon's own
+ * stop keeps it, to be resumed at the next start.
  * Threads: `count` POSIX threads, each running OpenMP with `omp_threads` threads (0: OpenMP's default).
  */
 #ifndef SCICAP_DAEMON_WORKERS_H
