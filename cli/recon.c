@@ -192,12 +192,14 @@ int cli_recon_main(int argc, char **argv)
     const char *preset = NULL;
     int nf_patch = 0, nf_pps = 0, nf_samples = 0, nf_pose = -1, nf_seed = -1, nf_ablation = -1, ckpt_every = 100;
     const char *ckpt_path = NULL, *resume_path = NULL;
-    double nf_lr = NAN, nf_net_lr = NAN;
+    double nf_lr = NAN, nf_net_lr = NAN, nf_dist = NAN, nf_prior_w = NAN, nf_dbias = NAN;
+    int nf_spacing = -1, nf_prior_steps = -1, nf_zero_gates = -1, nf_sh = 0;
     const char *out = NULL;
     int force = 0, snapshot = 0, threads = 0, iters = -1, tv_iters = -1, metrics_every = -1, ssim_every = -1;
     double lambda = NAN, tv_weight = NAN;
     enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET,
-           OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME, OPT_NET_LR };
+           OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME, OPT_NET_LR, OPT_SPACING, OPT_DIST, OPT_PRIOR_STEPS,
+           OPT_PRIOR_W, OPT_DBIAS, OPT_ZERO_GATES, OPT_SH };
     static const struct option longopts[] = {
         {"method", required_argument, 0, 'm'},   {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},          {"snapshot", required_argument, 0, 's'},
@@ -212,6 +214,10 @@ int cli_recon_main(int argc, char **argv)
         {"preset", required_argument, 0, OPT_PRESET}, {"ablation", required_argument, 0, OPT_ABLATION},
         {"checkpoint", required_argument, 0, OPT_CKPT}, {"checkpoint-every", required_argument, 0, OPT_CKPT_EVERY},
         {"resume", required_argument, 0, OPT_RESUME}, {"net-lr-scale", required_argument, 0, OPT_NET_LR},
+        {"spacing", required_argument, 0, OPT_SPACING}, {"distortion", required_argument, 0, OPT_DIST},
+        {"prior-steps", required_argument, 0, OPT_PRIOR_STEPS}, {"prior-weight", required_argument, 0, OPT_PRIOR_W},
+        {"density-bias", required_argument, 0, OPT_DBIAS}, {"zero-gates", required_argument, 0, OPT_ZERO_GATES},
+        {"sh-degree", required_argument, 0, OPT_SH},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
     };
     optind = 1;
@@ -278,6 +284,24 @@ int cli_recon_main(int argc, char **argv)
         case OPT_CKPT_EVERY: bad = parse_int(optarg, "--checkpoint-every", 1, 1 << 30, &ckpt_every); break;
         case OPT_RESUME: resume_path = optarg; break;
         case OPT_NET_LR: bad = parse_double(optarg, "--net-lr-scale", &nf_net_lr); break;
+        case OPT_SPACING:
+            if (strcmp(optarg, "linear") == 0)
+                nf_spacing = NERF_SPACING_LINEAR;
+            else if (strcmp(optarg, "disparity") == 0)
+                nf_spacing = NERF_SPACING_DISPARITY;
+            else if (strcmp(optarg, "log") == 0)
+                nf_spacing = NERF_SPACING_LOG;
+            else {
+                fprintf(stderr, "scicap recon: --spacing wants linear, disparity or log, got '%s'\n", optarg);
+                bad = -1;
+            }
+            break;
+        case OPT_DIST: bad = parse_double(optarg, "--distortion", &nf_dist); break;
+        case OPT_PRIOR_STEPS: bad = parse_int(optarg, "--prior-steps", 0, 10000000, &nf_prior_steps); break;
+        case OPT_PRIOR_W: bad = parse_double(optarg, "--prior-weight", &nf_prior_w); break;
+        case OPT_DBIAS: bad = parse_double(optarg, "--density-bias", &nf_dbias); break;
+        case OPT_ZERO_GATES: bad = parse_int(optarg, "--zero-gates", 0, 1, &nf_zero_gates); break;
+        case OPT_SH: bad = parse_int(optarg, "--sh-degree", 1, 4, &nf_sh); break;
         case OPT_SEED: {
             bad = parse_int(optarg, "--seed", 0, 1 << 30, &nf_seed);
             break;
@@ -312,6 +336,20 @@ int cli_recon_main(int argc, char **argv)
         o.rf.lr = o.sn.lr = nf_lr;
     if (!isnan(nf_net_lr))
         o.rf.net_lr_scale = nf_net_lr;
+    if (nf_spacing >= 0)
+        o.rf.recipe.spacing = o.sn.recipe.spacing = (nerf_spacing)nf_spacing;
+    if (!isnan(nf_dist))
+        o.rf.recipe.distortion_weight = o.sn.recipe.distortion_weight = nf_dist;
+    if (nf_prior_steps >= 0)
+        o.rf.recipe.prior_steps = o.sn.recipe.prior_steps = nf_prior_steps;
+    if (!isnan(nf_prior_w))
+        o.rf.recipe.prior_weight = o.sn.recipe.prior_weight = nf_prior_w;
+    if (!isnan(nf_dbias))
+        o.rf.recipe.density_bias = o.sn.recipe.density_bias = nf_dbias;
+    if (nf_zero_gates >= 0)
+        o.rf.zero_gates = nf_zero_gates;
+    if (nf_sh)
+        o.rf.sh_degree = o.sn.sh_degree = nf_sh;
     if (nf_pose >= 0)
         o.rf.pose_mode = o.sn.pose_mode = (nerf_poses_mode)nf_pose;
     if (nf_seed >= 0)

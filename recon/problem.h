@@ -61,6 +61,9 @@ typedef struct sci_trace_entry {
     double psnr;       /* mean over frames, peak = per-frame max of truth; NaN without truth */
     double psnr_peak1; /* mean over frames, peak = problem->peak */
     double ssim;       /* mean over frames (Gaussian window, data range problem->peak) */
+    double meas_residual; /* NeRF methods, at full renders: ‖y − A x‖/‖y‖ over the whole snapshot; else NaN */
+    double max_weight;    /* NeRF methods, at full renders: mean over the rays that hit something (opacity ≥ 0.5)
+                             of the ray's largest sample weight (1: a surface, ≲ 0.3: fog); else NaN */
 } sci_trace_entry;
 
 typedef struct sci_trace {

@@ -17,6 +17,12 @@ void sci_tracer_start(sci_tracer *tr, const sci_problem *p, sci_result *r, sci_p
 
 int sci_tracer_record(sci_tracer *tr, int iter, const sci_cube *x, double residual, double loss)
 {
+    return sci_tracer_record_ex(tr, iter, x, residual, loss, NAN, NAN);
+}
+
+int sci_tracer_record_ex(sci_tracer *tr, int iter, const sci_cube *x, double residual, double loss,
+                         double meas_residual, double max_weight)
+{
     int64_t now = sci_clock_mono_ns(), cpu = sci_clock_cpu_ns();
     sci_trace_entry e = {
         .iter = iter,
@@ -27,6 +33,8 @@ int sci_tracer_record(sci_tracer *tr, int iter, const sci_cube *x, double residu
         .psnr = NAN,
         .psnr_peak1 = NAN,
         .ssim = NAN,
+        .meas_residual = meas_residual,
+        .max_weight = max_weight,
     };
     const sci_problem *p = tr->problem;
     int last = iter >= tr->iters_total;

@@ -39,5 +39,8 @@ void sci_tracer_start(sci_tracer *tr, const sci_problem *p, sci_result *r, sci_p
 /* Record iteration `iter` of estimate x (w×h×N). Returns 0 to go on, SCI_ECANCELED if the callback asked to stop,
  * SCI_EDIVERGED (message in result->error), or -ENOMEM. */
 int sci_tracer_record(sci_tracer *tr, int iter, const sci_cube *x, double residual, double loss);
+/* The same with the NeRF diagnostics of a full render (sci_trace_entry.meas_residual, max_weight; NaN: none). */
+int sci_tracer_record_ex(sci_tracer *tr, int iter, const sci_cube *x, double residual, double loss,
+                         double meas_residual, double max_weight);
 
 #endif

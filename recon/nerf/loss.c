@@ -3,6 +3,7 @@
 
 #include <math.h>
 #include <stddef.h>
+#include <stdlib.h>
 
 double nerf_loss_measurement(int P, int N, int ch, const float *Y, const float *M, const float *C, float *dC)
 {
@@ -17,6 +18,62 @@ double nerf_loss_measurement(int P, int N, int ch, const float *Y, const float *
                     dC[((size_t)i * P + p) * ch + a] += (float)(-2.0 * M[(size_t)i * P + p] * r);
         }
     return loss;
+}
+
+double nerf_loss_distortion(int n_rays, int L, const float *sigma, const float *delta, double weight,
+                            float *d_sigma)
+{
+    double total = 0.0;
+    double buf[3 * 256 + 1], *heap = NULL;
+    double *w = buf;
+    if (L > 256) {
+        heap = malloc((3 * (size_t)L + 1) * sizeof *heap);
+        if (!heap)
+            return NAN; /* the caller's divergence check stops the run */
+        w = heap;
+    }
+    double *T = w + L, *g = T + L + 1;
+    const int n = L;
+    for (int k = 0; k < n_rays; k++) {
+        const float *sg = sigma + (size_t)k * L, *dl = delta + (size_t)k * L;
+        double loss = 0.0;
+        double logT = 0.0;
+        for (int i = 0; i < n; i++) {
+            double tau = (double)sg[i] * dl[i];
+            T[i] = exp(logT);
+            w[i] = T[i] * -expm1(-tau);
+            logT -= tau;
+        }
+        T[n] = exp(logT);
+        /* Σ_j w_j |m_i − m_j| with prefix sums over the sorted midpoints m_i = (i + 0.5)/L */
+        double Wtot = 0.0, WMtot = 0.0;
+        for (int i = 0; i < n; i++) {
+            Wtot += w[i];
+            WMtot += w[i] * (i + 0.5) / L;
+        }
+        double Wlo = 0.0, WMlo = 0.0;
+        for (int i = 0; i < n; i++) {
+            double m = (i + 0.5) / L;
+            double Whi = Wtot - Wlo - w[i], WMhi = WMtot - WMlo - w[i] * m;
+            double d = m * Wlo - WMlo + WMhi - m * Whi; /* Σ_j w_j |m − m_j| */
+            loss += w[i] * d + w[i] * w[i] / (3.0 * L);
+            g[i] = 2.0 * d + 2.0 * w[i] / (3.0 * L);
+            Wlo += w[i];
+            WMlo += w[i] * m;
+        }
+        total += loss;
+        if (d_sigma) {
+            /* ∂/∂τ_j = g_j T_{j+1} − Σ_{i>j} g_i w_i */
+            double suffix = 0.0;
+            for (int i = n - 1; i >= 0; i--) {
+                double dtau = g[i] * T[i + 1] - suffix;
+                suffix += g[i] * w[i];
+                d_sigma[(size_t)k * L + i] += (float)(weight * dtau * dl[i]);
+            }
+        }
+    }
+    free(heap);
+    return weight * total;
 }
 
 static inline double rho(double d, double eps, double *g)

@@ -11,9 +11,23 @@ void nerf_patch_pixels(int x0, int y0, int pw, int ph, int *px, int *py)
         }
 }
 
-void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, double near,
-                      double far, sci_rng *jitter, float *pcam, float *dcam, float *delta)
+double nerf_depth_at(nerf_spacing sp, double near, double far, double s)
 {
+    switch (sp) {
+    case NERF_SPACING_DISPARITY: /* uniform in 1/t */
+        return 1.0 / ((1.0 - s) / near + s / far);
+    case NERF_SPACING_LOG: /* uniform in log t */
+        return near * pow(far / near, s);
+    default:
+        return near + s * (far - near);
+    }
+}
+
+void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, double near,
+                      double far, nerf_spacing spacing, sci_rng *jitter, float *pcam, float *dcam, float *delta)
+{
+    if (spacing != NERF_SPACING_LINEAR && !(near > 0))
+        spacing = NERF_SPACING_LINEAR; /* disparity and log spacing need near > 0 */
     const double step = (far - near) / L;
     for (int r = 0; r < n_rays; r++) {
         double d[3] = {(px[r] + 0.5 - cam->cx) / cam->fx, -(py[r] + 0.5 - cam->cy) / cam->fy, -1.0};
@@ -22,11 +36,18 @@ void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const in
             dcam[3 * r + c] = (float)(d[c] / norm);
         for (int s = 0; s < L; s++) {
             double u = jitter ? sci_rng_uniform(jitter) : 0.5;
-            double t = near + (s + u) * step;
             size_t k = (size_t)r * L + s;
+            double t, bin;
+            if (spacing == NERF_SPACING_LINEAR) {
+                t = near + (s + u) * step;
+                bin = step;
+            } else {
+                t = nerf_depth_at(spacing, near, far, (s + u) / L);
+                bin = nerf_depth_at(spacing, near, far, (s + 1.0) / L) - nerf_depth_at(spacing, near, far, (double)s / L);
+            }
             for (int c = 0; c < 3; c++)
                 pcam[3 * k + c] = (float)(d[c] * t);
-            delta[k] = (float)(step * norm);
+            delta[k] = (float)(bin * norm);
         }
     }
 }

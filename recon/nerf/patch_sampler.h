@@ -3,7 +3,8 @@
  * A patch is pw × ph pixels whose top-left pixel is (x0, y0); ray r = y·pw + x sees pixel (x0 + x, y0 + y). A
  * "scattered" patch has the same shape but its rays are arbitrary pixels (the random-ray baseline: the network still
  * sees pw·ph rays at a time). Samples along a ray lie at depths t_s = near + (s + u_s)·(far − near)/L along −z in the
- * camera frame, u_s = 0.5 at inference and U(0, 1) (stratified jitter) in training; δ_s = (far − near)/L·‖d‖
+ * camera frame (linear spacing; nerf_spacing for the others), u_s = 0.5 at inference and U(0, 1) (stratified
+ * jitter) in training; δ_s = (far − near)/L·‖d‖
  * with d = ((px + 0.5 − cx)/fx, −(py + 0.5 − cy)/fy, −1) the pixel's camera-frame direction (problem.h).
  *
  * The camera-frame arrays do not depend on the pose, so one fill serves all N poses of a snapshot; the world-frame
@@ -15,10 +16,17 @@
 #include "base/rng.h"
 #include "recon/problem.h"
 
+/* How the L bins of a ray divide [near, far]: equal steps in depth t (NeRF), in disparity 1/t (forward-facing
+ * scenes: bins follow the pixel footprint's parallax), or in log t (geometric). The last two need near > 0
+ * (otherwise linear). */
+typedef enum nerf_spacing { NERF_SPACING_LINEAR = 0, NERF_SPACING_DISPARITY = 1, NERF_SPACING_LOG = 2 } nerf_spacing;
+/* Depth at fraction s ∈ [0, 1] of the way from near to far under a spacing. */
+double nerf_depth_at(nerf_spacing sp, double near, double far, double s);
 /* Camera-frame rays of n_rays pixels (px[r], py[r]) with L samples: pcam n_rays×L×3 (points), dcam n_rays×3 (unit
- * directions), delta n_rays×L. jitter NULL: midpoints. */
+ * directions), delta n_rays×L (the bin's length × ‖d‖). Bin s spans fractions [s/L, (s+1)/L] of the spacing;
+ * the sample sits at (s + u)/L, u = 0.5 with jitter NULL, else U(0, 1). */
 void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, double near,
-                      double far, sci_rng *jitter, float *pcam, float *dcam, float *delta);
+                      double far, nerf_spacing spacing, sci_rng *jitter, float *pcam, float *dcam, float *delta);
 /* Camera-frame points at given depths along −z: t (n_rays×L, non-decreasing along each ray, in [near, far]) →
  * pcam (n_rays×L×3), dcam (n_rays×3) and delta (n_rays×L): δ_s = (t_{s+1} − t_s)·‖d‖, the last (far − t_{L−1})·‖d‖,
  * clamped at 0. The depth of a point of nerf_rays_camera is −pcam_z. */

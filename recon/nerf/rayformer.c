@@ -138,7 +138,14 @@ void nerf_rayformer_init(const nerf_rayformer *net, float *P, uint64_t seed)
     sci_rng rng;
     sci_rng_seed(&rng, seed, 0x4e455246u); /* stream "NERF" */
     nerf_hashgrid_init(net->grid, P, &rng);
-    for (int b = 0; b < net->cfg.n_blocks; b++) nerf_block_init(&net->bs, P + net->off_block[b], net->cfg.n_blocks, &rng);
+    for (int b = 0; b < net->cfg.n_blocks; b++) {
+        nerf_block_init(&net->bs, P + net->off_block[b], net->cfg.n_blocks, &rng);
+        if (net->cfg.zero_gates) { /* the residual branches start at zero: the block is the identity */
+            nerf_block_offsets o = nerf_block_layout(&net->bs);
+            memset(P + net->off_block[b] + o.w_o, 0, (size_t)net->C * net->C * sizeof *P);
+            memset(P + net->off_block[b] + o.w_2, 0, (size_t)net->C * net->bs.hidden * sizeof *P);
+        }
+    }
     for (int c = 0; c < net->C; c++) P[net->off_lnf_g + c] = 1.0f, P[net->off_lnf_b + c] = 0.0f;
     nerf_linear_init(net->C, net->G + 1, P + net->off_wh, P + net->off_bh, 1.0, &rng);
     if (net->Hc) {

@@ -57,6 +57,8 @@ typedef struct nerf_rayformer_config {
     float aabb_min[3], aabb_max[3];
     float density_bias;        /* added before trunc_exp */
     int intra_ray, inter_ray;  /* 1: the attention path; 0: pass-through (o = V, per point) — the paper's ablation */
+    int zero_gates;            /* init: 1 zeroes each block's attention and FFN output projections, so every block
+                                  starts as the identity and mixes rays only as far as that lowers the loss */
 } nerf_rayformer_config;
 
 /* The defaults named above; the grid: 16 levels × 2 features, 2^16 entries, resolution 16 … 1024; aabb [−1, 1]³;

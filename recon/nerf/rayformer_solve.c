@@ -95,6 +95,10 @@ static void train_config(const sci_rayformer_params *p, nerf_train_config *c)
                              .adam_eps = 1e-15,
                              .tv_weight = p->tv_weight,
                              .tv_eps = p->tv_eps,
+                             .spacing = p->recipe.spacing,
+                             .distortion_weight = p->recipe.distortion_weight,
+                             .prior_steps = p->recipe.prior_steps,
+                             .prior_weight = p->recipe.prior_weight,
                              .pose_mode = p->pose_mode,
                              .pose_init_identity = p->pose_init_identity,
                              .pose_perturb_rot_rad = p->pose_perturb_rot_rad,
@@ -190,6 +194,8 @@ int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_param
     cfg.sh_degree = params->sh_degree;
     cfg.inter_ray = params->inter_ray;
     cfg.intra_ray = params->intra_ray;
+    cfg.zero_gates = params->zero_gates;
+    cfg.density_bias = (float)params->recipe.density_bias;
     memcpy(cfg.aabb_min, tc.box_lo, sizeof cfg.aabb_min);
     memcpy(cfg.aabb_max, tc.box_hi, sizeof cfg.aabb_max);
     rf_model m = {0};

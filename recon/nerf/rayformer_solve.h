@@ -45,6 +45,9 @@ typedef struct sci_rayformer_params {
     double tv_eps;               /* Charbonnier ε of the TV term (0: plain |d|) */
     int patch_sampling;          /* 1: patches; 0: scattered random rays in groups of patch² (ablation baseline) */
     int inter_ray, intra_ray;    /* 1: the attention path; 0: pass-through (ablation) */
+    int zero_gates;              /* 1: each block's output projections start at zero (the block starts as the
+                                    identity, ReZero/LayerScale-style); 0: Kaiming-uniform */
+    nerf_recipe recipe;          /* sampling, anti-fog losses, warm start, density init (trainer.h) */
     nerf_poses_mode pose_mode;   /* KNOWN: problem->camera poses; LINEAR / PER_FRAME: optimised */
     int pose_init_identity;      /* optimised poses start from the identity (SCINeRF) instead of the camera's */
     double pose_perturb_rot_rad; /* perturbation added to the initial twists (U(±a) per component) */

@@ -84,6 +84,10 @@ static void train_config(const sci_scinerf_params *p, nerf_train_config *c)
                              .adam_beta2 = p->pos_enc == NERF_MLP_POS_HASH ? 0.99 : 0.999,
                              .adam_eps = p->pos_enc == NERF_MLP_POS_HASH ? 1e-15 : 1e-8,
                              .tv_weight = 0,
+                             .spacing = p->recipe.spacing,
+                             .distortion_weight = p->recipe.distortion_weight,
+                             .prior_steps = p->recipe.prior_steps,
+                             .prior_weight = p->recipe.prior_weight,
                              .pose_mode = p->pose_mode,
                              .pose_init_identity = p->pose_init_identity,
                              .pose_perturb_rot_rad = p->pose_perturb_rot_rad,
@@ -119,6 +123,7 @@ static nerf_mlp_config mlp_config(const sci_scinerf_params *p)
     c.sh_degree = p->sh_degree;
     /* ReLU density (NeRF) with the frequency encoding, trunc_exp (Instant-NGP) with the hash grid */
     c.density_act = p->pos_enc == NERF_MLP_POS_HASH ? NERF_ACT_TRUNC_EXP : NERF_ACT_RELU;
+    c.density_bias = (float)p->recipe.density_bias;
     return c;
 }
 

@@ -37,6 +37,7 @@ typedef struct sci_scinerf_params {
     nerf_mlp_dir_enc dir_enc;    /* NERF_MLP_DIR_FREQ (SCINeRF, 4 octaves) or NERF_MLP_DIR_SH */
     int sh_degree;               /* SH directions: 1 … 4 (1: a constant, i.e. view-independent colour) */
     double lr, lr_final;         /* Adam, decayed exponentially over the steps */
+    nerf_recipe recipe;          /* sampling, anti-fog losses, warm start, density init (trainer.h) */
     nerf_poses_mode pose_mode;   /* KNOWN, LINEAR (SCINeRF's default) or PER_FRAME */
     int pose_init_identity;      /* start from the identity (SCINeRF) instead of the camera's poses */
     double pose_perturb_rot_rad, pose_perturb_trans; /* U(±a) on each twist component of the start */

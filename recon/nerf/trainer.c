@@ -15,6 +15,8 @@
 #include "recon/nerf/patch_sampler.h"
 #include "recon/nerf/render.h"
 #include "recon/nerf/se3.h"
+#include "recon/gaptv.h"
+#include "recon/sci_ops.h"
 #include "recon/tracer.h"
 
 int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
@@ -44,6 +46,14 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
     if (!(c->tv_weight >= 0) || !isfinite(c->tv_weight) || !(c->tv_eps >= 0) || !isfinite(c->tv_eps))
         return sci_error_set(err, -EINVAL, "%s: tv-weight and tv-eps must be finite and >= 0 (got %g, %g)", m,
                              c->tv_weight, c->tv_eps);
+    if (c->spacing != NERF_SPACING_LINEAR && c->spacing != NERF_SPACING_DISPARITY && c->spacing != NERF_SPACING_LOG)
+        return sci_error_set(err, -EINVAL, "%s: unknown sample spacing %d", m, (int)c->spacing);
+    if (!(c->distortion_weight >= 0) || !isfinite(c->distortion_weight))
+        return sci_error_set(err, -EINVAL, "%s: distortion weight must be finite and >= 0 (got %g)", m,
+                             c->distortion_weight);
+    if (c->prior_steps < 0 || !(c->prior_weight >= 0) || !isfinite(c->prior_weight))
+        return sci_error_set(err, -EINVAL, "%s: prior steps (%d) and weight (%g) must be >= 0", m, c->prior_steps,
+                             c->prior_weight);
     if (c->pose_mode != NERF_POSES_KNOWN && c->pose_mode != NERF_POSES_LINEAR &&
         c->pose_mode != NERF_POSES_PER_FRAME)
         return sci_error_set(err, -EINVAL, "%s: unknown pose mode %d", m, (int)c->pose_mode);
@@ -111,7 +121,8 @@ static void pass_free(pass *p)
 {
     nerf_adam_free(p->adam);
     void *b[] = {p->params, p->grad,  p->t,       p->pcam,    p->delta, p->pos,   p->sigma, p->rgb,
-                 p->color,  p->grey,  p->dC,      p->d_color, p->d_sigma, p->d_rgb, p->d_pos, p->d_dir};
+                 p->color,  p->grey,  p->dC,      p->d_color, p->d_sigma, p->d_rgb, p->d_pos, p->d_dir,
+                 p->d_sigma_dist};
     for (size_t i = 0; i < sizeof b / sizeof b[0]; i++)
         free(b[i]);
 }
@@ -121,7 +132,9 @@ static void run_free(run *r)
     for (int k = 0; k < 2; k++)
         pass_free(&r->ps[k]);
     nerf_poses_free(r->poses);
-    void *b[] = {r->px, r->py, r->dcam, r->dir, r->Y, r->M, r->T, r->imp_cdf, r->imp_u, r->imp_tc, r->imp_tf};
+    sci_cube_free(r->prior);
+    void *b[] = {r->px, r->py, r->dcam, r->dir, r->Y,      r->M,      r->T,
+                 r->imp_cdf, r->imp_u, r->imp_tc, r->imp_tf, r->Xp};
     for (size_t i = 0; i < sizeof b / sizeof b[0]; i++)
         free(b[i]);
 }
@@ -153,7 +166,9 @@ static int pass_init(run *r, pass *p, const nerf_model *m, int L, int per_group,
     p->d_rgb = malloc(pts * 3 * sizeof(float));
     p->d_pos = pose_grads ? malloc(pts * 3 * sizeof(float)) : NULL;
     p->d_dir = pose_grads ? malloc(rays * 3 * sizeof(float)) : NULL;
-    if (!p->params || !p->grad || (per_group && !p->t) || !p->pcam || !p->delta || !p->pos || !p->sigma ||
+    const int dist = !per_group && c->distortion_weight > 0;
+    p->d_sigma_dist = dist ? malloc(pts * sizeof(float)) : NULL;
+    if ((dist && !p->d_sigma_dist) || !p->params || !p->grad || (per_group && !p->t) || !p->pcam || !p->delta || !p->pos || !p->sigma ||
         !p->rgb || !p->color || !p->grey || !p->dC || !p->d_color || !p->d_sigma || !p->d_rgb ||
         (pose_grads && (!p->d_pos || !p->d_dir)))
         return sci_error_set(err, -ENOMEM, "%s: out of memory for a batch of %d groups × %d rays × %d samples",
@@ -207,6 +222,24 @@ static int run_init(run *r, const sci_problem *pb, const nerf_train_config *c, c
     if (!r->px || !r->py || !r->dcam || !r->dir || !r->Y || !r->M || !r->T || !r->imp_cdf || !r->imp_u ||
         !r->imp_tc || !r->imp_tf)
         return sci_error_set(err, -ENOMEM, "%s: out of memory", c->method);
+    if (c->prior_steps > 0 && c->prior_weight > 0) {
+        /* the warm start's target: GAP-TV with its benchmark defaults (a fraction of a second) */
+        sci_gaptv_params gp;
+        sci_gaptv_params_default(&gp);
+        gp.metrics_every = gp.ssim_every = 0;
+        sci_result gr = {0};
+        rc = sci_gaptv_solve(pb, &gp, &gr, NULL, NULL);
+        if (rc < 0) {
+            sci_error_set(err, rc, "%s: GAP-TV warm start: %s", c->method, gr.error.msg);
+            sci_result_free_contents(&gr);
+            return rc;
+        }
+        r->prior = gr.frames;
+        gr.frames = NULL;
+        sci_result_free_contents(&gr);
+        if (!(r->Xp = malloc(rays * sizeof(float))))
+            return sci_error_set(err, -ENOMEM, "%s: out of memory", c->method);
+    }
     return 0;
 }
 
@@ -309,9 +342,10 @@ static void importance(run *r, int n_loc, int n_pose, sci_rng *rng)
     }
 }
 
-/* Measurement loss of a pass over the step's B locations × N poses (+ TV when asked): fills p->dC, returns the
+/* Measurement loss of a pass over the step's B locations × N poses (+ TV, the GAP-TV prior and the distortion
+ * loss when asked; prior_w is the prior's weight at this step): fills p->dC (and p->d_sigma_dist), returns the
  * loss; *data = Σ r². */
-static double pass_loss(run *r, pass *p, int with_tv, double *data)
+static double pass_loss(run *r, pass *p, int with_tv, double prior_w, double *data)
 {
     const nerf_train_config *c = r->c;
     const int N = r->n, ng = r->G;
@@ -324,6 +358,30 @@ static double pass_loss(run *r, pass *p, int with_tv, double *data)
     double loss = *data / (double)P;
     if (with_tv && c->tv_weight > 0 && c->patch_sampling)
         loss += nerf_loss_tv(ng, c->group_w, c->group_h, 1, p->grey, c->tv_eps, c->tv_weight / (double)nr, p->dC);
+    if (prior_w > 0 && r->Xp) {
+        /* (β/(N·P))·Σ (C − X_gap)²: every frame pulled toward GAP-TV's at the same pixel */
+        double sq = 0.0;
+        const double k = prior_w / (double)nr;
+        for (size_t q = 0; q < nr; q++) {
+            double d = (double)p->grey[q] - r->Xp[q];
+            sq += d * d;
+            p->dC[q] += (float)(2.0 * k * d);
+        }
+        loss += k * sq;
+    }
+    if (p->d_sigma_dist) {
+        const size_t pts = nr * (size_t)p->L;
+        memset(p->d_sigma_dist, 0, pts * sizeof(float));
+        double ld = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : ld)
+        for (int q = 0; q < ng; q++) {
+            const int b = q % r->B, i = q / r->B;
+            const size_t gp = (size_t)r->R * p->L;
+            ld += nerf_loss_distortion(r->R, p->L, p->sigma + (size_t)q * gp, p->delta + cam_slot(p, r->B, i, b) * gp,
+                                       c->distortion_weight / (double)nr, p->d_sigma_dist + (size_t)q * gp);
+        }
+        loss += ld;
+    }
     return loss;
 }
 
@@ -344,6 +402,9 @@ static int pass_backward(run *r, pass *p, int pose_grads)
                                .t_stop = NERF_RENDER_T_STOP};
         nerf_render_backward(&rr, p->d_color + (size_t)q * R * 3, NULL, NULL, p->d_sigma + (size_t)q * gp,
                              p->d_rgb + (size_t)q * gp * 3, NULL);
+        if (p->d_sigma_dist)
+            for (size_t k = (size_t)q * gp; k < (size_t)(q + 1) * gp; k++)
+                p->d_sigma[k] += p->d_sigma_dist[k];
     }
     int rc = p->m->ops->backward(p->m->self, p->params, p->d_sigma, p->d_rgb, p->grad, pose_grads ? p->d_pos : NULL,
                                  pose_grads ? p->d_dir : NULL);
@@ -386,13 +447,18 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
         }
     }
     pass *pc = &r->ps[0], *pf = &r->ps[1], *last = &r->ps[r->n_pass - 1];
-    nerf_rays_camera(r->pb->camera, (int)P, r->px, r->py, pc->L, r->near, r->far, &r->rng, pc->pcam, r->dcam,
-                     pc->delta);
+    nerf_rays_camera(r->pb->camera, (int)P, r->px, r->py, pc->L, r->near, r->far, c->spacing, &r->rng, pc->pcam,
+                     r->dcam, pc->delta);
+    const double prior_w = r->Xp && it <= c->prior_steps ? c->prior_weight * (1.0 - (double)(it - 1) / c->prior_steps)
+                                                         : 0.0;
     for (size_t k = 0; k < P; k++) {
         size_t pix = (size_t)r->py[k] * w + r->px[k];
         r->Y[k] = r->pb->meas->data[pix];
-        for (int i = 0; i < N; i++)
+        for (int i = 0; i < N; i++) {
             r->M[(size_t)i * P + k] = r->pb->mask->data[(size_t)i * fs + pix];
+            if (prior_w > 0)
+                r->Xp[(size_t)i * P + k] = r->prior->data[(size_t)i * fs + pix];
+        }
     }
     for (int i = 0; i < N; i++)
         nerf_poses_get(r->poses, i, r->T[i]);
@@ -403,10 +469,10 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
     }
     if (rc < 0)
         return rc;
-    double data, loss = pass_loss(r, last, 1, &data);
+    double data, loss = pass_loss(r, last, 1, prior_w, &data);
     if (r->n_pass == 2) {
         double dc;
-        loss += pass_loss(r, pc, 0, &dc);
+        loss += pass_loss(r, pc, 0, prior_w, &dc);
     }
     *loss_out = loss;
     *residual = sqrt(data / (double)P) / r->y_rms;
@@ -433,9 +499,31 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
     return 0;
 }
 
-/* Render all N frames window-wise into x (w×h×N). */
-static int render_all(run *r, sci_cube *x)
+/* Largest sample weight of each ray that hits something (opacity ≥ 0.5): adds to *sum, counts in *cnt. */
+static void max_weights(const pass *p, int n_rays, double *sum, long *cnt)
 {
+    const int L = p->L;
+    for (int k = 0; k < n_rays; k++) {
+        const float *sg = p->sigma + (size_t)k * L, *dl = p->delta + (size_t)k * L; /* one pose: ray k's slot */
+        double logT = 0.0, wmax = 0.0;
+        for (int s = 0; s < L; s++) {
+            double tau = (double)sg[s] * dl[s], wgt = exp(logT) * -expm1(-tau);
+            wmax = fmax(wmax, wgt);
+            logT -= tau;
+        }
+        if (-expm1(logT) >= 0.5) {
+            *sum += wmax;
+            (*cnt)++;
+        }
+    }
+}
+
+/* Render all N frames window-wise into x (w×h×N); *max_weight (or NULL) gets the mean largest ray weight over the
+ * rays that hit something (NaN if none do). */
+static int render_all(run *r, sci_cube *x, double *max_weight)
+{
+    double wsum = 0.0;
+    long wcnt = 0;
     const nerf_train_config *c = r->c;
     const int pw = c->group_w, ph = c->group_h, R = r->R;
     const int nx = (r->w + pw - 1) / pw, ny = (r->h + ph - 1) / ph, tiles = nx * ny;
@@ -455,8 +543,8 @@ static int render_all(run *r, sci_cube *x)
                     y0 = r->h - ph;
                 nerf_patch_pixels(x0, y0, pw, ph, r->px + (size_t)b * R, r->py + (size_t)b * R);
             }
-            nerf_rays_camera(r->pb->camera, cnt * R, r->px, r->py, pc->L, r->near, r->far, NULL, pc->pcam, r->dcam,
-                             pc->delta);
+            nerf_rays_camera(r->pb->camera, cnt * R, r->px, r->py, pc->L, r->near, r->far, c->spacing, NULL, pc->pcam,
+                             r->dcam, pc->delta);
             int rc = pass_forward(r, pc, cnt, 1, (const double(*)[12])T);
             if (rc == 0 && r->n_pass == 2) {
                 importance(r, cnt, 1, NULL);
@@ -464,11 +552,15 @@ static int render_all(run *r, sci_cube *x)
             }
             if (rc < 0)
                 return rc;
+            if (max_weight)
+                max_weights(last, cnt * R, &wsum, &wcnt);
             float *frame = sci_cube_frame(x, i);
             for (int k = 0; k < cnt * R; k++)
                 frame[(size_t)r->py[k] * r->w + r->px[k]] = last->grey[k];
         }
     }
+    if (max_weight)
+        *max_weight = wcnt > 0 ? wsum / (double)wcnt : NAN;
     return 0;
 }
 
@@ -551,9 +643,10 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
         int last = it == c->iters;
         int metrics = pb->truth && c->metrics_every > 0 && it % c->metrics_every == 0;
         rendered = 0;
+        double meas_res = NAN, wmax = NAN;
         if (last || metrics) {
             int64_t t0 = sci_clock_mono_ns(), c0 = sci_clock_cpu_ns();
-            if ((rc = render_all(&r, x)) < 0) {
+            if ((rc = render_all(&r, x, &wmax)) < 0) {
                 sci_error_set(err, rc, "%s: render failed (%s)", c->method, sci_strerror(rc));
                 goto out;
             }
@@ -562,8 +655,12 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
                 tr.skip_ns += sci_clock_mono_ns() - t0;
                 tr.skip_cpu_ns += sci_clock_cpu_ns() - c0;
             }
+            int64_t t1 = sci_clock_mono_ns(), c1 = sci_clock_cpu_ns();
+            meas_res = sci_op_residual(pb->mask, x, pb->meas);
+            tr.skip_ns += sci_clock_mono_ns() - t1; /* a diagnostic, not method time */
+            tr.skip_cpu_ns += sci_clock_cpu_ns() - c1;
         }
-        if ((rc = sci_tracer_record(&tr, it, rendered ? x : NULL, res, loss)) != 0)
+        if ((rc = sci_tracer_record_ex(&tr, it, rendered ? x : NULL, res, loss, meas_res, wmax)) != 0)
             break;
         if (c->checkpoint_every > 0 && (it % c->checkpoint_every == 0 || last)) {
             int64_t t0 = sci_clock_mono_ns(), c0 = sci_clock_cpu_ns();
@@ -583,7 +680,7 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
         }
         *err = saved;
         if (!rendered) {
-            int rc3 = render_all(&r, x);
+            int rc3 = render_all(&r, x, NULL);
             if (rc3 < 0) {
                 rc = sci_error_set(err, rc3, "%s: render failed (%s)", c->method, sci_strerror(rc3));
                 goto out;

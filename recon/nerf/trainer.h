@@ -46,6 +46,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "recon/nerf/patch_sampler.h"
 #include "recon/nerf/poses.h"
 #include "recon/problem.h"
 
@@ -85,6 +86,12 @@ typedef struct nerf_train_config {
     double net_lr_scale;          /* the weights after the hash table learn at lr × this (0: 1, the same lr) */
     double adam_beta2, adam_eps;  /* network Adam β2, ε (β1 = 0.9) */
     double tv_weight, tv_eps;     /* λ and the Charbonnier ε of the TV term (patch sampling only) */
+    nerf_spacing spacing;         /* how the coarse samples divide [near, far] (patch_sampler.h) */
+    double distortion_weight;     /* λ_dist of the distortion loss on the coarse weights (loss.h), 0: off */
+    int prior_steps;              /* GAP-TV warm start: for the first prior_steps steps the rendered frames are
+                                     also pulled toward GAP-TV's reconstruction, with a weight falling linearly
+                                     from prior_weight to 0 (0: off) */
+    double prior_weight;
     nerf_poses_mode pose_mode;    /* KNOWN: problem->camera poses; LINEAR / PER_FRAME: optimised */
     int pose_init_identity;       /* start from the identity (SCINeRF) rather than the camera's poses */
     double pose_perturb_rot_rad;  /* U(±a) added to each rotation component of the initial twists */
@@ -104,6 +111,17 @@ typedef struct nerf_train_config {
     float box_lo[3], box_hi[3];   /* the scene box the models were built with (nerf_train_scene_box); kept in
                                      checkpoints */
 } nerf_train_config;
+
+/* The convergence recipe both NeRF solvers share (docs/nerf-methods.md, "The recipe"): where the samples go, the
+ * losses against fog, the GAP-TV warm start and the density at initialisation. Copied into nerf_train_config
+ * (the first four) and into the model's config (density_bias). */
+typedef struct nerf_recipe {
+    nerf_spacing spacing;      /* sample spacing along rays */
+    double distortion_weight;  /* λ_dist, 0: off */
+    int prior_steps;           /* GAP-TV warm start length, 0: off */
+    double prior_weight;       /* its starting weight */
+    double density_bias;       /* added before the density activation: ln σ at initialisation (trunc_exp) */
+} nerf_recipe;
 
 /* -EINVAL naming the field and its value. */
 int nerf_train_config_check(const nerf_train_config *c, sci_error *err);

@@ -23,6 +23,7 @@ typedef struct pass {
     float *pos, *sigma, *rgb;             /* G·R·L */
     float *color, *grey, *dC, *d_color;   /* G·R */
     float *d_sigma, *d_rgb, *d_pos, *d_dir;
+    float *d_sigma_dist;                  /* G·R·L: the distortion loss's σ gradient (coarse pass, when on) */
 } pass;
 
 typedef struct run {
@@ -34,6 +35,8 @@ typedef struct run {
     pass ps[2];
     int *px, *py;
     float *dcam, *dir, *Y, *M;
+    sci_cube *prior;   /* GAP-TV frames (w×h×N) for the warm start, or NULL */
+    float *Xp;         /* G·R: the prior at the step's pixels, laid out like the grey values */
     double (*T)[12];
     double *imp_cdf, *imp_u; /* importance sampling scratch: Lc, Lf */
     float *imp_tc, *imp_tf;
