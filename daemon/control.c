@@ -89,6 +89,7 @@ int scicapd_control_open(scicapd_control **out, const char *path, unsigned mode,
     ctl->hooks = *hooks;
     ctl->next_id = 1;
     int rc, bound = 0;
+    struct stat st;
     if ((rc = clear_path(path, &sa, err)) < 0)
         goto fail;
     ctl->lfd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
@@ -110,6 +111,8 @@ int scicapd_control_open(scicapd_control **out, const char *path, unsigned mode,
         if (!g)
             sci_log_write(log, SCI_LOG_WARNING, "control socket %s: group \"%s\" does not exist; keeping the "
                           "process's group", path, group);
+        else if (stat(path, &st) == 0 && st.st_gid == g->gr_gid)
+            ; /* already right (the unit's Group=): no chown, which its SystemCallFilter refuses */
         else if (chown(path, (uid_t)-1, g->gr_gid) != 0)
             sci_log_write(log, SCI_LOG_WARNING, "control socket %s: chgrp %s: %s", path, group, strerror(errno));
     }

@@ -2,7 +2,13 @@
  *
  * The daemon's life, in order: options; log; scicapd_new (configuration, storage and its recovery, queues,
  * signals, devices, control socket, threads — each undone in reverse by scicapd_free); READY=1 once the socket
- * accepts connections; the event loop until SIGTERM/SIGINT or "shutdown"; STOPPING=1 and teardown. */
+ * accepts connections; the event loop until SIGTERM/SIGINT or "shutdown"; STOPPING=1 and teardown.
+ *
+ * Root: the daemon needs no privilege (udev gives group scicap the devices, systemd/70-scicap.rules), so uid 0
+ * is refused unless systemd started it (the unit decides, e.g. an override with User=root) or --allow-root says
+ * the operator means it. systemd is recognised by $INVOCATION_ID, which it sets for every unit it starts (v232+);
+ * a shell, sudo, cron or a container entry point do not set it. The check guards against a careless start,
+ * not against someone who sets the variable by hand. */
 #include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -29,6 +35,7 @@ static void usage(FILE *f)
             "  -d, --storage DIR      storage root (overrides storage.root)\n"
             "  -r, --runtime-dir DIR  runtime folder (overrides storage.runtime_dir)\n"
             "      --no-fsync         do not fsync capture folders (tests, benchmarks on tmpfs)\n"
+            "      --allow-root       run as uid 0 outside systemd (refused otherwise)\n"
             "  -v, --verbose          debug messages\n"
             "  -t, --check-config     validate the configuration and exit (0 valid, 1 invalid)\n"
             "  -h, --help             this text\n"
@@ -43,10 +50,11 @@ int main(int argc, char **argv)
         {"socket", required_argument, 0, 's'}, {"storage", required_argument, 0, 'd'},
         {"runtime-dir", required_argument, 0, 'r'}, {"no-fsync", no_argument, 0, 'F'},
         {"verbose", no_argument, 0, 'v'}, {"check-config", no_argument, 0, 't'},
-        {"help", no_argument, 0, 'h'}, {"version", no_argument, 0, 'V'}, {0, 0, 0, 0},
+        {"help", no_argument, 0, 'h'}, {"version", no_argument, 0, 'V'}, {"allow-root", no_argument, 0, 'R'},
+        {0, 0, 0, 0},
     };
     scicapd_options o = {.fsync = -1};
-    int verbose = 0, check = 0, no_config = 0, c;
+    int verbose = 0, check = 0, no_config = 0, allow_root = 0, c;
     while ((c = getopt_long(argc, argv, "c:s:d:r:vth", opts, NULL)) != -1) {
         switch (c) {
         case 'c': o.config_path = optarg; break;
@@ -55,6 +63,7 @@ int main(int argc, char **argv)
         case 'd': o.storage_root = optarg; break;
         case 'r': o.runtime_dir = optarg; break;
         case 'F': o.fsync = 0; break;
+        case 'R': allow_root = 1; break;
         case 'v': verbose = 1; break;
         case 't': check = 1; break;
         case 'h': usage(stdout); return 0;
@@ -82,6 +91,13 @@ int main(int argc, char **argv)
         printf("%s: valid\n", o.config_path ? o.config_path : "built-in defaults");
         scicapd_config_free(cfg);
         return 0;
+    }
+    const char *inv = getenv("INVOCATION_ID");
+    if (geteuid() == 0 && !allow_root && !(inv && inv[0])) {
+        sci_log_write(&log, SCI_LOG_ERR, "refusing to run as root outside systemd: the daemon needs no privilege "
+                      "(the devices belong to group scicap). Run it as the scicap user (systemctl start scicapd), "
+                      "or pass --allow-root if you mean it.");
+        return 1;
     }
     scicapd *d;
     if (scicapd_new(&d, &o, &log, &err) < 0) {
