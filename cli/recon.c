@@ -30,8 +30,9 @@ static void usage(FILE *f)
             "usage: scicap recon [OPTIONS] INPUT -o OUTDIR\n"
             "       scicap recon --capture ID [--method M] [--wait]   (ask scicapd; see scicap status)\n"
             "\n"
-            "Reconstruct the N frames of each SCI snapshot in INPUT: a benchmark .mat file (variables mask, meas,\n"
-            "orig; values divided by 255) or a problem folder written by 'scicap sim' or by scicapd.\n"
+            "Reconstruct the N frames of each SCI snapshot in INPUT: a .mat file (MATLAB v5 or v7.3; by default the\n"
+            "benchmark's variables mask, meas, orig with values divided by 255) or a problem folder written by\n"
+            "'scicap sim' or by scicapd.\n"
             "Writes OUTDIR (OUTDIR/snap_NNN/ when INPUT has several snapshots) with float EXR frames, PNG and GIF\n"
             "previews, trace.csv (time against accuracy per iteration) and result.json. When the truth is known\n"
             "it prints per-frame and mean PSNR in both peak conventions, and SSIM.\n"
@@ -56,6 +57,12 @@ static void usage(FILE *f)
             "              --checkpoint FILE write a checkpoint every --checkpoint-every K steps (default 100), at\n"
             "                                the end, and when interrupted (Ctrl-C, SIGTERM)\n"
             "              --resume FILE     continue a run from its checkpoint (same input and options)\n"
+            "  .mat input:  --mask FILE        the masks are in FILE (its only variable, or --mask-var)\n"
+            "              --mask-var NAME    the masks' variable (default mask): H×W×N shared, H×W×N×k per snapshot\n"
+            "              --meas-var NAME    the measurements' variable (default meas), H×W×k\n"
+            "              --truth-var NAME   the truth's variable (default orig, optional), H×W×(k·N)\n"
+            "              --scale auto|N     the value of white in the file (default 255); meas and truth are\n"
+            "                                 divided by it; auto reads the data's range and says what it chose\n"
             "      --metrics-every K  PSNR against truth in the trace every K iterations (default 1)\n"
             "      --ssim-every K     SSIM in the trace every K iterations (default 10; 0 = last only)\n"
             "  -j, --threads N        OpenMP threads (default: all cores)\n"
@@ -199,7 +206,9 @@ int cli_recon_main(int argc, char **argv)
     double lambda = NAN, tv_weight = NAN;
     enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET,
            OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME, OPT_NET_LR, OPT_SPACING, OPT_DIST, OPT_PRIOR_STEPS,
-           OPT_PRIOR_W, OPT_DBIAS, OPT_ZERO_GATES, OPT_SH };
+           OPT_PRIOR_W, OPT_DBIAS, OPT_ZERO_GATES, OPT_SH, OPT_MASK, OPT_MASK_VAR, OPT_MEAS_VAR, OPT_TRUTH_VAR,
+           OPT_SCALE };
+    sci_mat_options mo = {0};
     static const struct option longopts[] = {
         {"method", required_argument, 0, 'm'},   {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},          {"snapshot", required_argument, 0, 's'},
@@ -218,6 +227,9 @@ int cli_recon_main(int argc, char **argv)
         {"prior-steps", required_argument, 0, OPT_PRIOR_STEPS}, {"prior-weight", required_argument, 0, OPT_PRIOR_W},
         {"density-bias", required_argument, 0, OPT_DBIAS}, {"zero-gates", required_argument, 0, OPT_ZERO_GATES},
         {"sh-degree", required_argument, 0, OPT_SH},
+        {"mask", required_argument, 0, OPT_MASK}, {"mask-var", required_argument, 0, OPT_MASK_VAR},
+        {"meas-var", required_argument, 0, OPT_MEAS_VAR}, {"truth-var", required_argument, 0, OPT_TRUTH_VAR},
+        {"scale", required_argument, 0, OPT_SCALE},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
     };
     optind = 1;
@@ -302,6 +314,19 @@ int cli_recon_main(int argc, char **argv)
         case OPT_DBIAS: bad = parse_double(optarg, "--density-bias", &nf_dbias); break;
         case OPT_ZERO_GATES: bad = parse_int(optarg, "--zero-gates", 0, 1, &nf_zero_gates); break;
         case OPT_SH: bad = parse_int(optarg, "--sh-degree", 1, 4, &nf_sh); break;
+        case OPT_MASK: mo.mask_path = optarg; break;
+        case OPT_MASK_VAR: mo.mask_var = optarg; break;
+        case OPT_MEAS_VAR: mo.meas_var = optarg; break;
+        case OPT_TRUTH_VAR: mo.truth_var = optarg; break;
+        case OPT_SCALE:
+            if (strcmp(optarg, "auto") == 0)
+                mo.white = SCI_MAT_WHITE_AUTO;
+            else if ((bad = parse_double(optarg, "--scale", &mo.white)) == 0 && !(mo.white > 0)) {
+                fprintf(stderr, "scicap recon: --scale wants auto or a number > 0 (the value of white), got '%s'\n",
+                        optarg);
+                bad = -1;
+            }
+            break;
         case OPT_SEED: {
             bad = parse_int(optarg, "--seed", 0, 1 << 30, &nf_seed);
             break;
@@ -393,10 +418,14 @@ int cli_recon_main(int argc, char **argv)
 
     sci_problem **probs = NULL;
     int k = 0;
-    if (sci_source_read(input, &probs, &k, &err) < 0) {
+    sci_mat_info minfo = {0};
+    int rrc = sci_source_read_opts(input, &mo, &probs, &k, &minfo, &err);
+    if (rrc < 0) {
         fprintf(stderr, "scicap recon: %s\n", err.msg);
-        return 1;
+        return rrc == -EINVAL ? 2 : 1;
     }
+    if (mo.white == SCI_MAT_WHITE_AUTO)
+        fprintf(stderr, "scicap recon: --scale auto: %s; values divided by %g\n", minfo.how, minfo.white);
     if (snapshot > k) {
         fprintf(stderr, "scicap recon: %s has %d snapshot(s); --snapshot %d is out of range\n", input, k, snapshot);
         sci_problem_array_free(probs, k);

@@ -33,33 +33,96 @@ static int is_numeric(enum matio_classes c)
     return c == MAT_C_DOUBLE || c == MAT_C_SINGLE || (c >= MAT_C_INT8 && c <= MAT_C_UINT64);
 }
 
-/* Read variable `name` as H×W×F (rank 2 means F = 1). Returns the matvar or NULL with err set. */
-static matvar_t *read_var(mat_t *mat, const char *path, const char *name, int required, size_t dims[3],
-                          sci_error *err, int *rc)
+static const char *class_name(enum matio_classes c)
+{
+    static const char *const names[] = {
+        [MAT_C_EMPTY] = "empty",   [MAT_C_CELL] = "cell",     [MAT_C_STRUCT] = "struct", [MAT_C_OBJECT] = "object",
+        [MAT_C_CHAR] = "char",     [MAT_C_SPARSE] = "sparse", [MAT_C_DOUBLE] = "double", [MAT_C_SINGLE] = "single",
+        [MAT_C_INT8] = "int8",     [MAT_C_UINT8] = "uint8",   [MAT_C_INT16] = "int16",   [MAT_C_UINT16] = "uint16",
+        [MAT_C_INT32] = "int32",   [MAT_C_UINT32] = "uint32", [MAT_C_INT64] = "int64",   [MAT_C_UINT64] = "uint64",
+    };
+    return (unsigned)c < sizeof names / sizeof names[0] && names[c] ? names[c] : "unknown";
+}
+
+/* "name HxWxN class, ..." for every variable in the directory of an open file (rewinds it). */
+static void list_vars(mat_t *mat, char *buf, size_t n)
+{
+    size_t len = 0;
+    buf[0] = 0;
+    Mat_Rewind(mat);
+    for (matvar_t *info; (info = Mat_VarReadNextInfo(mat)) != NULL; Mat_VarFree(info)) {
+        char shape[96] = "";
+        size_t sl = 0;
+        for (int d = 0; d < info->rank && sl < sizeof shape - 24; d++)
+            sl += (size_t)snprintf(shape + sl, sizeof shape - sl, "%s%zu", d ? "x" : "", info->dims[d]);
+        if (len < n)
+            len += (size_t)snprintf(buf + len, n - len, "%s%s %s %s%s", len ? ", " : "", info->name ? info->name : "?",
+                                    shape, info->isComplex ? "complex " : "", class_name(info->class_type));
+    }
+    if (!buf[0])
+        snprintf(buf, n, "no variables");
+}
+
+int sci_mat_list(const char *path, char *buf, size_t n)
+{
+    mat_t *mat = Mat_Open(path, MAT_ACC_RDONLY);
+    if (!mat) {
+        snprintf(buf, n, "not a .mat file");
+        return SCI_EFORMAT;
+    }
+    list_vars(mat, buf, n);
+    Mat_Close(mat);
+    return 0;
+}
+
+static int has_var(mat_t *mat, const char *name)
+{
+    int found = 0;
+    Mat_Rewind(mat);
+    for (matvar_t *info; (info = Mat_VarReadNextInfo(mat)) != NULL; Mat_VarFree(info))
+        found |= info->name && strcmp(info->name, name) == 0;
+    return found;
+}
+
+/* Read variable `name` as H×W×F: rank 2 means F = 1, rank 4 (H×W×N×k) F = N·k with dims[3] = k (else 1).
+ * `option` is the sentence naming the command-line option that picks another variable (for the message when it is missing).
+ * Returns the matvar or NULL with err set (*rc = 0 when an optional variable is absent). */
+static matvar_t *read_var(mat_t *mat, const char *path, const char *name, int required, const char *option,
+                          size_t dims[4], sci_error *err, int *rc)
 {
     *rc = 0;
+    if (!has_var(mat, name)) {
+        if (required) {
+            char vars[360];
+            list_vars(mat, vars, sizeof vars);
+            *rc = sci_error_set(err, SCI_EFORMAT, "%s: no variable '%s'; the file holds: %s. %s", path, name,
+                                vars, option);
+        }
+        return NULL;
+    }
     matvar_t *v = Mat_VarRead(mat, name);
     if (!v) {
-        if (required)
-            *rc = sci_error_set(err, SCI_EFORMAT, "%s: variable '%s' is missing or unreadable (truncated file?)",
-                                path, name);
+        *rc = sci_error_set(err, SCI_EFORMAT, "%s: variable '%s' is unreadable (truncated file?)", path, name);
         return NULL;
     }
     if (!is_numeric(v->class_type) || v->isComplex || !v->data) {
-        *rc = sci_error_set(err, SCI_EFORMAT, "%s: variable '%s' must be a real numeric array", path, name);
+        *rc = sci_error_set(err, SCI_EFORMAT, "%s: variable '%s' must be a real numeric array (it is %s%s)", path,
+                            name, v->isComplex ? "complex " : "", class_name(v->class_type));
         Mat_VarFree(v);
         return NULL;
     }
-    if (v->rank < 2 || v->rank > 3) {
-        *rc = sci_error_set(err, SCI_ESHAPE, "%s: variable '%s' must be H×W or H×W×N, has rank %d", path, name,
-                            v->rank);
+    if (v->rank < 2 || v->rank > 4) {
+        *rc = sci_error_set(err, SCI_ESHAPE, "%s: variable '%s' must be H×W, H×W×N or H×W×N×k, has rank %d", path,
+                            name, v->rank);
         Mat_VarFree(v);
         return NULL;
     }
     dims[0] = v->dims[0];
     dims[1] = v->dims[1];
-    dims[2] = v->rank == 3 ? v->dims[2] : 1;
-    if (dims[0] < 1 || dims[1] < 1 || dims[2] < 1 || dims[0] > 65535 || dims[1] > 65535) {
+    dims[2] = v->rank >= 3 ? v->dims[2] : 1;
+    dims[3] = v->rank == 4 ? v->dims[3] : 1;
+    dims[2] *= dims[3];
+    if (dims[0] < 1 || dims[1] < 1 || dims[2] < 1 || dims[0] > 65535 || dims[1] > 65535 || dims[2] > (1u << 24)) {
         *rc = sci_error_set(err, SCI_ESHAPE, "%s: variable '%s' has unusable size %zux%zux%zu", path, name, dims[0],
                             dims[1], dims[2]);
         Mat_VarFree(v);
@@ -148,47 +211,174 @@ out:
     return rc;
 }
 
-int sci_mat_read(const char *path, double scale, sci_problem ***out, int *k, sci_error *err)
+/* The only numeric variable of a file, or NULL when there are none or several (name copied into buf). */
+static const char *only_numeric_var(mat_t *mat, char *buf, size_t n)
+{
+    int count = 0;
+    Mat_Rewind(mat);
+    for (matvar_t *info; (info = Mat_VarReadNextInfo(mat)) != NULL; Mat_VarFree(info))
+        if (info->name && is_numeric(info->class_type) && !info->isComplex && count++ == 0)
+            snprintf(buf, n, "%s", info->name);
+    return count == 1 ? buf : NULL;
+}
+
+static double var_max(const matvar_t *v, const size_t d[4])
+{
+    double m = -INFINITY;
+    const size_t total = d[0] * d[1] * d[2];
+    for (size_t i = 0; i < total; i++) {
+        double x = mat_elem(v, i);
+        if (x > m)
+            m = x;
+    }
+    return m;
+}
+
+/* Largest y / Σ_f M_f over the pixels where the masks let at least half their largest total through (the
+ * noisier few-open pixels would overstate it). For each snapshot j the masks are mask frames mf0 + N·j·per. */
+static double meas_range(const matvar_t *mask, const size_t dm[4], const matvar_t *meas, const size_t dy[4], int n,
+                         int per_snapshot)
+{
+    const size_t px = dm[0] * dm[1];
+    double best = 0;
+    double *phi = malloc(px * sizeof *phi);
+    if (!phi)
+        return NAN;
+    for (size_t j = 0; j < dy[2]; j++) {
+        if (j == 0 || per_snapshot) {
+            double pmax = 0;
+            for (size_t i = 0; i < px; i++) {
+                double acc = 0;
+                for (int f = 0; f < n; f++)
+                    acc += mat_elem(mask, i + px * ((per_snapshot ? j * n : 0) + f));
+                phi[i] = acc;
+                pmax = acc > pmax ? acc : pmax;
+            }
+            for (size_t i = 0; i < px; i++)
+                phi[i] = phi[i] >= 0.5 * pmax && pmax > 0 ? phi[i] : 0;
+        }
+        for (size_t i = 0; i < px; i++)
+            if (phi[i] > 0) {
+                double r = mat_elem(meas, i + px * j) / phi[i];
+                best = r > best ? r : best;
+            }
+    }
+    free(phi);
+    return best;
+}
+
+/* The white level for a data maximum: the nearest usual full scale at or above it. The 5 % margin on 1 lets noise
+ * on [0, 1] data stay [0, 1]; a 0–255 image whose brightest value is 1.05 counts does not occur in practice. */
+static double white_for(double range)
+{
+    if (range <= 1.05)
+        return 1;
+    static const double levels[] = {255, 1023, 4095, 65535};
+    for (size_t i = 0; i < sizeof levels / sizeof levels[0]; i++)
+        if (range <= levels[i] * 1.0001)
+            return levels[i];
+    return range;
+}
+
+/* The common reader: values divided by `divisor`, problems' peak set to `peak` (auto: divisor chosen here). */
+static int mat_read(const char *path, const sci_mat_options *o, double divisor, double peak, sci_problem ***out,
+                    int *k, sci_mat_info *info, sci_error *err)
 {
     *out = NULL;
     *k = 0;
-    if (scale == 0)
-        scale = 255;
-    if (access(path, R_OK) != 0)
-        return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
-    int rc0 = check_v5_complete(path, err);
-    if (rc0 < 0)
-        return rc0;
-    mat_t *mat = Mat_Open(path, MAT_ACC_RDONLY);
+    sci_mat_info local;
+    if (!info)
+        info = &local;
+    memset(info, 0, sizeof *info);
+    const char *meas_name = o->meas_var ? o->meas_var : "meas";
+    const char *truth_name = o->truth_var ? o->truth_var : "orig";
+    const char *mask_file = o->mask_path ? o->mask_path : path;
+    const char *paths[2] = {path, mask_file};
+    for (int i = 0; i < (o->mask_path ? 2 : 1); i++) {
+        if (access(paths[i], R_OK) != 0)
+            return sci_error_set(err, -errno, "%s: %s", paths[i], strerror(errno));
+        int rc0 = check_v5_complete(paths[i], err);
+        if (rc0 < 0)
+            return rc0;
+    }
+    mat_t *mat = Mat_Open(path, MAT_ACC_RDONLY), *mmat = NULL;
     if (!mat)
         return sci_error_set(err, SCI_EFORMAT, "%s: not a MATLAB .mat file (v5 or v7.3), or truncated", path);
-    size_t dm[3], dy[3], dt[3];
-    int rc;
+    size_t dm[4], dy[4], dt[4];
+    int rc = 0;
     matvar_t *mask = NULL, *meas = NULL, *orig = NULL;
     sci_problem **probs = NULL;
     int nprob = 0;
-    if (!(mask = read_var(mat, path, "mask", 1, dm, err, &rc)) || !(meas = read_var(mat, path, "meas", 1, dy, err, &rc)))
+    if (o->mask_path) {
+        mmat = Mat_Open(o->mask_path, MAT_ACC_RDONLY);
+        if (!mmat) {
+            rc = sci_error_set(err, SCI_EFORMAT, "%s: not a MATLAB .mat file (v5 or v7.3), or truncated", o->mask_path);
+            goto out;
+        }
+    }
+    mat_t *msrc = mmat ? mmat : mat;
+    char only[64];
+    const char *mask_name = o->mask_var ? o->mask_var : "mask";
+    /* A separate mask file with one variable needs no --mask-var (real-data sets ship e.g. mask.mat with one). */
+    if (mmat && !o->mask_var && !has_var(mmat, "mask") && only_numeric_var(mmat, only, sizeof only))
+        mask_name = only;
+    snprintf(info->mask_var, sizeof info->mask_var, "%s", mask_name);
+    if (!(meas = read_var(mat, path, meas_name, 1, "Name the measurements with --meas-var NAME", dy, err, &rc)) ||
+        !(mask = read_var(msrc, mask_file, mask_name, 1, o->mask_path ? "Name the masks with --mask-var NAME"
+                                     : "Name the masks with --mask-var NAME, or give their file with --mask FILE",
+                          dm, err, &rc)))
         goto out;
-    /* orig is optional, but if the file's directory lists it, a failure to read it is a fault (a truncated
-     * file most often ends inside its largest variable). */
-    int has_orig = 0;
-    Mat_Rewind(mat);
-    for (matvar_t *info; (info = Mat_VarReadNextInfo(mat)) != NULL; Mat_VarFree(info))
-        has_orig |= info->name && strcmp(info->name, "orig") == 0;
-    orig = read_var(mat, path, "orig", has_orig, dt, err, &rc);
+    /* The truth is optional, but a named one must be there, and one the directory lists must be readable (a
+     * truncated file most often ends inside its largest variable). */
+    orig = read_var(mat, path, truth_name, o->truth_var != NULL || has_var(mat, truth_name),
+                    "Name the truth with --truth-var NAME (it is optional)", dt, err,
+                    &rc);
     if (rc < 0)
         goto out;
     if (dm[0] != dy[0] || dm[1] != dy[1]) {
-        rc = sci_error_set(err, SCI_ESHAPE, "%s: mask is %zux%zu but meas is %zux%zu (H×W)", path, dm[0], dm[1],
-                           dy[0], dy[1]);
+        rc = sci_error_set(err, SCI_ESHAPE, "%s: mask '%s' is %zux%zu but meas '%s' is %zux%zu (H×W)", path, mask_name,
+                           dm[0], dm[1], meas_name, dy[0], dy[1]);
         goto out;
     }
     if (orig && (dt[0] != dm[0] || dt[1] != dm[1])) {
-        rc = sci_error_set(err, SCI_ESHAPE, "%s: orig is %zux%zu but mask is %zux%zu (H×W)", path, dt[0], dt[1],
-                           dm[0], dm[1]);
+        rc = sci_error_set(err, SCI_ESHAPE, "%s: truth '%s' is %zux%zu but mask '%s' is %zux%zu (H×W)", path,
+                           truth_name, dt[0], dt[1], mask_name, dm[0], dm[1]);
         goto out;
     }
-    const int n = (int)dm[2], nsnap = (int)dy[2];
+    const int nsnap = (int)dy[2];
+    /* Shared or per-snapshot masks: H×W×N×k says so; H×W×(N·k) does when the truth gives N = frames / k. */
+    int n = (int)dm[2], per = 0;
+    if (dm[3] > 1 || (nsnap > 1 && orig && dt[2] % (size_t)nsnap == 0 && dt[2] / nsnap != dm[2] &&
+                      dm[2] == dt[2])) {
+        if (dm[2] % (size_t)nsnap != 0 || (dm[3] > 1 && dm[3] != (size_t)nsnap)) {
+            rc = sci_error_set(err, SCI_ESHAPE, "%s: per-snapshot masks '%s' (%zu frames) do not divide into %d snapshots",
+                               mask_file, mask_name, dm[2], nsnap);
+            goto out;
+        }
+        per = 1;
+        n = (int)(dm[2] / (size_t)nsnap);
+    }
+    info->mask_per_snapshot = per;
+    if (divisor == SCI_MAT_WHITE_AUTO) {
+        double range;
+        if (orig) {
+            range = var_max(orig, dt);
+            snprintf(info->how, sizeof info->how, "truth '%s' peaks at %g", truth_name, range);
+        } else {
+            range = meas_range(mask, dm, meas, dy, n, per);
+            snprintf(info->how, sizeof info->how, "meas '%s' / sum of masks peaks at %g", meas_name, range);
+        }
+        if (!(range > 0) || !isfinite(range)) {
+            rc = sci_error_set(err, SCI_EFORMAT, "%s: --scale auto: %s; give --scale N (the value of white)", path,
+                               info->how);
+            goto out;
+        }
+        divisor = white_for(range);
+        size_t l = strlen(info->how);
+        snprintf(info->how + l, sizeof info->how - l, ", so white is %g%s", divisor,
+                 divisor == 1 ? " (data already on [0, 1])" : "");
+    }
+    info->white = divisor;
     probs = calloc((size_t)nsnap, sizeof *probs);
     if (!probs) {
         rc = sci_error_set(err, -ENOMEM, "%s: out of memory", path);
@@ -202,13 +392,13 @@ int sci_mat_read(const char *path, double scale, sci_problem ***out, int *k, sci
             goto out;
         }
         probs[nprob++] = p;
-        p->peak = 255.0 / scale;
+        p->peak = peak > 0 ? peak : 255.0 / divisor;
         snprintf(p->name, sizeof p->name, "%s#%d", base, j + 1);
-        if ((rc = to_cube(mask, dm, 0, n, 1.0, path, "mask", &p->mask, err)) < 0 ||
-            (rc = to_cube(meas, dy, (size_t)j, 1, scale, path, "meas", &p->meas, err)) < 0)
+        if ((rc = to_cube(mask, dm, per ? (size_t)n * j : 0, n, 1.0, mask_file, mask_name, &p->mask, err)) < 0 ||
+            (rc = to_cube(meas, dy, (size_t)j, 1, divisor, path, meas_name, &p->meas, err)) < 0)
             goto out;
         if (orig && dt[2] >= (size_t)n * (j + 1) &&
-            (rc = to_cube(orig, dt, (size_t)n * j, n, scale, path, "orig", &p->truth, err)) < 0)
+            (rc = to_cube(orig, dt, (size_t)n * j, n, divisor, path, truth_name, &p->truth, err)) < 0)
             goto out;
     }
     *out = probs;
@@ -221,8 +411,26 @@ out:
     Mat_VarFree(mask);
     Mat_VarFree(meas);
     Mat_VarFree(orig);
+    if (mmat)
+        Mat_Close(mmat);
     Mat_Close(mat);
     return rc;
+}
+
+int sci_mat_read(const char *path, double scale, sci_problem ***out, int *k, sci_error *err)
+{
+    const sci_mat_options o = {0};
+    return mat_read(path, &o, scale == 0 ? 255 : scale, 0, out, k, NULL, err);
+}
+
+int sci_mat_read_opts(const char *path, const sci_mat_options *opts, sci_problem ***out, int *k,
+                      sci_mat_info *info, sci_error *err)
+{
+    const sci_mat_options none = {0};
+    const sci_mat_options *o = opts ? opts : &none;
+    if (o->white != SCI_MAT_WHITE_AUTO && o->white < 0)
+        return sci_error_set(err, -EINVAL, "%s: the white level must be > 0 (got %g)", path, o->white);
+    return mat_read(path, o, o->white == 0 ? 255 : o->white, 1.0, out, k, info, err);
 }
 
 /* Column-major double copy of `nframes` cubes' frames (each w×h×n), multiplied by scale. */

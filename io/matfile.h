@@ -18,6 +18,46 @@
 
 int sci_mat_read(const char *path, double scale, sci_problem ***out, int *k, sci_error *err);
 
+/* Any .mat: variable names, a separate mask file and the white level chosen by the caller (`scicap recon
+ * --mask FILE --mask-var V --meas-var V --truth-var V --scale auto|N`, docs/formats.md).
+ *
+ * Names: NULL takes the benchmark's ("mask", "meas", "orig"). The truth is optional unless truth_var is given.
+ * With mask_path and no mask_var, a mask file whose only numeric variable has another name is read anyway.
+ * A missing variable is SCI_EFORMAT with a message that lists every variable present (name, H×W×..., class)
+ * and names the option that picks another (--mask-var, --meas-var, --truth-var).
+ *
+ * Masks: H×W×N shared by every snapshot, or per snapshot as H×W×N×k, or H×W×(N·k) when the truth says N
+ * (truth frames / k = N ≠ mask frames). Masks are never rescaled: calibrated floats stay as they are.
+ *
+ * White: meas and truth are divided by `white`, the file's value of white, so the truth lies on [0, 1] and every
+ * problem's peak is 1. 0 means 255 (the benchmark); SCI_MAT_WHITE_AUTO reads the data's range: the truth's
+ * maximum when there is a truth, else the largest y / Σ_f M_f over pixels (a weighted mean of the frames there, so
+ * never above their maximum), rounded up to the nearest of 1, 255, 1023, 4095, 65535 (or the maximum itself
+ * beyond). `info` (may be NULL) receives the level used and, for auto, a sentence saying why.
+ * Errors as sci_mat_read. Blocks on file I/O; reentrant. */
+#define SCI_MAT_WHITE_AUTO (-1.0)
+
+typedef struct sci_mat_options {
+    const char *mask_path; /* file holding the masks; NULL: the data file */
+    const char *mask_var;  /* NULL: "mask" */
+    const char *meas_var;  /* NULL: "meas" */
+    const char *truth_var; /* NULL: "orig", optional */
+    double white;          /* 0: 255; SCI_MAT_WHITE_AUTO: from the data; else > 0 */
+} sci_mat_options;
+
+typedef struct sci_mat_info {
+    double white;          /* the white level divided out */
+    int mask_per_snapshot; /* 1 when each snapshot has its own masks */
+    char mask_var[64];     /* the mask variable actually read */
+    char how[256];         /* auto: what was read and what it means; else "" */
+} sci_mat_info;
+
+int sci_mat_read_opts(const char *path, const sci_mat_options *opts, sci_problem ***out, int *k,
+                      sci_mat_info *info, sci_error *err);
+
+/* List the variables of a .mat file as "name HxWxN class, ..." into buf (for messages). 0 or SCI_EFORMAT. */
+int sci_mat_list(const char *path, char *buf, size_t n);
+
 /* Write problems as a benchmark-layout .mat (v5, compressed): mask, meas, and orig when every problem has truth.
  * Values multiplied by `scale` (0 → 255). */
 int sci_mat_write(const char *path, sci_problem *const *problems, int k, double scale, sci_error *err);

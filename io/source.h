@@ -5,8 +5,16 @@
 #ifndef SCICAP_IO_SOURCE_H
 #define SCICAP_IO_SOURCE_H
 
+#include "io/matfile.h"
 #include "recon/problem.h"
 
 int sci_source_read(const char *path, sci_problem ***out, int *k, sci_error *err);
+
+/* Same with the .mat options (io/matfile.h: variable names, mask file, white level; info may be NULL). Options
+ * that are set for a problem folder are refused (-EINVAL): a folder names its parts and its scale itself. */
+int sci_source_read_opts(const char *path, const sci_mat_options *opts, sci_problem ***out, int *k,
+                         sci_mat_info *info, sci_error *err);
+/* 1 if sci_source_read would read `path` as a .mat file. */
+int sci_source_is_mat(const char *path);
 
 #endif

@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 #include <cmocka.h>
+#include <matio.h>
 
 #include "io/image.h"
 #include "io/matfile.h"
@@ -247,12 +248,64 @@ static void test_drop40_shape(void **state)
     sci_problem_array_free(p, k);
 }
 
+/* Per-snapshot masks, as H×W×N×k (rank 4) and as H×W×(N·k) beside a truth that says N: snapshot j gets masks
+ * j·N … j·N + N − 1; shared H×W×N masks go to every snapshot. Values checked element by element. */
+static void test_mat_masks_per_snapshot(void **state)
+{
+    const size_t h = 3, w = 4, n = 2, k = 3;
+    double mask[3 * 4 * 2 * 3], meas[3 * 4 * 3], orig[3 * 4 * 2 * 3];
+    for (size_t i = 0; i < h * w * n * k; i++)
+        mask[i] = (double)(i % 5), orig[i] = (double)i;
+    for (size_t i = 0; i < h * w * k; i++)
+        meas[i] = 2.0 * i;
+    for (int layout = 0; layout < 2; layout++) {
+        char path[512];
+        snprintf(path, sizeof path, "%s/per%d.mat", tmpdir, layout);
+        mat_t *m = Mat_CreateVer(path, NULL, MAT_FT_MAT5);
+        assert_non_null(m);
+        size_t d4[4] = {h, w, n, k}, d3[3] = {h, w, n * k}, dy[3] = {h, w, k};
+        matvar_t *v = layout == 0 ? Mat_VarCreate("M", MAT_C_DOUBLE, MAT_T_DOUBLE, 4, d4, mask, 0)
+                                  : Mat_VarCreate("M", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, d3, mask, 0);
+        assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_NONE), 0);
+        Mat_VarFree(v);
+        v = Mat_VarCreate("meas", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dy, meas, 0);
+        assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_NONE), 0);
+        Mat_VarFree(v);
+        v = Mat_VarCreate("orig", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, d3, orig, 0);
+        assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_NONE), 0);
+        Mat_VarFree(v);
+        Mat_Close(m);
+        sci_mat_options o = {.mask_var = "M", .white = 2};
+        sci_mat_info info;
+        sci_problem **p;
+        int kk;
+        sci_error err = {0};
+        if (sci_mat_read_opts(path, &o, &p, &kk, &info, &err) < 0)
+            fail_msg("%s", err.msg);
+        assert_int_equal(kk, (int)k);
+        assert_int_equal(info.mask_per_snapshot, 1);
+        for (size_t j = 0; j < k; j++) {
+            assert_int_equal(p[j]->mask->n, (int)n);
+            assert_true(p[j]->peak == 1.0);
+            for (size_t f = 0; f < n; f++)
+                for (size_t y = 0; y < h; y++)
+                    for (size_t x = 0; x < w; x++) {
+                        size_t col = y + h * x + h * w * (j * n + f);
+                        assert_true(p[j]->mask->data[(f * h + y) * w + x] == (float)mask[col]);
+                        assert_true(p[j]->truth->data[(f * h + y) * w + x] == (float)(orig[col] / 2));
+                    }
+            assert_true(p[j]->meas->data[w + 1] == (float)(meas[1 + h * 1 + h * w * j] / 2));
+        }
+        sci_problem_array_free(p, kk);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_image_roundtrip), cmocka_unit_test(test_stack_roundtrip_exact),
         cmocka_unit_test(test_problem_dir_roundtrip), cmocka_unit_test(test_mat_roundtrip_and_faults),
-        cmocka_unit_test(test_drop40_shape),
+        cmocka_unit_test(test_drop40_shape), cmocka_unit_test(test_mat_masks_per_snapshot),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
