@@ -190,8 +190,9 @@ static void slowloris_does_not_lock_out(void **state)
            "connections answered timeout and closed by %lld ms (request deadline 1000 ms)\n",
            (long long)admin_ms, (long long)user_ms, timed_out, STALLED - refused, (long long)all_ms);
     assert_int_equal(timed_out, STALLED - refused);
-    assert_true(user_ms >= 1000 && user_ms < 2500);
-    assert_true(all_ms < 3500);
+    /* bounded: the deadline plus scheduling slack on a loaded 2-core machine */
+    assert_true(user_ms >= 1000 && user_ms < 3000);
+    assert_true(all_ms < 4000);
     harness_stop(&h);
     harness_cleanup(&h);
 }
@@ -222,7 +223,7 @@ static void trickle_and_idle_deadlines(void **state)
     }
     close(t);
     printf("  trickling client closed after %lld ms\n", (long long)closed_ms);
-    assert_true(closed_ms >= 900 && closed_ms < 2000);
+    assert_true(closed_ms >= 900 && closed_ms < 2500);
     /* after a request, an ordinary idle connection is closed at 2 s; a watcher stays */
     hconn idle, watcher;
     hconn_open_as(&idle, &h, UID_A);
@@ -237,7 +238,7 @@ static void trickle_and_idle_deadlines(void **state)
     json_decref(m);
     assert_null(hconn_read(&idle, 1000)); /* closed */
     printf("  idle connection closed %lld ms after its last request (idle_timeout_ms 2000)\n", (long long)idle_ms);
-    assert_true(idle_ms >= 1800 && idle_ms < 3500);
+    assert_true(idle_ms >= 1800 && idle_ms < 4000);
     json_t *r = hconn_request(&watcher, "status", NULL); /* idle as long, but watching */
     json_decref(r);
     hconn_close(&idle);
