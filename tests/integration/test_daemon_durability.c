@@ -13,6 +13,17 @@
 
 #include "tests/integration/daemon_harness.h"
 
+/* File-static, so that a failed test's daemon is stopped and its folder removed by the teardown. */
+static harness H;
+
+static int cleanup(void **state)
+{
+    (void)state;
+    harness_cleanup(&H);
+    memset(&H, 0, sizeof H);
+    return 0;
+}
+
 /* Number of a capture id "c000042" -> 42. */
 static long id_num(const char *id) { return id && id[0] == 'c' ? strtol(id + 1, NULL, 10) : -1; }
 
@@ -55,10 +66,9 @@ static long next_capture_id(hconn *c)
 static void ids_not_reused_after_kill9(void **state)
 {
     (void)state;
-    harness h;
-    harness_start(&h, NULL, NULL);
+    harness_start(&H, NULL, NULL);
     hconn c;
-    hconn_open(&c, &h);
+    hconn_open(&c, &H);
     json_decref(hconn_request(&c, "capture", json_pack("{s:i}", "count", 200)));
     long announced = 0;
     for (int i = 0; i < 2; i++) {
@@ -72,54 +82,53 @@ static void ids_not_reused_after_kill9(void **state)
     int64_t t0 = h_now_ms();
     long seen = 0;
     while (!partial[0] && h_now_ms() - t0 < 20000) {
-        seen = max_on_disk(&h, partial, sizeof partial);
+        seen = max_on_disk(&H, partial, sizeof partial);
         if (!partial[0])
             h_sleep_ms(1); /* a folder takes tens of ms to write: 1 ms polling still lands inside one */
     }
-    harness_kill9(&h);
+    harness_kill9(&H);
     hconn_close(&c);
     assert_true(partial[0]);
-    long after = max_on_disk(&h, NULL, 0);
+    long after = max_on_disk(&H, NULL, 0);
     long highest = announced > seen ? announced : seen;
     highest = after > highest ? after : highest;
-    harness_spawn(&h, NULL);
-    hconn_open(&c, &h);
+    harness_spawn(&H, NULL);
+    hconn_open(&c, &H);
     char left[256];
-    max_on_disk(&h, left, sizeof left);
+    max_on_disk(&H, left, sizeof left);
     long next = next_capture_id(&c);
     printf("  killed while %s was being written (highest id given out before the kill: %ld); partial removed: %s; "
            "next capture after restart: c%06ld\n", partial, highest, left[0] ? "no" : "yes", next);
     assert_false(left[0]);
     assert_true(next > highest);
     hconn_close(&c);
-    harness_stop(&h);
-    harness_cleanup(&h);
+    harness_stop(&H);
+    harness_cleanup(&H);
 }
 
 static void ids_not_reused_after_delete(void **state)
 {
     (void)state;
-    harness h;
-    harness_start(&h, NULL, NULL);
+    harness_start(&H, NULL, NULL);
     hconn c;
-    hconn_open(&c, &h);
+    hconn_open(&c, &H);
     long first = next_capture_id(&c);
     long newest = next_capture_id(&c);
     hconn_close(&c);
-    harness_stop(&h);
+    harness_stop(&H);
     char dir[600];
-    snprintf(dir, sizeof dir, "%s/captures/c%06ld", h.store, newest);
+    snprintf(dir, sizeof dir, "%s/captures/c%06ld", H.store, newest);
     assert_int_equal(scicapd_remove_tree(dir), 0);
-    harness_spawn(&h, NULL);
-    hconn_open(&c, &h);
+    harness_spawn(&H, NULL);
+    hconn_open(&c, &H);
     long next = next_capture_id(&c);
     printf("  captures c%06ld, c%06ld; c%06ld deleted; after a restart the next is c%06ld\n", first, newest, newest,
            next);
     assert_true(next > newest);
     assert_int_equal(next, newest + 1); /* a clean stop leaves no gap */
     hconn_close(&c);
-    harness_stop(&h);
-    harness_cleanup(&h);
+    harness_stop(&H);
+    harness_cleanup(&H);
 }
 
 /* ---- reconstruction queue ---- */
@@ -185,10 +194,9 @@ static int resumed_count(hconn *c)
 static void queued_reconstructions_resumed(void **state)
 {
     (void)state;
-    harness h;
-    harness_start(&h, "{\"reconstruction\": {\"workers\": 1}}\n", NULL);
+    harness_start(&H, "{\"reconstruction\": {\"workers\": 1}}\n", NULL);
     hconn c;
-    hconn_open(&c, &h);
+    hconn_open(&c, &H);
     char cap[3][32];
     json_decref(hconn_request(&c, "capture", json_pack("{s:i}", "count", 3)));
     for (int i = 0; i < 3; i++) {
@@ -204,16 +212,16 @@ static void queued_reconstructions_resumed(void **state)
     json_decref(hconn_wait_event(&c, "recon.started", 30000));
     reconstruct(&c, cap[1], "gap-tv", 0);
     reconstruct(&c, cap[2], "gap-tv", 0);
-    harness_kill9(&h);
+    harness_kill9(&H);
     hconn_close(&c);
-    harness_spawn(&h, NULL);
-    hconn_open(&c, &h);
+    harness_spawn(&H, NULL);
+    hconn_open(&c, &H);
     int n1 = resumed_count(&c);
     printf("  kill -9 with 1 running + 2 queued: %d resumed at restart\n", n1);
     assert_int_equal(n1, 3);
     cancel_recon_of(&c, cap[0]); /* the long one came back too: let the others through */
     int64_t t0 = h_now_ms();
-    int ok1 = wait_recon(&h, cap[1], "gap-tv", 30000) && wait_recon(&h, cap[2], "gap-tv", 30000);
+    int ok1 = wait_recon(&H, cap[1], "gap-tv", 30000) && wait_recon(&H, cap[2], "gap-tv", 30000);
     printf("  the queued ones reconstructed after the restart: %s (%lld ms)\n", ok1 ? "yes" : "no",
            (long long)(h_now_ms() - t0));
     assert_true(ok1);
@@ -222,17 +230,17 @@ static void queued_reconstructions_resumed(void **state)
     json_decref(hconn_wait_event(&c, "recon.started", 30000));
     reconstruct(&c, cap[2], "admm-tv", 0);
     hconn_close(&c);
-    harness_stop(&h);
-    harness_spawn(&h, NULL);
-    hconn_open(&c, &h);
+    harness_stop(&H);
+    harness_spawn(&H, NULL);
+    hconn_open(&c, &H);
     int n2 = resumed_count(&c);
     cancel_recon_of(&c, cap[0]);
-    int ok2 = wait_recon(&h, cap[2], "admm-tv", 30000);
+    int ok2 = wait_recon(&H, cap[2], "admm-tv", 30000);
     /* finished and canceled jobs leave nothing behind to resume */
     hconn_close(&c);
-    harness_stop(&h);
-    harness_spawn(&h, NULL);
-    hconn_open(&c, &h);
+    harness_stop(&H);
+    harness_spawn(&H, NULL);
+    hconn_open(&c, &H);
     int n3 = resumed_count(&c);
     printf("  SIGTERM with 1 running + 1 queued: %d resumed, queued one reconstructed: %s; after they ended and a "
            "clean restart: %d resumed\n", n2, ok2 ? "yes" : "no", n3);
@@ -240,16 +248,16 @@ static void queued_reconstructions_resumed(void **state)
     assert_true(ok2);
     assert_int_equal(n3, 0);
     hconn_close(&c);
-    harness_stop(&h);
-    harness_cleanup(&h);
+    harness_stop(&H);
+    harness_cleanup(&H);
 }
 
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(ids_not_reused_after_kill9),
-        cmocka_unit_test(ids_not_reused_after_delete),
-        cmocka_unit_test(queued_reconstructions_resumed),
+        cmocka_unit_test_teardown(ids_not_reused_after_kill9, cleanup),
+        cmocka_unit_test_teardown(ids_not_reused_after_delete, cleanup),
+        cmocka_unit_test_teardown(queued_reconstructions_resumed, cleanup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -29,6 +29,17 @@
 
 #include "tests/integration/daemon_harness.h"
 
+/* File-static, so that a failed test's daemon is stopped and its folder removed by the teardown. */
+static harness H;
+
+static int cleanup(void **state)
+{
+    (void)state;
+    harness_cleanup(&H);
+    memset(&H, 0, sizeof H);
+    return 0;
+}
+
 #ifndef PR_SET_MDWE
 #define PR_SET_MDWE 65
 #define PR_MDWE_REFUSE_EXEC_GAIN 1
@@ -52,12 +63,11 @@ static void unit_exposure(void **state)
     (void)state;
     if (system("command -v systemd-analyze >/dev/null 2>&1") != 0)
         fail_msg("systemd-analyze is not installed: it comes with Debian's systemd package (make deps)");
-    harness h;
-    harness_init(&h, NULL);
+    harness_init(&H, NULL);
     char unit[1024], copy[400], cmd[1200];
     unit_path(unit, sizeof unit);
     /* the verdict is named after the file: analyse a copy called scicapd.service */
-    snprintf(copy, sizeof copy, "%s/scicapd.service", h.dir);
+    snprintf(copy, sizeof copy, "%s/scicapd.service", H.dir);
     snprintf(cmd, sizeof cmd, "cp '%s' '%s'", unit, copy);
     assert_int_equal(system(cmd), 0);
     snprintf(cmd, sizeof cmd, "systemd-analyze security --offline=yes --no-pager '%s' 2>&1", copy);
@@ -88,7 +98,7 @@ static void unit_exposure(void **state)
         assert_true(ok[i]);
     }
     assert_true(exposure >= 0 && exposure <= 1.5);
-    harness_cleanup(&h);
+    harness_cleanup(&H);
 }
 
 /* ---- running the daemon ---- */
@@ -216,12 +226,16 @@ static int wait_listening(const harness *h, pid_t pid, int *status)
     }
     kill(pid, SIGKILL);
     waitpid(pid, status, 0);
+    if (H.pid == pid)
+        H.pid = 0;
     fail_msg("scicapd neither listened nor exited within 10 s");
     return 0;
 }
 
 static int stop(pid_t pid)
 {
+    if (H.pid == pid)
+        H.pid = 0; /* reaped here: the teardown must not signal a pid that may be reused */
     kill(pid, SIGTERM);
     int64_t t0 = h_now_ms();
     int st;
@@ -250,30 +264,35 @@ static void root_needs_allow_root(void **state)
         print_message("  runs as uid %d: the uid 0 refusal cannot be exercised\n", (int)geteuid());
         skip();
     }
-    harness h;
-    harness_init(&h, NULL);
+    harness_init(&H, NULL);
     int st = 0;
-    pid_t pid = spawn(&h, RUN_PLAIN, NULL, NULL);
-    int up = wait_listening(&h, pid, &st);
+    pid_t pid = H.pid = spawn(&H, RUN_PLAIN, NULL, NULL);
+    int up = wait_listening(&H, pid, &st);
+    if (!up)
+        H.pid = 0; /* exited, reaped */
     if (up)
         stop(pid);
     printf("  uid 0, no --allow-root, no systemd: %s (exit %d)\n", up ? "STARTED" : "refused",
            WIFEXITED(st) ? WEXITSTATUS(st) : -1);
     assert_false(up);
     assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 1);
-    assert_true(log_has(&h, "refusing to run as root outside systemd"));
+    assert_true(log_has(&H, "refusing to run as root outside systemd"));
     static const char *const allow[] = {"--allow-root", NULL};
-    pid = spawn(&h, RUN_PLAIN, allow, NULL);
-    up = wait_listening(&h, pid, &st);
+    pid = H.pid = spawn(&H, RUN_PLAIN, allow, NULL);
+    up = wait_listening(&H, pid, &st);
+    if (!up)
+        H.pid = 0;
     printf("  uid 0 with --allow-root: %s\n", up ? "started" : "REFUSED");
     assert_true(up);
     assert_int_equal(stop(pid), 0);
-    pid = spawn(&h, RUN_PLAIN, NULL, "INVOCATION_ID=0123456789abcdef0123456789abcdef");
-    up = wait_listening(&h, pid, &st);
+    pid = H.pid = spawn(&H, RUN_PLAIN, NULL, "INVOCATION_ID=0123456789abcdef0123456789abcdef");
+    up = wait_listening(&H, pid, &st);
+    if (!up)
+        H.pid = 0;
     printf("  uid 0 started by systemd (INVOCATION_ID set): %s\n", up ? "started" : "REFUSED");
     assert_true(up);
     assert_int_equal(stop(pid), 0);
-    harness_cleanup(&h);
+    harness_cleanup(&H);
 }
 
 static void works_in_the_units_sandbox(void **state)
@@ -283,19 +302,18 @@ static void works_in_the_units_sandbox(void **state)
         print_message("  runs as uid %d: cannot build the sandbox (mount namespace)\n", (int)geteuid());
         skip();
     }
-    harness h;
-    harness_init(&h, NULL);
+    harness_init(&H, NULL);
     static const char *const allow[] = {"--allow-root", NULL};
     int st = 0;
-    pid_t pid = spawn(&h, RUN_SANDBOX, allow, NULL);
-    if (!wait_listening(&h, pid, &st)) {
+    pid_t pid = spawn(&H, RUN_SANDBOX, allow, NULL);
+    if (!wait_listening(&H, pid, &st)) { /* exited: reaped by wait_listening */
         char cmd[400];
-        snprintf(cmd, sizeof cmd, "cat '%s'", h.log);
+        snprintf(cmd, sizeof cmd, "cat '%s'", H.log);
         if (system(cmd) != 0)
             fprintf(stderr, "(no log)\n");
         fail_msg("scicapd did not start in the sandbox (status 0x%x)", st);
     }
-    h.pid = pid; /* harness_cleanup kills it if an assertion fails */
+    H.pid = pid; /* harness_cleanup kills it if an assertion fails */
     char status_path[64], line[256];
     snprintf(status_path, sizeof status_path, "/proc/%d/status", (int)pid);
     FILE *f = fopen(status_path, "r");
@@ -306,7 +324,7 @@ static void works_in_the_units_sandbox(void **state)
     if (f)
         fclose(f);
     hconn c;
-    hconn_open(&c, &h);
+    hconn_open(&c, &H);
     json_decref(hconn_request(&c, "capture", json_pack("{s:b, s:s}", "reconstruct", 1, "preset", "fast")));
     json_t *e = hconn_wait_event(&c, "recon.done", 60000);
     double psnr = json_real_value(json_object_get(json_object_get(e, "data"), "psnr"));
@@ -314,22 +332,21 @@ static void works_in_the_units_sandbox(void **state)
     json_t *r = hconn_request(&c, "status", NULL);
     json_decref(r);
     hconn_close(&c);
-    h.pid = 0;
     int rc = stop(pid);
     printf("  in the sandbox (seccomp mode %d, W^X, /proc subset=pid): capture + gap-tv fast reconstruction done, "
            "PSNR %.2f dB; exit status %d\n", seccomp, psnr, WIFEXITED(rc) ? WEXITSTATUS(rc) : -1);
     assert_int_equal(seccomp, 2);
     assert_true(psnr > 10);
     assert_true(WIFEXITED(rc) && WEXITSTATUS(rc) == 0);
-    harness_cleanup(&h);
+    harness_cleanup(&H);
 }
 
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(unit_exposure),
-        cmocka_unit_test(root_needs_allow_root),
-        cmocka_unit_test(works_in_the_units_sandbox),
+        cmocka_unit_test_teardown(unit_exposure, cleanup),
+        cmocka_unit_test_teardown(root_needs_allow_root, cleanup),
+        cmocka_unit_test_teardown(works_in_the_units_sandbox, cleanup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -18,6 +18,17 @@
 
 #include "tests/integration/daemon_harness.h"
 
+/* File-static, so that a failed test's daemon is stopped and its folder removed by the teardown. */
+static harness H;
+
+static int cleanup(void **state)
+{
+    (void)state;
+    harness_cleanup(&H);
+    memset(&H, 0, sizeof H);
+    return 0;
+}
+
 #define UID_A 65534 /* nobody */
 #define UID_B 65533
 
@@ -126,12 +137,11 @@ static void slowloris_does_not_lock_out(void **state)
 {
     (void)state;
     need_root();
-    harness h;
-    start_open(&h, CONFIG);
+    start_open(&H, CONFIG);
     int fd[STALLED];
     int64_t t0 = h_now_ms();
     for (int i = 0; i < STALLED; i++) {
-        fd[i] = connect_as(&h, UID_A);
+        fd[i] = connect_as(&H, UID_A);
         assert_true(fd[i] >= 0);
         ssize_t w = send(fd[i], "{", 1, MSG_NOSIGNAL); /* one byte, then nothing */
         (void)w;
@@ -157,15 +167,15 @@ static void slowloris_does_not_lock_out(void **state)
     assert_int_equal(refused, 2);
     /* an admin (root) gets in through the reserved slots at once */
     int64_t ta = h_now_ms();
-    assert_true(try_status_as(&h, 0));
+    assert_true(try_status_as(&H, 0));
     int64_t admin_ms = h_now_ms() - ta;
     assert_true(h_now_ms() - t0 < 1000); /* still inside the attackers' deadline */
     /* an ordinary well-behaved client is refused while the slots are held ... */
-    assert_false(try_status_as(&h, UID_B));
+    assert_false(try_status_as(&H, UID_B));
     /* ... and served once the request deadline (1 s) has dropped the stalled connections */
     int served = 0;
     while (!served && h_now_ms() - t0 < 5000) {
-        served = try_status_as(&h, UID_B);
+        served = try_status_as(&H, UID_B);
         if (!served)
             h_sleep_ms(50);
     }
@@ -193,18 +203,17 @@ static void slowloris_does_not_lock_out(void **state)
     /* bounded: the deadline plus scheduling slack on a loaded 2-core machine */
     assert_true(user_ms >= 1000 && user_ms < 3000);
     assert_true(all_ms < 4000);
-    harness_stop(&h);
-    harness_cleanup(&h);
+    harness_stop(&H);
+    harness_cleanup(&H);
 }
 
 static void trickle_and_idle_deadlines(void **state)
 {
     (void)state;
     need_root();
-    harness h;
-    start_open(&h, CONFIG);
+    start_open(&H, CONFIG);
     /* a byte every 200 ms never completes a line: dropped 1 s after its first byte, not after its last */
-    int t = connect_as(&h, UID_A);
+    int t = connect_as(&H, UID_A);
     assert_true(t >= 0);
     int64_t t0 = h_now_ms(), closed_ms = -1;
     while (h_now_ms() - t0 < 4000) {
@@ -226,8 +235,8 @@ static void trickle_and_idle_deadlines(void **state)
     assert_true(closed_ms >= 900 && closed_ms < 2500);
     /* after a request, an ordinary idle connection is closed at 2 s; a watcher stays */
     hconn idle, watcher;
-    hconn_open_as(&idle, &h, UID_A);
-    hconn_open_as(&watcher, &h, UID_A);
+    hconn_open_as(&idle, &H, UID_A);
+    hconn_open_as(&watcher, &H, UID_A);
     json_decref(hconn_request(&idle, "status", NULL));
     json_decref(hconn_request(&watcher, "watch", NULL));
     int64_t t1 = h_now_ms();
@@ -243,8 +252,8 @@ static void trickle_and_idle_deadlines(void **state)
     json_decref(r);
     hconn_close(&idle);
     hconn_close(&watcher);
-    harness_stop(&h);
-    harness_cleanup(&h);
+    harness_stop(&H);
+    harness_cleanup(&H);
 }
 
 /* The job ids listed by `jobs` on c. */
@@ -282,14 +291,13 @@ static void jobs_belong_to_their_uid(void **state)
 {
     (void)state;
     need_root();
-    harness h;
-    start_open(&h, CONFIG_SLOW);
+    start_open(&H, CONFIG_SLOW);
     hconn a, b, bw, root, rw;
-    hconn_open_as(&a, &h, UID_A);
-    hconn_open_as(&b, &h, UID_B);
-    hconn_open_as(&bw, &h, UID_B);
-    hconn_open(&root, &h);
-    hconn_open(&rw, &h);
+    hconn_open_as(&a, &H, UID_A);
+    hconn_open_as(&b, &H, UID_B);
+    hconn_open_as(&bw, &H, UID_B);
+    hconn_open(&root, &H);
+    hconn_open(&rw, &H);
     json_decref(hconn_request(&bw, "watch", NULL));
     json_decref(hconn_request(&rw, "watch", NULL));
     json_int_t ja = capture_done(&a);
@@ -338,8 +346,8 @@ static void jobs_belong_to_their_uid(void **state)
     hconn_close(&bw);
     hconn_close(&root);
     hconn_close(&rw);
-    harness_stop(&h);
-    harness_cleanup(&h);
+    harness_stop(&H);
+    harness_cleanup(&H);
 }
 
 /* ---- --socket FILE ---- */
@@ -395,16 +403,15 @@ static int log_contains(const harness *h, const char *what)
 static void socket_path_never_clobbers(void **state)
 {
     (void)state;
-    harness h;
-    harness_init(&h, NULL);
+    harness_init(&H, NULL);
     char path[400], target[400];
     /* a regular file */
-    snprintf(path, sizeof path, "%s/notes.txt", h.dir);
+    snprintf(path, sizeof path, "%s/notes.txt", H.dir);
     FILE *f = fopen(path, "w");
     assert_non_null(f);
     fputs("precious\n", f);
     fclose(f);
-    int st = wait_exit(spawn_on(&h, path), 15000);
+    int st = wait_exit(spawn_on(&H, path), 15000);
     char buf[32] = "";
     f = fopen(path, "r");
     assert_non_null(f);
@@ -414,29 +421,29 @@ static void socket_path_never_clobbers(void **state)
            strcmp(buf, "precious\n") == 0 ? "intact" : "DAMAGED");
     assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 1);
     assert_string_equal(buf, "precious\n");
-    assert_true(log_contains(&h, "a regular file stands there; refusing to replace it"));
+    assert_true(log_contains(&H, "a regular file stands there; refusing to replace it"));
     /* a symbolic link (to that file) and a folder */
-    snprintf(target, sizeof target, "%s/link.sock", h.dir);
+    snprintf(target, sizeof target, "%s/link.sock", H.dir);
     assert_int_equal(symlink(path, target), 0);
-    st = wait_exit(spawn_on(&h, target), 15000);
+    st = wait_exit(spawn_on(&H, target), 15000);
     struct stat sb;
     assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 1);
     assert_int_equal(lstat(target, &sb), 0);
     assert_true(S_ISLNK(sb.st_mode));
-    snprintf(target, sizeof target, "%s/folder.sock", h.dir);
+    snprintf(target, sizeof target, "%s/folder.sock", H.dir);
     assert_int_equal(mkdir(target, 0700), 0);
-    st = wait_exit(spawn_on(&h, target), 15000);
+    st = wait_exit(spawn_on(&H, target), 15000);
     assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 1);
     assert_int_equal(stat(target, &sb), 0);
     assert_true(S_ISDIR(sb.st_mode));
     /* a stale socket (bound, never listened, its owner gone) is still replaced */
-    snprintf(target, sizeof target, "%s/stale.sock", h.dir);
+    snprintf(target, sizeof target, "%s/stale.sock", H.dir);
     struct sockaddr_un sa = {.sun_family = AF_UNIX};
     snprintf(sa.sun_path, sizeof sa.sun_path, "%s", target);
     int s = socket(AF_UNIX, SOCK_STREAM, 0);
     assert_int_equal(bind(s, (struct sockaddr *)&sa, sizeof sa), 0);
     close(s);
-    pid_t pid = spawn_on(&h, target);
+    pid_t pid = spawn_on(&H, target);
     int up = 0;
     for (int i = 0; i < 200 && !up; i++) {
         int fd = h_connect_raw(target);
@@ -452,16 +459,16 @@ static void socket_path_never_clobbers(void **state)
     st = wait_exit(pid, 30000);
     assert_true(up);
     assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 0);
-    harness_cleanup(&h);
+    harness_cleanup(&H);
 }
 
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(slowloris_does_not_lock_out),
-        cmocka_unit_test(trickle_and_idle_deadlines),
-        cmocka_unit_test(jobs_belong_to_their_uid),
-        cmocka_unit_test(socket_path_never_clobbers),
+        cmocka_unit_test_teardown(slowloris_does_not_lock_out, cleanup),
+        cmocka_unit_test_teardown(trickle_and_idle_deadlines, cleanup),
+        cmocka_unit_test_teardown(jobs_belong_to_their_uid, cleanup),
+        cmocka_unit_test_teardown(socket_path_never_clobbers, cleanup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
