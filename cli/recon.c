@@ -16,6 +16,8 @@
 #include "cli/client.h"
 #include "cli/commands.h"
 #include "cli/progress.h"
+#include "cli/recon_color.h"
+#include "io/problem_dir.h"
 #include "io/recon_store.h"
 #include "io/source.h"
 #include "recon/admmtv.h"
@@ -63,6 +65,10 @@ static void usage(FILE *f)
             "              --truth-var NAME   the truth's variable (default orig, optional), H×W×(k·N)\n"
             "              --scale auto|N     the value of white in the file (default 255); meas and truth are\n"
             "                                 divided by it; auto reads the data's range and says what it chose\n"
+            "  colour:      --cfa PATTERN      RGGB, BGGR, GRBG or GBRG: the Bayer pattern of a raw mosaic input (a\n"
+            "                                 colour folder from 'scicap sim' names its own); none: treat it as grey\n"
+            "              --demosaic M       mhc (default, Malvar-He-Cutler) or bilinear, after the 4 CFA planes\n"
+            "                                 are solved; writes rgb_NNN.exr, colour preview_rgb_NNN.png, RGB PSNR\n"
             "      --metrics-every K  PSNR against truth in the trace every K iterations (default 1)\n"
             "      --ssim-every K     SSIM in the trace every K iterations (default 10; 0 = last only)\n"
             "  -j, --threads N        OpenMP threads (default: all cores)\n"
@@ -207,7 +213,9 @@ int cli_recon_main(int argc, char **argv)
     enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET,
            OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME, OPT_NET_LR, OPT_SPACING, OPT_DIST, OPT_PRIOR_STEPS,
            OPT_PRIOR_W, OPT_DBIAS, OPT_ZERO_GATES, OPT_SH, OPT_MASK, OPT_MASK_VAR, OPT_MEAS_VAR, OPT_TRUTH_VAR,
-           OPT_SCALE };
+           OPT_SCALE, OPT_CFA, OPT_DEMOSAIC };
+    const char *cfa_opt = NULL;
+    sci_demosaic_method demosaic = SCI_DEMOSAIC_MHC;
     sci_mat_options mo = {0};
     static const struct option longopts[] = {
         {"method", required_argument, 0, 'm'},   {"output", required_argument, 0, 'o'},
@@ -230,6 +238,7 @@ int cli_recon_main(int argc, char **argv)
         {"mask", required_argument, 0, OPT_MASK}, {"mask-var", required_argument, 0, OPT_MASK_VAR},
         {"meas-var", required_argument, 0, OPT_MEAS_VAR}, {"truth-var", required_argument, 0, OPT_TRUTH_VAR},
         {"scale", required_argument, 0, OPT_SCALE},
+        {"cfa", required_argument, 0, OPT_CFA}, {"demosaic", required_argument, 0, OPT_DEMOSAIC},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
     };
     optind = 1;
@@ -324,6 +333,21 @@ int cli_recon_main(int argc, char **argv)
             else if ((bad = parse_double(optarg, "--scale", &mo.white)) == 0 && !(mo.white > 0)) {
                 fprintf(stderr, "scicap recon: --scale wants auto or a number > 0 (the value of white), got '%s'\n",
                         optarg);
+                bad = -1;
+            }
+            break;
+        case OPT_CFA: {
+            sci_cfa tmp;
+            cfa_opt = optarg;
+            if (sci_cfa_parse(optarg, &tmp) < 0) {
+                fprintf(stderr, "scicap recon: --cfa wants RGGB, BGGR, GRBG, GBRG or none, got '%s'\n", optarg);
+                bad = -1;
+            }
+            break;
+        }
+        case OPT_DEMOSAIC:
+            if (sci_demosaic_parse(optarg, &demosaic) < 0) {
+                fprintf(stderr, "scicap recon: --demosaic wants mhc or bilinear, got '%s'\n", optarg);
                 bad = -1;
             }
             break;
@@ -426,6 +450,26 @@ int cli_recon_main(int argc, char **argv)
     }
     if (mo.white == SCI_MAT_WHITE_AUTO)
         fprintf(stderr, "scicap recon: --scale auto: %s; values divided by %g\n", minfo.how, minfo.white);
+    /* Colour: a folder from a colour scene names its CFA and keeps the RGB truth; --cfa overrides (none: grey). */
+    int cfa_i = SCI_CFA_NONE, kc = 0;
+    sci_cube **truth_rgb = NULL;
+    if (!sci_source_is_mat(input) && sci_problem_dir_read_color(input, &cfa_i, &truth_rgb, &kc, &err) < 0) {
+        fprintf(stderr, "scicap recon: %s\n", err.msg);
+        sci_problem_array_free(probs, k);
+        return 1;
+    }
+    sci_cfa cfa = (sci_cfa)cfa_i;
+    if (cfa_opt)
+        sci_cfa_parse(cfa_opt, &cfa);
+    if (cfa != SCI_CFA_NONE && o.method > 1) {
+        fprintf(stderr, "scicap recon: %s is a Bayer mosaic; colour reconstruction runs gap-tv or admm-tv per CFA "
+                        "plane (--cfa none reconstructs it as grey)\n", input);
+        for (int j = 0; truth_rgb && j < kc; j++)
+            sci_cube_free(truth_rgb[j]);
+        free(truth_rgb);
+        sci_problem_array_free(probs, k);
+        return 2;
+    }
     if (snapshot > k) {
         fprintf(stderr, "scicap recon: %s has %d snapshot(s); --snapshot %d is out of range\n", input, k, snapshot);
         sci_problem_array_free(probs, k);
@@ -470,6 +514,30 @@ int cli_recon_main(int argc, char **argv)
         const int total = o.method == 0 ? o.gap.iters : o.method == 1 ? o.admm.iters : o.method == 2 ? o.rf.iters : o.sn.iters;
         cli_progress_init(&prog, o.quiet ? -1 : 2, total);
         prog.stop = &stop_requested;
+        char dir[4096];
+        if (first == last)
+            snprintf(dir, sizeof dir, "%s", out);
+        else
+            snprintf(dir, sizeof dir, "%s/snap_%03d", out, j + 1);
+        if (cfa != SCI_CFA_NONE) {
+            const cli_color_job job = {.cfa = cfa, .demosaic = demosaic, .method = o.method, .gap = &o.gap,
+                                       .admm = &o.admm, .params = params, .quiet = o.quiet, .stop = &stop_requested};
+            int crc = 0;
+            if (first != last && j == first && access(out, F_OK) != 0 && mkdir(out, 0755) != 0)
+                crc = sci_error_set(&err, -errno, "%s: %s", out, strerror(errno));
+            if (crc == 0)
+                crc = cli_recon_color(&job, p, truth_rgb && j < kc ? truth_rgb[j] : NULL, dir, force, &err);
+            if (crc == SCI_ECANCELED || stop_requested) {
+                fprintf(stderr, "scicap recon: interrupted; %s not written\n", first == last ? out : "this snapshot");
+                status = 1;
+            } else if (crc < 0) {
+                fprintf(stderr, "scicap recon: %s\n", err.msg);
+                status = 1;
+            } else {
+                printf("  wrote %s/ (RGB: rgb_NNN.exr, preview_rgb_NNN.png)\n", dir);
+            }
+            continue;
+        }
         sci_result r = {0};
         int64_t t0 = sci_clock_mono_ns();
         int rc = o.method == 0   ? sci_gaptv_solve(p, &o.gap, &r, cli_progress_update, &prog)
@@ -502,11 +570,6 @@ int cli_recon_main(int argc, char **argv)
                r.iters_done, solver_s, secs, r.trace.len ? r.trace.e[r.trace.len - 1].residual : NAN);
         if (p->truth)
             print_metrics(p, &r);
-        char dir[4096];
-        if (first == last)
-            snprintf(dir, sizeof dir, "%s", out);
-        else
-            snprintf(dir, sizeof dir, "%s/snap_%03d", out, j + 1);
         if (first != last && j == first && access(out, F_OK) != 0 && mkdir(out, 0755) != 0) {
             fprintf(stderr, "scicap recon: %s: %s\n", out, strerror(errno));
             status = 1;
@@ -524,6 +587,9 @@ int cli_recon_main(int argc, char **argv)
     if (ckpt_path && ck.written && status == 0)
         printf("  checkpoint of step %d in %s\n", ck.iter, ckpt_path);
     json_decref(params);
+    for (int j = 0; truth_rgb && j < kc; j++)
+        sci_cube_free(truth_rgb[j]);
+    free(truth_rgb);
     free(resume_blob);
     sci_problem_array_free(probs, k);
     if (sig) {

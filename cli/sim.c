@@ -10,6 +10,7 @@
 #include "base/clock.h"
 #include "cli/commands.h"
 #include "io/problem_dir.h"
+#include "recon/bayer.h"
 #include "sim/default_scene.h"
 #include "sim/simulate.h"
 
@@ -124,6 +125,7 @@ int cli_sim_main(int argc, char **argv)
     sim_scene *sc = NULL;
     sci_problem **p = NULL;
     json_t *record = NULL;
+    sci_cube **rgb = NULL;
     int k = 0, status = 1;
     int rc = use_default ? sim_default_scene_load(&sc, &err) : sim_scene_load_file(&sc, argv[optind], &err);
     if (rc < 0)
@@ -148,10 +150,24 @@ int cli_sim_main(int argc, char **argv)
         rc = sci_error_set(&err, -ENOMEM, "out of memory for the scene record");
         goto fail;
     }
-    if ((rc = sci_problem_dir_write(out, p, k, record, force, &err)) < 0)
+    if (sc->cfa) {
+        /* Colour: the problems are the raw mosaic; the RGB truth goes beside them for colour PSNR and previews. */
+        if (!(rgb = calloc((size_t)k, sizeof *rgb))) {
+            rc = sci_error_set(&err, -ENOMEM, "out of memory for the RGB truth");
+            goto fail;
+        }
+        for (int j = 0; j < k; j++)
+            if ((rc = sci_cube_new(&rgb[j], sc->w, sc->h, 3 * sc->n, &err)) < 0 ||
+                (rc = sim_render_truth_rgb(sc, j, rgb[j], &err)) < 0)
+                goto fail;
+        const sci_problem_color col = {.cfa = sc->cfa, .truth_rgb = rgb};
+        if ((rc = sci_problem_dir_write_color(out, p, k, record, &col, force, 1, &err)) < 0)
+            goto fail;
+    } else if ((rc = sci_problem_dir_write(out, p, k, record, force, &err)) < 0) {
         goto fail;
-    printf("wrote %s: %s, %dx%dx%d, %d snapshot(s), effects:", out, sim_scene_kind_name(sc->kind), sc->w, sc->h,
-           sc->n, k);
+    }
+    printf("wrote %s: %s%s%s, %dx%dx%d, %d snapshot(s), effects:", out, sim_scene_kind_name(sc->kind),
+           sc->cfa ? ", colour, Bayer " : "", sc->cfa ? sci_cfa_name((sci_cfa)sc->cfa) : "", sc->w, sc->h, sc->n, k);
     int any = 0;
     for (int e = 0; e < SIM_FX_COUNT; e++)
         if (sim_fx_listed(&sc->fx, e)) {
@@ -165,6 +181,9 @@ fail:
     fprintf(stderr, "scicap sim: %s\n", err.msg[0] ? err.msg : sci_strerror(rc));
 done:
     json_decref(record);
+    for (int j = 0; rgb && j < k; j++)
+        sci_cube_free(rgb[j]);
+    free(rgb);
     if (p)
         sci_problem_array_free(p, k);
     sim_scene_free(sc);

@@ -106,6 +106,39 @@ int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type t
     return publish(tmp, path, rc, msg, err);
 }
 
+/* io/image_rgb.cpp */
+int sci_oiio_write_rgb(const char *path, const float *rgb, int w, int h, int pixel_type, char *errbuf, size_t errlen);
+
+int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_type type, double scale,
+                        sci_error *err)
+{
+    if (f < 0 || 3 * f + 2 >= rgb->n)
+        return sci_error_set(err, -EINVAL, "%s: RGB frame %d out of range (cube has %d channels)", path, f, rgb->n);
+    if (!sci_pixel_type_name(type))
+        return sci_error_set(err, -EINVAL, "%s: invalid pixel type", path);
+    const size_t fs = sci_cube_frame_size(rgb);
+    float *buf = malloc(3 * fs * sizeof *buf);
+    if (!buf)
+        return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
+    const double hi = type == SCI_PIXEL_U8 ? 255 : 65535;
+    for (int c = 0; c < 3; c++) {
+        const float *src = sci_cube_frame(rgb, 3 * f + c);
+        for (size_t i = 0; i < fs; i++) {
+            double v = (double)src[i] * scale;
+            if (type == SCI_PIXEL_U8 || type == SCI_PIXEL_U16) {
+                v = isnan(v) ? 0 : nearbyint(v);
+                v = v < 0 ? 0 : (v > hi ? hi : v);
+            }
+            buf[3 * i + c] = (float)v;
+        }
+    }
+    char tmp[4096], msg[SCI_ERROR_MSG_MAX];
+    tmp_name(tmp, sizeof tmp, path);
+    int rc = sci_oiio_write_rgb(tmp, buf, rgb->w, rgb->h, (int)type, msg, sizeof msg);
+    free(buf);
+    return publish(tmp, path, rc, msg, err);
+}
+
 int sci_image_write_gif(const char *path, const sci_cube *c, double scale, int delay_ms, sci_error *err)
 {
     const size_t count = sci_cube_count(c);

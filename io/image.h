@@ -47,6 +47,11 @@ int sci_image_read(const char *path, sci_cube **out, int *bits, sci_error *err);
 int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type type, double scale,
                     const char *description, sci_error *err);
 
+/* Write frames 3f, 3f + 1, 3f + 2 of `rgb` (an RGB cube, recon/bayer.h) as one 3-channel image: colour EXR
+ * (float) or PNG/TIFF (8/16-bit, value × scale rounded and clamped). Atomic. Errors as sci_image_write. */
+int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_type type, double scale,
+                        sci_error *err);
+
 /* Write an animated GIF preview of all frames (8-bit, value × scale clamped), `delay_ms` per frame. */
 int sci_image_write_gif(const char *path, const sci_cube *c, double scale, int delay_ms, sci_error *err);
 

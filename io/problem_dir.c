@@ -1,5 +1,7 @@
 #include "io/problem_dir.h"
 
+#include "recon/bayer.h"
+
 #include <dirent.h>
 #include <errno.h>
 #include <ftw.h>
@@ -45,6 +47,12 @@ int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, 
 int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                               int overwrite, int previews, sci_error *err)
 {
+    return sci_problem_dir_write_color(dir, problems, k, source, NULL, overwrite, previews, err);
+}
+
+int sci_problem_dir_write_color(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                                const sci_problem_color *color, int overwrite, int previews, sci_error *err)
+{
     if (k < 1)
         return sci_error_set(err, -EINVAL, "%s: no problems to write", dir);
     const sci_problem *p0 = problems[0];
@@ -64,8 +72,19 @@ int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int
     snprintf(tmp, sizeof tmp, "%s.tmp-%d", dir, (int)getpid());
     rm_tree(tmp);
     const int w = p0->mask->w, h = p0->mask->h, n = p0->mask->n;
-    sci_cube *meas = NULL, *truth = NULL;
+    sci_cube *meas = NULL, *truth = NULL, *rgb = NULL;
     int rc = sci_cube_new(&meas, w, h, k, err);
+    if (rc == 0 && color && color->truth_rgb) {
+        if ((rc = sci_cube_new(&rgb, w, h, 3 * n * k, err)) == 0)
+            for (int j = 0; j < k && rc == 0; j++) {
+                const sci_cube *c = color->truth_rgb[j];
+                if (c->w != w || c->h != h || c->n != 3 * n)
+                    rc = sci_error_set(err, SCI_ESHAPE, "%s: RGB truth %d is %dx%dx%d, not %dx%dx%d", dir, j, c->w,
+                                       c->h, c->n, w, h, 3 * n);
+                else
+                    memcpy(sci_cube_frame(rgb, 3 * n * j), c->data, sci_cube_count(c) * sizeof(float));
+            }
+    }
     if (rc == 0 && have_truth)
         rc = sci_cube_new(&truth, w, h, n * k, err);
     if (rc < 0)
@@ -78,7 +97,8 @@ int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int
     }
     if ((rc = sci_stack_write(tmp, "meas", "exr", meas, SCI_PIXEL_F32, 1.0, NULL, err)) < 0 ||
         (rc = sci_stack_write(tmp, "mask", "exr", p0->mask, SCI_PIXEL_F32, 1.0, NULL, err)) < 0 ||
-        (truth && (rc = sci_stack_write(tmp, "truth", "exr", truth, SCI_PIXEL_F32, 1.0, NULL, err)) < 0))
+        (truth && (rc = sci_stack_write(tmp, "truth", "exr", truth, SCI_PIXEL_F32, 1.0, NULL, err)) < 0) ||
+        (rgb && (rc = sci_stack_write(tmp, "truth_rgb", "exr", rgb, SCI_PIXEL_F32, 1.0, NULL, err)) < 0))
         goto out;
     /* Viewable 8-bit previews beside the lossless stacks: truth and masks on [0, peak], measurements scaled by
      * their own maximum (they sum up to N frames). */
@@ -97,6 +117,11 @@ int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int
         snprintf(pv, sizeof pv, "%s/preview_truth.gif", tmp);
         rc = sci_image_write_gif(pv, truth, 255.0 / p0->peak, 125, err);
     }
+    char pvc[4200];
+    for (int f = 0; previews && rgb && f < n && rc == 0; f++) {
+        snprintf(pvc, sizeof pvc, "%s/preview_truth_rgb_%03d.png", tmp, f);
+        rc = sci_image_write_rgb(pvc, rgb, f, SCI_PIXEL_U8, 255.0 / p0->peak, err);
+    }
     if (rc < 0)
         goto out;
     json_t *man = json_pack("{s:s, s:i, s:i, s:i, s:i, s:i, s:f, s:s, s:s}", "format", "scicap-problem", "version", 1,
@@ -106,6 +131,10 @@ int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int
         json_object_set_new(man, "truth", json_string("truth.json"));
     if (have_camera)
         json_object_set_new(man, "camera", camera_to_json(p0->camera, problems, k));
+    if (color)
+        json_object_set_new(man, "cfa", json_string(sci_cfa_name((sci_cfa)color->cfa)));
+    if (rgb)
+        json_object_set_new(man, "truth_rgb", json_string("truth_rgb.json"));
     if (source)
         json_object_set_new(man, "source", json_deep_copy(source));
     json_object_set_new(man, "name", json_string(p0->name));
@@ -132,6 +161,68 @@ out:
         rm_tree(tmp);
     sci_cube_free(meas);
     sci_cube_free(truth);
+    sci_cube_free(rgb);
+    return rc;
+}
+
+int sci_problem_dir_read_color(const char *dir, int *cfa, sci_cube ***truth_rgb, int *k, sci_error *err)
+{
+    *cfa = SCI_CFA_NONE;
+    *k = 0;
+    if (truth_rgb)
+        *truth_rgb = NULL;
+    char base[4096], path[4200];
+    snprintf(base, sizeof base, "%s", dir);
+    size_t bl = strlen(base);
+    if (bl > 13 && strcmp(base + bl - 13, "/problem.json") == 0)
+        base[bl - 13] = 0;
+    snprintf(path, sizeof path, "%s/problem.json", base);
+    json_error_t je;
+    json_t *man = json_load_file(path, 0, &je);
+    if (!man)
+        return sci_error_set(err, SCI_EFORMAT, "%s: %s", path, je.text);
+    int rc = 0;
+    const char *c = json_string_value(json_object_get(man, "cfa"));
+    const char *rgb_f = json_string_value(json_object_get(man, "truth_rgb"));
+    const json_int_t snaps = json_integer_value(json_object_get(man, "snapshots"));
+    const json_int_t n = json_integer_value(json_object_get(man, "n"));
+    sci_cfa parsed = SCI_CFA_NONE;
+    if (c && (sci_cfa_parse(c, &parsed) < 0 || parsed == SCI_CFA_NONE)) {
+        rc = sci_error_set(err, SCI_EFORMAT, "%s: cfa \"%s\" is not RGGB, BGGR, GRBG or GBRG", path, c);
+        goto out;
+    }
+    *cfa = (int)parsed;
+    *k = (int)snaps;
+    if (truth_rgb && rgb_f && parsed != SCI_CFA_NONE) {
+        char sub[4400];
+        snprintf(sub, sizeof sub, "%s/%s", base, rgb_f);
+        sci_cube *all = NULL;
+        if ((rc = sci_stack_read(sub, &all, NULL, err)) < 0)
+            goto out;
+        if (snaps < 1 || n < 1 || all->n != 3 * n * snaps) {
+            rc = sci_error_set(err, SCI_ESHAPE, "%s: %d RGB planes, expected 3 × %lld × %lld", sub, all->n,
+                               (long long)n, (long long)snaps);
+            sci_cube_free(all);
+            goto out;
+        }
+        sci_cube **arr = calloc((size_t)snaps, sizeof *arr);
+        for (int j = 0; arr && j < snaps; j++) {
+            if ((rc = sci_cube_new(&arr[j], all->w, all->h, 3 * (int)n, err)) < 0)
+                break;
+            memcpy(arr[j]->data, sci_cube_frame(all, 3 * (int)n * j), sci_cube_count(arr[j]) * sizeof(float));
+        }
+        sci_cube_free(all);
+        if (!arr || rc < 0) {
+            for (int j = 0; arr && j < snaps; j++)
+                sci_cube_free(arr[j]);
+            free(arr);
+            rc = rc < 0 ? rc : sci_error_set(err, -ENOMEM, "%s: out of memory", sub);
+            goto out;
+        }
+        *truth_rgb = arr;
+    }
+out:
+    json_decref(man);
     return rc;
 }
 

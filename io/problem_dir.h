@@ -32,6 +32,20 @@ int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, 
 int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                               int overwrite, int previews, sci_error *err);
 
+/* Colour (Bayer) problems: the problems hold the raw mosaic (meas, masks and the mosaicked truth, so every grey
+ * tool still works on them); the manifest adds "cfa": "RGGB" (or BGGR, GRBG, GBRG) and, when known, "truth_rgb":
+ * "truth_rgb.json", a stack of k·N RGB frames as 3·k·N planes (frame f's channel c at 3f + c, recon/bayer.h),
+ * previewed in colour as preview_truth_rgb_NNN.png (the first snapshot's frames). */
+typedef struct sci_problem_color {
+    int cfa;                           /* sci_cfa (recon/demosaic.h), not SCI_CFA_NONE */
+    sci_cube *const *truth_rgb;        /* k cubes of w×h×3N, or NULL when unknown; borrowed */
+} sci_problem_color;
+int sci_problem_dir_write_color(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                                const sci_problem_color *color, int overwrite, int previews, sci_error *err);
+/* The colour part of a folder: *cfa = SCI_CFA_NONE (0) for a grey folder; *truth_rgb (may be NULL) receives a
+ * malloc'd array of k RGB cubes (free each and the array) or NULL when the folder has none. */
+int sci_problem_dir_read_color(const char *dir, int *cfa, sci_cube ***truth_rgb, int *k, sci_error *err);
+
 /* Read DIR (or DIR/problem.json). On success *out is a malloc'd array of *k problem pointers, freed with
  * sci_problem_array_free (recon/problem.h). */
 int sci_problem_dir_read(const char *dir, sci_problem ***out, int *k, sci_error *err);

@@ -132,3 +132,23 @@ const char *sci_peak_name(sci_peak conv, double peak, char *buf, size_t n)
         snprintf(buf, n, "peak = %g", peak);
     return buf;
 }
+
+double sci_psnr_rgb(const sci_cube *x, const sci_cube *truth, sci_peak conv, double peak, double *per_frame)
+{
+    const int n = x->n / 3;
+    double *v = malloc((size_t)x->n * sizeof *v);
+    if (!v || n < 1) {
+        free(v);
+        return NAN;
+    }
+    sci_psnr(x, truth, conv, peak, v);
+    double s = 0;
+    for (int f = 0; f < n; f++) {
+        const double m = (v[3 * f] + v[3 * f + 1] + v[3 * f + 2]) / 3;
+        if (per_frame)
+            per_frame[f] = m;
+        s += m;
+    }
+    free(v);
+    return s / n;
+}

@@ -26,6 +26,11 @@ double sci_psnr(const sci_cube *x, const sci_cube *truth, sci_peak conv, double 
 double sci_ssim_frame(const float *x, const float *ref, int w, int h, double range);
 /* Mean SSIM over frames; per_frame (may be NULL) receives x->n values. */
 double sci_ssim(const sci_cube *x, const sci_cube *truth, double range, double *per_frame);
+/* Colour PSNR as the colour SCI literature reports it: per frame, the mean over R, G and B of each full-resolution
+ * channel's PSNR, then the mean over frames. x and truth are RGB cubes (recon/bayer.h: frame f's channel c is
+ * frame 3f + c, n = 3N). SCI_PEAK_FRAME_MAX takes each channel's own maximum. per_frame (may be NULL) receives N
+ * values. */
+double sci_psnr_rgb(const sci_cube *x, const sci_cube *truth, sci_peak conv, double peak, double *per_frame);
 /* Name of a convention for printouts: "peak=frame max" or "peak=1" style text written into buf. */
 const char *sci_peak_name(sci_peak conv, double peak, char *buf, size_t n);
 

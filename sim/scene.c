@@ -14,8 +14,9 @@ static int parse(sim_scene *sc, const sci_json_doc *doc, const char *base_dir, s
 {
     static const char *const allowed[] = {"version", "kind", "name", "description", "width", "height", "frames",
                                           "snapshots", "bit_depth", "seed", "supersample", "background", "layers",
-                                          "objects", "camera", "light", "masks", "sensor", "effects", NULL};
-    static const char *const only2d[] = {"layers", NULL}, *const only3d[] = {"objects", "camera", "light", NULL};
+                                          "objects", "camera", "light", "masks", "sensor", "effects", "cfa",
+                                          "background_color", NULL};
+    static const char *const only2d[] = {"layers", "cfa", "background_color", NULL}, *const only3d[] = {"objects", "camera", "light", NULL};
     const json_t *root = sci_json_doc_root(doc);
     int rc, kind = 0;
     long long w = 0, h = 0, n = 8, k = 1, bits = 12, ss = 1, seed = 1, version = 1;
@@ -50,6 +51,11 @@ static int parse(sim_scene *sc, const sci_json_doc *doc, const char *base_dir, s
     sc->bit_depth = (int)bits;
     sc->supersample = (int)ss;
     sc->seed = (uint64_t)seed;
+    static const char *const cfas[] = {"none", "RGGB", "BGGR", "GRBG", "GBRG", NULL};
+    if ((rc = sci_json_get_enum(doc, root, "", "cfa", 0, cfas, &sc->cfa, err)) < 0)
+        return rc;
+    if (sc->cfa && (w % 2 || h % 2))
+        return sci_json_fail(doc, err, "cfa", "a Bayer sensor needs an even width and height (got %lldx%lld)", w, h);
     if (kind == SIM_SCENE_VIDEO2D)
         rc = sim_video2d_parse(doc, root, base_dir, sc->w, sc->h, sc->seed, &sc->video2d, err);
     else

@@ -38,6 +38,7 @@ typedef struct sim_scene {
     uint64_t seed;
     sim_video2d video2d;     /* kind == video2d */
     sim_static3d static3d;   /* kind == static3d */
+    int cfa;                 /* sci_cfa (recon/demosaic.h): SCI_CFA_NONE for a grey sensor; video2d only */
     sim_mask_spec masks;
     sim_effects_spec fx;
     json_t *record;          /* the scene as loaded (a deep copy), for the output's provenance; owned */

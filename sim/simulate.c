@@ -7,7 +7,10 @@
 
 int sim_render_frame(const sim_scene *sc, double t, float *out)
 {
-    if (sc->kind == SIM_SCENE_VIDEO2D)
+    /* A colour scene's sensor sees the Bayer mosaic: every effect downstream works on raw pixels, as on a camera. */
+    if (sc->kind == SIM_SCENE_VIDEO2D && sc->cfa)
+        sim_video2d_render_color(&sc->video2d, sc->w, sc->h, sc->supersample, t, sc->cfa, -1, out);
+    else if (sc->kind == SIM_SCENE_VIDEO2D)
         sim_video2d_render(&sc->video2d, sc->w, sc->h, sc->supersample, t, out);
     else
         sim_static3d_render(&sc->static3d, sc->w, sc->h, sc->supersample, t, out);
@@ -24,6 +27,20 @@ int sim_render_truth(const sim_scene *sc, int snapshot, sci_cube *truth, sci_err
         if (rc < 0)
             return sci_error_set(err, rc, "%s: rendering frame %d failed", sc->name, snapshot * sc->n + k);
     }
+    return 0;
+}
+
+int sim_render_truth_rgb(const sim_scene *sc, int snapshot, sci_cube *rgb, sci_error *err)
+{
+    if (!sc->cfa || sc->kind != SIM_SCENE_VIDEO2D)
+        return sci_error_set(err, -EINVAL, "%s: not a colour scene (no \"cfa\")", sc->name);
+    if (rgb->w != sc->w || rgb->h != sc->h || rgb->n != 3 * sc->n)
+        return sci_error_set(err, SCI_ESHAPE, "RGB truth cube is %dx%dx%d, scene %s needs %dx%dx%d", rgb->w, rgb->h,
+                             rgb->n, sc->name, sc->w, sc->h, 3 * sc->n);
+    for (int k = 0; k < sc->n; k++)
+        for (int c = 0; c < 3; c++)
+            sim_video2d_render_color(&sc->video2d, sc->w, sc->h, sc->supersample, (double)snapshot * sc->n + k,
+                                     sc->cfa, c, sci_cube_frame(rgb, 3 * k + c));
     return 0;
 }
 

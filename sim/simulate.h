@@ -24,6 +24,11 @@ int sim_render_frame(const sim_scene *sc, double t, float *out);
 /* Render the N truth frames of snapshot `snapshot` into truth (w×h×N). */
 int sim_render_truth(const sim_scene *sc, int snapshot, sci_cube *truth, sci_error *err);
 
+/* Colour scenes ("cfa" set): the problems sim_run gives hold the raw Bayer mosaic (truth = the mosaicked truth
+ * frames, what a colour sensor behind the DMD records); this renders snapshot `snapshot`'s full RGB truth into rgb
+ * (w×h×3N, frame f's channel c at 3f + c; recon/bayer.h). -EINVAL for a grey scene. */
+int sim_render_truth_rgb(const sim_scene *sc, int snapshot, sci_cube *rgb, sci_error *err);
+
 /* Called after each rendered snapshot (done of total); nonzero cancels (SCI_ECANCELED). */
 typedef int (*sim_progress_fn)(void *user, int done, int total);
 

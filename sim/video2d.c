@@ -1,5 +1,7 @@
 #include "sim/video2d.h"
 
+#include "recon/demosaic.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -25,12 +27,33 @@ static int get_pair(const sci_json_doc *doc, const json_t *obj, const char *path
     return 0;
 }
 
+/* An optional [r, g, b] in [0, 1]: 1 when absent, 0 when read. */
+static int get_rgb(const sci_json_doc *doc, const json_t *obj, const char *path, const char *key, double out[3],
+                   sci_error *err)
+{
+    const json_t *v = json_object_get(obj, key);
+    if (!v)
+        return 1;
+    char p[1024];
+    sci_json_path_key(p, sizeof p, path, key);
+    if (!json_is_array(v) || json_array_size(v) != 3)
+        return sci_json_fail(doc, err, p, "must be an array of three numbers [r, g, b] in [0, 1]");
+    for (size_t i = 0; i < 3; i++) {
+        const json_t *e = json_array_get(v, i);
+        double x = json_is_number(e) ? json_number_value(e) : -1;
+        if (!(x >= 0 && x <= 1))
+            return sci_json_fail(doc, err, p, "must be an array of three numbers [r, g, b] in [0, 1]");
+        out[i] = x;
+    }
+    return 0;
+}
+
 static int parse_layer(const sci_json_doc *doc, const json_t *o, const char *path, const char *base_dir, int w,
                        int h, uint64_t seed, int index, sim_layer *L, sci_error *err)
 {
     static const char *const allowed[] = {"shape", "texture", "size", "sides", "vertices", "position",
                                           "velocity", "angle_rad", "spin_rad", "scale", "scale_rate", "depth",
-                                          NULL};
+                                          "color", NULL};
     int rc, shape = 0;
     memset(L, 0, sizeof *L);
     L->size_w = w;
@@ -39,6 +62,7 @@ static int parse_layer(const sci_json_doc *doc, const json_t *o, const char *pat
     L->y = 0.5 * h;
     L->scale = 1;
     L->depth = -index; /* file order: later layers in front */
+    L->color[0] = L->color[1] = L->color[2] = 1;
     if ((rc = sci_json_check_keys(doc, o, path, allowed, err)) < 0)
         return rc;
     if ((rc = sci_json_get_enum(doc, o, path, "shape", 0, shapes, &shape, err)) < 0)
@@ -90,6 +114,8 @@ static int parse_layer(const sci_json_doc *doc, const json_t *o, const char *pat
             }
         }
     }
+    if ((rc = get_rgb(doc, o, path, "color", L->color, err)) < 0)
+        return rc;
     const json_t *tex = json_object_get(o, "texture");
     char p[1024];
     sci_json_path_key(p, sizeof p, path, "texture");
@@ -116,6 +142,9 @@ int sim_video2d_parse(const sci_json_doc *doc, const json_t *root, const char *b
     memset(v, 0, sizeof *v);
     int rc;
     if ((rc = sci_json_get_double(doc, root, "", "background", 0, 0, 1, &v->background, err)) < 0)
+        return rc;
+    v->background_rgb[0] = v->background_rgb[1] = v->background_rgb[2] = v->background;
+    if ((rc = get_rgb(doc, root, "", "background_color", v->background_rgb, err)) < 0)
         return rc;
     const json_t *layers = json_object_get(root, "layers");
     if (!layers)
@@ -195,6 +224,12 @@ static int inside(const sim_layer *L, double qx, double qy)
 
 void sim_video2d_render(const sim_video2d *v, int w, int h, int s, double t, float *out)
 {
+    sim_video2d_render_color(v, w, h, s, t, SCI_CFA_NONE, -1, out);
+}
+
+void sim_video2d_render_color(const sim_video2d *v, int w, int h, int s, double t, int cfa, int channel, float *out)
+{
+    const int colour = channel >= 0 || cfa != SCI_CFA_NONE;
     placed pl[SIM_LAYERS_MAX];
     for (int i = 0; i < v->nlayers; i++) {
         const sim_layer *L = &v->layer[i];
@@ -207,9 +242,11 @@ void sim_video2d_render(const sim_video2d *v, int w, int h, int s, double t, flo
     for (int y = 0; y < h; y++) {
         for (int x = 0; x < w; x++) {
             double acc = 0;
+            const int ch = channel >= 0 ? channel : cfa != SCI_CFA_NONE ? sci_cfa_color((sci_cfa)cfa, x, y) : 0;
             for (int j = 0; j < s; j++)
                 for (int i = 0; i < s; i++) {
-                    double px = x + (i + 0.5) / s, py = y + (j + 0.5) / s, val = v->background;
+                    double px = x + (i + 0.5) / s, py = y + (j + 0.5) / s;
+                    double val = colour ? v->background_rgb[ch] : v->background;
                     for (int l = 0; l < v->nlayers; l++) {
                         const placed *P = &pl[l];
                         double dx = px - P->cx, dy = py - P->cy;
@@ -219,6 +256,8 @@ void sim_video2d_render(const sim_video2d *v, int w, int h, int s, double t, flo
                         const sim_layer *L = &v->layer[l];
                         if (inside(L, qx, qy)) {
                             val = sim_texture_eval(&L->tex, qx + 0.5 * L->size_w, qy + 0.5 * L->size_h);
+                            if (colour)
+                                val *= L->color[ch];
                             break;
                         }
                     }

@@ -30,12 +30,14 @@ typedef struct sim_layer {
     double angle_rad, spin_rad; /* angle at t = 0 and per frame */
     double scale, scale_rate;   /* scale at t = 0 and its change per frame */
     double depth;               /* larger is farther */
+    double color[3];            /* RGB tint of the texture in colour scenes ("color", default white) */
 } sim_layer;
 
 typedef struct sim_video2d {
     int nlayers;
     sim_layer layer[SIM_LAYERS_MAX]; /* sorted near to far after parsing */
     double background;               /* value where no layer covers */
+    double background_rgb[3];        /* colour scenes: "background_color", default the grey background */
 } sim_video2d;
 
 /* Parse the "layers" array and "background" of the scene object `root`. w, h give layer defaults (a layer
@@ -46,5 +48,9 @@ void sim_video2d_clear(sim_video2d *v);
 /* Render the scene at time t (frames) into `out` (w×h floats, row-major) with s×s samples per pixel.
  * Reentrant; OpenMP over rows. */
 void sim_video2d_render(const sim_video2d *v, int w, int h, int s, double t, float *out);
+/* Colour: render channel `channel` (0 R, 1 G, 2 B: texture value × the layer's colour) of every pixel, or with
+ * channel −1 the raw Bayer mosaic under `cfa` (recon/demosaic.h: each pixel its filter's channel). Same cost as
+ * the grey render; sim_video2d_render is this with no colour at all. */
+void sim_video2d_render_color(const sim_video2d *v, int w, int h, int s, double t, int cfa, int channel, float *out);
 
 #endif

@@ -1,0 +1,148 @@
+#include "cli/recon_color.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cli/progress.h"
+#include "io/image.h"
+#include "io/recon_store.h"
+#include "recon/metrics.h"
+
+typedef struct plane_ctx {
+    const cli_color_job *job;
+    int plane;
+} plane_ctx;
+
+static int solve_plane(const sci_problem *plane, sci_result *r, void *user)
+{
+    plane_ctx *c = user;
+    const cli_color_job *job = c->job;
+    cli_progress prog;
+    cli_progress_init(&prog, job->quiet ? -1 : 2, job->method == 0 ? job->gap->iters : job->admm->iters);
+    prog.stop = job->stop;
+    if (!job->quiet)
+        fprintf(stderr, "scicap recon: plane %d/4 (%s)\n", c->plane + 1, plane->name);
+    int rc = job->method == 0 ? sci_gaptv_solve(plane, job->gap, r, cli_progress_update, &prog)
+                              : sci_admmtv_solve(plane, job->admm, r, cli_progress_update, &prog);
+    cli_progress_done(&prog);
+    c->plane++;
+    return rc;
+}
+
+/* The four planes' traces one after another, wall and CPU time accumulated: what the colour result cost. */
+static int join_traces(const sci_result res[4], sci_trace *out)
+{
+    double wall = 0, cpu = 0;
+    int iter = 0;
+    for (int i = 0; i < 4; i++) {
+        double w_end = 0, c_end = 0;
+        for (size_t e = 0; e < res[i].trace.len; e++) {
+            sci_trace_entry t = res[i].trace.e[e];
+            w_end = t.wall_s, c_end = t.cpu_s;
+            t.wall_s += wall, t.cpu_s += cpu;
+            t.iter += iter;
+            if (sci_trace_push(out, &t) < 0)
+                return -ENOMEM;
+        }
+        wall += w_end, cpu += c_end;
+        iter += res[i].iters_done;
+    }
+    return 0;
+}
+
+/* Add the colour record to dir/result.json (atomically: a temporary file renamed over it). */
+static int add_color_record(const char *dir, json_t *color, sci_error *err)
+{
+    char path[4200], tmp[4300];
+    snprintf(path, sizeof path, "%s/result.json", dir);
+    snprintf(tmp, sizeof tmp, "%s.tmp-%d", path, (int)getpid());
+    json_error_t je;
+    json_t *j = json_load_file(path, 0, &je);
+    if (!j)
+        return sci_error_set(err, SCI_EFORMAT, "%s: %s", path, je.text);
+    json_object_set(j, "color", color);
+    int rc = json_dump_file(j, tmp, JSON_INDENT(2)) == 0 && rename(tmp, path) == 0
+                 ? 0
+                 : sci_error_set(err, -EIO, "%s: cannot write", path);
+    if (rc < 0)
+        unlink(tmp);
+    json_decref(j);
+    return rc;
+}
+
+int cli_recon_color(const cli_color_job *job, const sci_problem *p, const sci_cube *truth_rgb, const char *dir,
+                    int force, sci_error *err)
+{
+    sci_result res[4];
+    sci_cube *rgb = NULL, *raw = NULL;
+    plane_ctx ctx = {job, 0};
+    int rc = sci_bayer_solve(p, job->cfa, job->demosaic, solve_plane, &ctx, &rgb, &raw, res, err);
+    if (rc < 0)
+        return rc;
+    sci_result r = {.frames = raw, .iters_done = 0};
+    snprintf(r.method, sizeof r.method, "%s", res[0].method);
+    for (int i = 0; i < 4; i++)
+        r.iters_done += res[i].iters_done;
+    json_t *color = NULL;
+    if ((rc = join_traces(res, &r.trace)) < 0) {
+        sci_error_set(err, rc, "out of memory");
+        goto out;
+    }
+    const int n = raw->n;
+    const double solver_s = r.trace.len ? r.trace.e[r.trace.len - 1].wall_s : NAN;
+    printf("  colour: Bayer %s, 4 planes of %dx%d, %d iterations in %.3f s solver time, %s demosaic\n",
+           sci_cfa_name(job->cfa), p->mask->w / 2, p->mask->h / 2, r.iters_done, solver_s,
+           sci_demosaic_name(job->demosaic));
+    color = json_pack("{s:s, s:s, s:s}", "cfa", sci_cfa_name(job->cfa), "demosaic", sci_demosaic_name(job->demosaic),
+                      "frames", "rgb_NNN.exr (RGB float), preview_rgb_NNN.png");
+    if (truth_rgb) {
+        if (truth_rgb->w != rgb->w || truth_rgb->h != rgb->h || truth_rgb->n != rgb->n) {
+            rc = sci_error_set(err, SCI_ESHAPE, "%s: the RGB truth is %dx%dx%d, the result %dx%dx%d", p->name,
+                               truth_rgb->w, truth_rgb->h, truth_rgb->n, rgb->w, rgb->h, rgb->n);
+            goto out;
+        }
+        double *v = calloc(3 * (size_t)n, sizeof *v);
+        if (!v) {
+            rc = sci_error_set(err, -ENOMEM, "out of memory");
+            goto out;
+        }
+        double m0 = sci_psnr_rgb(rgb, truth_rgb, SCI_PEAK_FRAME_MAX, 0, v);
+        double m1 = sci_psnr_rgb(rgb, truth_rgb, SCI_PEAK_FIXED, p->peak, v + n);
+        printf("  frame   RGB PSNR dB (peak = frame max)   RGB PSNR dB (peak = %g)   (mean over R, G, B)\n", p->peak);
+        json_t *a0 = json_array(), *a1 = json_array();
+        for (int f = 0; f < n; f++) {
+            printf("  %5d   %30.2f   %23.2f\n", f + 1, v[f], v[n + f]);
+            json_array_append_new(a0, json_real(v[f]));
+            json_array_append_new(a1, json_real(v[n + f]));
+        }
+        printf("  mean    %30.2f   %23.2f   RGB\n", m0, m1);
+        json_object_set_new(color, "psnr_rgb_frame_max_db", json_pack("{s:f, s:o, s:s}", "mean", m0, "frames", a0,
+                                                                      "peak", "per-frame max of each truth channel"));
+        json_object_set_new(color, "psnr_rgb_peak1_db",
+                            json_pack("{s:f, s:o, s:f}", "mean", m1, "frames", a1, "peak", p->peak));
+        free(v);
+    }
+    if ((rc = sci_recon_store_write(dir, p, &r, job->params, force, err)) < 0)
+        goto out;
+    for (int f = 0; f < n && rc == 0; f++) {
+        char path[4200];
+        snprintf(path, sizeof path, "%s/rgb_%03d.exr", dir, f);
+        rc = sci_image_write_rgb(path, rgb, f, SCI_PIXEL_F32, 1.0, err);
+        snprintf(path, sizeof path, "%s/preview_rgb_%03d.png", dir, f);
+        if (rc == 0)
+            rc = sci_image_write_rgb(path, rgb, f, SCI_PIXEL_U8, 255.0 / p->peak, err);
+    }
+    if (rc == 0)
+        rc = add_color_record(dir, color, err);
+out:
+    json_decref(color);
+    for (int i = 0; i < 4; i++)
+        sci_result_free_contents(&res[i]);
+    sci_result_free_contents(&r); /* frees raw */
+    sci_cube_free(rgb);
+    return rc;
+}
