@@ -9,6 +9,8 @@
  *     ROOT/calibrations/dark.json, masks-random8.json   which calibration is current (replaced atomically)
  *     ROOT/dmd_masks/<hash>/          the PNGs of one mask stack as shown on the DMD, written once and hard-linked
  *                                     into every capture folder that used it
+ *     ROOT/ids.json                   the capture/calibration id high-water mark (below)
+ *     ROOT/recon-queue/r-*.json       reconstructions queued or running, resumed at start (daemon/reconq.h)
  *
  * Atomicity: a capture is written under ROOT/captures/.c000042.partial and renamed when complete (after fsync
  * of every file and of the folder when fsync is on); only then is it announced. A kill -9 leaves at most a
