@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -31,6 +32,7 @@ struct scicapd_store {
     unsigned long next_capture, next_calib;
     unsigned long mark_capture, mark_calib; /* durable in ROOT/ids.json: no id above them was handed out */
     int ids_ok;                             /* the mark was read or written: close may write the exact one */
+    int lock_fd;                            /* ROOT/scicapd.lock, flock'd for the store's life; -1 before */
     pthread_t threads[STORE_MAX_WRITERS];
     int running;            /* writer threads started */
     scicapd_queue *q;
@@ -188,6 +190,36 @@ static int ids_take(scicapd_store *s, unsigned long *next, unsigned long *mark, 
     return 0;
 }
 
+/* One daemon per storage root: the recovery below removes partial folders, which would be the live folders of
+ * a second daemon writing there (a careless second start, even one that would fail later on its socket).
+ * The lock holds the holder's pid for the message; flock is released by the kernel when the process dies. */
+static int lock_root(scicapd_store *s, sci_error *err)
+{
+    char path[1100];
+    snprintf(path, sizeof path, "%s/scicapd.lock", s->root);
+    int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0640);
+    if (fd < 0)
+        return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
+    if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+        int e = errno;
+        char pid[32] = "";
+        ssize_t n = pread(fd, pid, sizeof pid - 1, 0);
+        pid[n > 0 ? n : 0] = '\0';
+        pid[strcspn(pid, "\n")] = '\0';
+        close(fd);
+        if (e == EWOULDBLOCK)
+            return sci_error_set(err, -EBUSY, "storage %s is in use by another scicapd (pid %s); one daemon per "
+                                 "storage root", s->root, pid[0] ? pid : "?");
+        return sci_error_set(err, -e, "%s: flock: %s", path, strerror(e));
+    }
+    char pid[32];
+    int n = snprintf(pid, sizeof pid, "%d\n", (int)getpid());
+    if (ftruncate(fd, 0) != 0 || pwrite(fd, pid, (size_t)n, 0) != n)
+        sci_log_write(s->log, SCI_LOG_WARNING, "%s: cannot record the pid: %s", path, strerror(errno));
+    s->lock_fd = fd;
+    return 0;
+}
+
 int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, const sci_log *log,
                        scicapd_store_recovery *rec, sci_error *err)
 {
@@ -197,6 +229,7 @@ int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, cons
     snprintf(s->root, sizeof s->root, "%s", root);
     s->fsync_on = fsync_on;
     s->log = log;
+    s->lock_fd = -1;
     pthread_mutex_init(&s->mu, NULL);
     atomic_init(&s->previews, 1);
     char caps[1100], cals[1100], shown[1100];
@@ -204,7 +237,8 @@ int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, cons
     snprintf(cals, sizeof cals, "%s/calibrations", root);
     snprintf(shown, sizeof shown, "%s/dmd_masks", root);
     int rc;
-    if ((rc = mkdir_p(caps, err)) < 0 || (rc = mkdir_p(cals, err)) < 0 || (rc = mkdir_p(shown, err)) < 0) {
+    if ((rc = mkdir_p(caps, err)) < 0 || (rc = mkdir_p(cals, err)) < 0 || (rc = mkdir_p(shown, err)) < 0 ||
+        (rc = lock_root(s, err)) < 0) {
         scicapd_store_close(s);
         return rc;
     }
@@ -241,6 +275,8 @@ void scicapd_store_close(scicapd_store *s)
         if (ids_write(s, s->next_capture - 1, s->next_calib - 1, &err) < 0)
             sci_log_write(s->log, SCI_LOG_WARNING, "%s (the mark stays ahead: ids may skip, never repeat)", err.msg);
     }
+    if (s->lock_fd >= 0)
+        close(s->lock_fd); /* releases the flock */
     pthread_mutex_destroy(&s->mu);
     free(s);
 }

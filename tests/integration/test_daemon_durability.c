@@ -1,6 +1,8 @@
 /* What scicapd promises to keep across its own death (issue 17), over the real socket and storage folder:
  *  - capture ids are never handed out twice: not after a kill -9 while a capture folder is half written, not
  *    after the newest capture is deleted and the daemon restarted (docs/capture-folder.md);
+ *  - a second scicapd started on the same storage root is refused before its recovery could remove the first
+ *    one's half-written folders;
  *  - reconstructions queued (or running) when the daemon dies — kill -9 or SIGTERM — are resumed at the next
  *    start, with their owner, and their results appear. */
 #include <setjmp.h>
@@ -126,6 +128,57 @@ static void ids_not_reused_after_delete(void **state)
            next);
     assert_true(next > newest);
     assert_int_equal(next, newest + 1); /* a clean stop leaves no gap */
+    hconn_close(&c);
+    harness_stop(&H);
+    harness_cleanup(&H);
+}
+
+/* A second scicapd on the same storage root (its own socket) while the first captures: refused before it
+ * touches anything; the first one's capture goes on untouched. */
+static void second_daemon_on_same_storage_refused(void **state)
+{
+    (void)state;
+    harness_start(&H, NULL, NULL);
+    hconn c;
+    hconn_open(&c, &H);
+    json_decref(hconn_request(&c, "capture", json_pack("{s:i}", "count", 12)));
+    json_decref(hconn_wait_event(&c, "capture.stored", 30000));
+    char sock2[400], log2[400];
+    snprintf(sock2, sizeof sock2, "%s/second.sock", H.dir);
+    snprintf(log2, sizeof log2, "%s/second.log", H.dir);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        int fd = open(log2, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        if (fd >= 0)
+            dup2(fd, 2);
+        execl(H.bin, H.bin, "--no-config", "--socket", sock2, "--storage", H.store, "--runtime-dir", H.run,
+              "--no-fsync", geteuid() == 0 ? "--allow-root" : (char *)NULL, (char *)NULL);
+        _exit(127);
+    }
+    int st = 0, exited = 0;
+    for (int i = 0; i < 200 && !exited; i++) {
+        exited = waitpid(pid, &st, WNOHANG) == pid;
+        if (!exited)
+            h_sleep_ms(50);
+    }
+    if (!exited) {
+        kill(pid, SIGKILL);
+        waitpid(pid, &st, 0);
+    }
+    char cmd[500];
+    snprintf(cmd, sizeof cmd, "grep -q 'is in use by another scicapd' '%s'", log2);
+    int said = system(cmd) == 0;
+    /* the first daemon's capture finishes with every snapshot stored (a *.failed event fails the wait) */
+    json_t *e = hconn_wait_event(&c, "capture.done", 60000);
+    json_int_t done = json_integer_value(json_object_get(json_object_get(e, "data"), "done"));
+    json_decref(e);
+    printf("  second scicapd on the same storage: %s (exit %d, %s); first daemon's capture: %lld/12 stored\n",
+           exited ? "refused" : "RAN (killed after 10 s)", exited && WIFEXITED(st) ? WEXITSTATUS(st) : -1,
+           said ? "said why" : "no reason logged", (long long)done);
+    assert_true(exited && WIFEXITED(st) && WEXITSTATUS(st) == 1);
+    assert_true(said);
+    assert_int_equal(done, 12);
     hconn_close(&c);
     harness_stop(&H);
     harness_cleanup(&H);
@@ -257,6 +310,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_teardown(ids_not_reused_after_kill9, cleanup),
         cmocka_unit_test_teardown(ids_not_reused_after_delete, cleanup),
+        cmocka_unit_test_teardown(second_daemon_on_same_storage_refused, cleanup),
         cmocka_unit_test_teardown(queued_reconstructions_resumed, cleanup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
