@@ -72,10 +72,37 @@ static void usage(FILE *f)
             "  --out DIR         report and plots (default bench/results)\n"
             "  --csv FILE        every point (default bench/results.csv)\n"
             "  --data DIR        where drop40_cacti.mat is (default $SCICAP_DATA, else ../shared/data)\n"
-            "  --scenes DIR      example scenes (default etc/scenes)\n"
+            "  --scenes DIR      example scenes (default: ./etc/scenes in a checkout, else the build tree's, else the\n"
+            "                    installed ones in $SCICAP_DATADIR/scenes, default " SCICAP_DATADIR "/scenes)\n"
             "  --methods LIST    comma-separated subset of gap-tv,admm-tv,rayformer,scinerf\n"
             "  -j, --threads N   OpenMP threads per point (default: all cores)\n"
+            "  --point SPEC      internal: run one grid point in this process (the runner starts one per point)\n"
             "  -h, --help        this text\n");
+}
+
+/* Where the example scenes are when --scenes is not given: a checkout's (run from the source tree), the build
+ * tree's (a binary in <tree>/build/), else the installed copy. The first that holds the suite's first scene. */
+static const char *find_scenes(char *buf, size_t n)
+{
+    if (access("etc/scenes/cacti_layers.json", R_OK) == 0)
+        return "etc/scenes";
+    char self[4096];
+    ssize_t l = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (l > 0) {
+        self[l] = 0;
+        char *slash = strrchr(self, '/');
+        if (slash) {
+            *slash = 0;
+            snprintf(buf, n, "%s/../etc/scenes", self);
+            char probe[4200];
+            snprintf(probe, sizeof probe, "%s/cacti_layers.json", buf);
+            if (access(probe, R_OK) == 0)
+                return buf;
+        }
+    }
+    const char *d = getenv("SCICAP_DATADIR");
+    snprintf(buf, n, "%s/scenes", d && *d ? d : SCICAP_DATADIR);
+    return buf;
 }
 
 /* --- the child: one point ------------------------------------------------------------------------------ */
@@ -427,7 +454,8 @@ int cli_bench_main(int argc, char **argv)
 {
     int quick = 0, threads = 0;
     const char *out = "bench/results", *csv = "bench/results.csv", *data = getenv("SCICAP_DATA"),
-               *scenes = "etc/scenes", *methods_arg = NULL, *point = NULL;
+               *scenes = NULL, *methods_arg = NULL, *point = NULL;
+    char scenes_buf[4096];
     static const struct option longopts[] = {
         {"quick", no_argument, 0, 'Q'},        {"full", no_argument, 0, 'F'},
         {"out", required_argument, 0, 'o'},    {"csv", required_argument, 0, 'c'},
@@ -463,6 +491,10 @@ int cli_bench_main(int argc, char **argv)
     }
     if (!data || !*data)
         data = "../shared/data";
+    if (!scenes) {
+        scenes = find_scenes(scenes_buf, sizeof scenes_buf);
+        fprintf(stderr, "scicap bench: example scenes from %s\n", scenes);
+    }
     if (threads <= 0)
         threads = omp_get_max_threads();
     char self[4096];

@@ -208,45 +208,108 @@ static const char *default_socket(void)
     return s && s[0] ? s : CLI_CLIENT_DEFAULT_SOCKET;
 }
 
-static void usage(FILE *f, const char *cmd)
-{
-    fprintf(f,
-            "usage: scicap %s [--socket PATH] ...\n"
-            "\n"
-            "  scicap status                       daemon state, queues, counters\n"
-            "  scicap devices                      device identities and connection state\n"
-            "  scicap capture [--mask-set S] [--count N] [--exposure-us U] [--pattern-us U] [--dark-us U]\n"
-            "                 [--sync host-master|dmd-master] [--recon] [--method M] [--preset P] [--wait]\n"
-            "  scicap calibrate --dark|--masks [--mask-set S] [--average N]   (waits for the result)\n"
-            "  scicap recon --capture ID [--method gap-tv|admm-tv] [--preset fast|default|quality] [--iters N] [--wait]\n"
-            "  scicap recon --capture ID --budget SECONDS [--method M] [--wait]\n"
-            "                                      the most accurate measured setting that fits (bench/results.csv)\n"
-            "  scicap jobs                         queued, running and recent jobs\n"
-            "  scicap cancel JOB\n"
-            "  scicap watch                        the event stream, with a progress bar (Ctrl-C ends)\n"
-            "  scicap reload                       reload the daemon's configuration (admin)\n"
-            "  scicap shutdown                     stop the daemon (admin)\n"
-            "\n"
-            "--socket PATH: the daemon's control socket (default $SCICAP_SOCKET, else %s).\n"
-            "Exit status: 0 success, 1 failure, 2 usage.\n",
-            cmd, CLI_CLIENT_DEFAULT_SOCKET);
-}
-
 enum { O_SOCKET = 1000, O_MASK_SET, O_COUNT, O_EXPOSURE, O_PATTERN, O_DARK_US, O_SYNC, O_RECON, O_METHOD, O_PRESET,
        O_WAIT, O_DARK, O_MASKS, O_AVERAGE, O_CAPTURE, O_ITERS, O_BUDGET, O_HELP };
 
-static const struct option long_opts[] = {
-    {"socket", required_argument, 0, O_SOCKET},   {"mask-set", required_argument, 0, O_MASK_SET},
-    {"count", required_argument, 0, O_COUNT},     {"exposure-us", required_argument, 0, O_EXPOSURE},
+/* One getopt table per command, so each accepts exactly its own options and its --help lists exactly those
+ * (tests/integration/test_cli_help.c reads these tables). */
+static const struct option plain_opts[] = {
+    {"socket", required_argument, 0, O_SOCKET}, {"help", no_argument, 0, O_HELP}, {0, 0, 0, 0}};
+static const struct option capture_opts[] = {
+    {"socket", required_argument, 0, O_SOCKET}, {"mask-set", required_argument, 0, O_MASK_SET},
+    {"count", required_argument, 0, O_COUNT}, {"exposure-us", required_argument, 0, O_EXPOSURE},
     {"pattern-us", required_argument, 0, O_PATTERN}, {"dark-us", required_argument, 0, O_DARK_US},
-    {"sync", required_argument, 0, O_SYNC},       {"recon", no_argument, 0, O_RECON},
-    {"method", required_argument, 0, O_METHOD},   {"preset", required_argument, 0, O_PRESET},
-    {"wait", no_argument, 0, O_WAIT},             {"dark", no_argument, 0, O_DARK},
-    {"masks", no_argument, 0, O_MASKS},           {"average", required_argument, 0, O_AVERAGE},
-    {"capture", required_argument, 0, O_CAPTURE}, {"iters", required_argument, 0, O_ITERS},
-    {"budget", required_argument, 0, O_BUDGET},   {"help", no_argument, 0, O_HELP},
-    {0, 0, 0, 0},
+    {"sync", required_argument, 0, O_SYNC}, {"recon", optional_argument, 0, O_RECON},
+    {"method", required_argument, 0, O_METHOD}, {"preset", required_argument, 0, O_PRESET},
+    {"wait", no_argument, 0, O_WAIT}, {"help", no_argument, 0, O_HELP}, {0, 0, 0, 0}};
+static const struct option calibrate_opts[] = {
+    {"socket", required_argument, 0, O_SOCKET}, {"dark", no_argument, 0, O_DARK}, {"masks", no_argument, 0, O_MASKS},
+    {"mask-set", required_argument, 0, O_MASK_SET}, {"average", required_argument, 0, O_AVERAGE},
+    {"help", no_argument, 0, O_HELP}, {0, 0, 0, 0}};
+static const struct option reconstruct_opts[] = {
+    {"socket", required_argument, 0, O_SOCKET}, {"capture", required_argument, 0, O_CAPTURE},
+    {"method", required_argument, 0, O_METHOD}, {"preset", required_argument, 0, O_PRESET},
+    {"iters", required_argument, 0, O_ITERS}, {"budget", required_argument, 0, O_BUDGET},
+    {"wait", no_argument, 0, O_WAIT}, {"help", no_argument, 0, O_HELP}, {0, 0, 0, 0}};
+
+/* What each option means, for every command's help. */
+static const struct { const char *name, *arg, *text; } opt_help[] = {
+    {"socket", "PATH", "the daemon's control socket (default $SCICAP_SOCKET, else " CLI_CLIENT_DEFAULT_SOCKET ")"},
+    {"mask-set", "S", "the mask set the DMD shows (a name from the daemon's configuration)"},
+    {"count", "N", "snapshots to capture (default 1)"},
+    {"exposure-us", "U", "camera exposure per snapshot, microseconds"},
+    {"pattern-us", "U", "DMD display time per mask, microseconds"},
+    {"dark-us", "U", "DMD dark time after each mask, microseconds"},
+    {"sync", "MODE", "host-master (the host triggers both) or dmd-master (the DMD triggers the camera)"},
+    {"recon", "[METHOD]", "queue a reconstruction of each snapshot: gap-tv (default) or admm-tv;\n"
+                          "                     '--recon METHOD' and '--recon=METHOD' both work"},
+    {"method", "M", "gap-tv or admm-tv"},
+    {"preset", "P", "fast, default or quality"},
+    {"wait", NULL, "wait for the job (and its reconstructions) to finish, with progress"},
+    {"dark", NULL, "measure the dark frame"},
+    {"masks", NULL, "measure the masks as the camera sees them"},
+    {"average", "N", "frames averaged per measurement"},
+    {"capture", "ID", "the capture to reconstruct (see scicap jobs)"},
+    {"iters", "N", "iterations (overrides the preset)"},
+    {"budget", "SECONDS", "the most accurate measured setting that fits in SECONDS (bench/results.csv)"},
+    {"help", NULL, "this text"},
 };
+
+typedef struct client_cmd {
+    const char *name, *synopsis, *what;
+    const struct option *opts;
+} client_cmd;
+
+static const client_cmd client_cmds[] = {
+    {"status", "scicap status [--socket PATH]", "The daemon's state, queues and counters.", plain_opts},
+    {"devices", "scicap devices [--socket PATH]", "The devices the daemon drives, their identities and state.",
+     plain_opts},
+    {"capture",
+     "scicap capture [--mask-set S] [--count N] [--exposure-us U] [--pattern-us U] [--dark-us U]\n"
+     "                      [--sync host-master|dmd-master] [--recon [METHOD]] [--method M] [--preset P] [--wait]",
+     "Capture coded snapshots on the bench (and reconstruct them with --recon).", capture_opts},
+    {"calibrate", "scicap calibrate --dark|--masks [--mask-set S] [--average N]",
+     "Measure the dark frame or the masks as the camera sees them; waits for the result.", calibrate_opts},
+    {"jobs", "scicap jobs [--socket PATH]", "Queued, running and recent jobs.", plain_opts},
+    {"cancel", "scicap cancel [--socket PATH] JOB", "Cancel a queued or running job.", plain_opts},
+    {"watch", "scicap watch [--socket PATH]", "Follow the daemon's event stream with a progress bar (Ctrl-C ends).",
+     plain_opts},
+    {"reload", "scicap reload [--socket PATH]", "Reload the daemon's configuration (admin).", plain_opts},
+    {"shutdown", "scicap shutdown [--socket PATH]", "Stop the daemon (admin).", plain_opts},
+    {"reconstruct",
+     "scicap recon --capture ID [--method gap-tv|admm-tv] [--preset fast|default|quality] [--iters N] [--wait]\n"
+     "       scicap recon --capture ID --budget SECONDS [--method M] [--wait]",
+     "Ask the daemon to reconstruct one of its captures (files: scicap recon --help).", reconstruct_opts},
+};
+
+static const client_cmd *find_cmd(const char *name)
+{
+    for (size_t i = 0; i < sizeof client_cmds / sizeof client_cmds[0]; i++)
+        if (!strcmp(client_cmds[i].name, name))
+            return &client_cmds[i];
+    return NULL;
+}
+
+static void usage(FILE *f, const client_cmd *cmd)
+{
+    fprintf(f, "usage: %s\n\n%s\n\noptions:\n", cmd->synopsis, cmd->what);
+    for (const struct option *o = cmd->opts; o->name; o++)
+        for (size_t i = 0; i < sizeof opt_help / sizeof opt_help[0]; i++)
+            if (!strcmp(opt_help[i].name, o->name)) {
+                char left[48];
+                snprintf(left, sizeof left, "--%s%s%s", o->name, opt_help[i].arg ? " " : "",
+                         opt_help[i].arg ? opt_help[i].arg : "");
+                fprintf(f, "  %-18s %s\n", left, opt_help[i].text);
+            }
+    fprintf(f, "\nExit status: 0 success, 1 failure, 2 usage.\n");
+}
+
+void cli_client_usage(FILE *f, const char *name)
+{
+    const client_cmd *c = find_cmd(name);
+    if (c)
+        usage(f, c);
+}
 
 static int parse_count(const char *s, const char *opt, long long *out)
 {
@@ -267,13 +330,14 @@ static void on_sigint(int s) { (void)s; interrupted = 1; }
 static int run(int argc, char **argv, int recon_mode)
 {
     const char *cmd = recon_mode ? "reconstruct" : argv[0];
+    const client_cmd *cc = find_cmd(cmd);
     const char *sock = default_socket();
     json_t *args = json_object(), *params = NULL;
     int wait = 0, kind = -1, c;
     long long v;
     optind = 1;
     opterr = 1;
-    while ((c = getopt_long(argc, argv, "", long_opts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "", cc->opts, NULL)) != -1) {
         switch (c) {
         case O_SOCKET: sock = optarg; break;
         case O_MASK_SET: json_object_set_new(args, "mask_set", json_string(optarg)); break;
@@ -281,7 +345,21 @@ static int run(int argc, char **argv, int recon_mode)
         case O_METHOD: json_object_set_new(args, "method", json_string(optarg)); break;
         case O_PRESET: json_object_set_new(args, "preset", json_string(optarg)); break;
         case O_CAPTURE: json_object_set_new(args, "capture", json_string(optarg)); break;
-        case O_RECON: json_object_set_new(args, "reconstruct", json_true()); break;
+        case O_RECON: {
+            /* --recon takes an optional method; getopt only binds "--recon=M", so take "--recon M" here too
+             * (capture has no positional arguments, so a following method name cannot be anything else). */
+            const char *m = optarg;
+            if (!m && optind < argc && (!strcmp(argv[optind], "gap-tv") || !strcmp(argv[optind], "admm-tv")))
+                m = argv[optind++];
+            if (m && strcmp(m, "gap-tv") && strcmp(m, "admm-tv")) {
+                fprintf(stderr, "scicap capture: --recon reconstructs with gap-tv or admm-tv, not '%s'\n", m);
+                goto usage_err;
+            }
+            json_object_set_new(args, "reconstruct", json_true());
+            if (m)
+                json_object_set_new(args, "method", json_string(m));
+            break;
+        }
         case O_WAIT: wait = 1; break;
         case O_BUDGET: {
             char *end;
@@ -310,7 +388,7 @@ static int run(int argc, char **argv, int recon_mode)
                 json_object_set_new(args, keys[c - O_COUNT], json_integer(v));
             break;
         }
-        case O_HELP: usage(stdout, cmd); json_decref(args); return 0;
+        case O_HELP: usage(stdout, cc); json_decref(args); json_decref(params); return 0;
         default: goto usage_err;
         }
     }
@@ -403,7 +481,8 @@ static int run(int argc, char **argv, int recon_mode)
     return rc;
 usage_err:
     json_decref(args);
-    usage(stderr, cmd);
+    json_decref(params);
+    fprintf(stderr, "(scicap %s --help lists its options)\n", recon_mode ? "recon" : cmd);
     return 2;
 }
 
@@ -414,7 +493,7 @@ int cli_client_main(int argc, char **argv)
     for (int i = 0; cmds[i]; i++)
         if (argc >= 1 && !strcmp(argv[0], cmds[i]))
             return run(argc, argv, 0);
-    usage(stderr, argc ? argv[0] : "?");
+    fprintf(stderr, "scicap: '%s' is not a daemon command\n", argc ? argv[0] : "?");
     return 2;
 }
 

@@ -8,9 +8,13 @@
 #ifndef SCICAP_CLI_CLIENT_H
 #define SCICAP_CLI_CLIENT_H
 
+#include <stdio.h>
+
 #define CLI_CLIENT_DEFAULT_SOCKET "/run/scicapd/control.sock"
 
 int cli_client_main(int argc, char **argv);
 int cli_client_recon(int argc, char **argv);
+/* Print the help of a daemon command ("status", ..., "reconstruct" for scicap recon --capture). */
+void cli_client_usage(FILE *f, const char *name);
 
 #endif

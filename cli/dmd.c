@@ -8,6 +8,7 @@
  * multi-page TIFF gives one mask per page; a value above half the bit depth's maximum is "on").
  */
 #include <errno.h>
+#include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -245,60 +246,64 @@ static int parse_uint(const char *opt, const char *s, unsigned long max, unsigne
 int cli_dmd_main(int argc, char **argv)
 {
     opts o = {.timeout_ms = 1000, .timing = {.exposure_us = 1000, .trigger = DMD_TRIGGER_INTERNAL}, .seed = 1};
-    int first_cmd = argc;
     unsigned long v;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *next = i + 1 < argc ? argv[i + 1] : NULL;
-        if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
-            usage(stdout);
-            return 0;
-        } else if (!strcmp(a, "--emulate")) {
-            o.emulate = 1;
-        } else if (!strcmp(a, "--serial") && next) {
-            o.serial = argv[++i];
-        } else if (!strcmp(a, "--exposure-us")) {
-            if (parse_uint(a, next, 16777215, &v) < 0)
+    /* "+": options end at the first command word (commands take their own arguments, e.g. upload FILE). */
+    enum { D_EMULATE = 300, D_SERIAL, D_EXPOSURE, D_DARK, D_PASSES, D_TIMEOUT, D_SEED, D_TRIGGER };
+    static const struct option dmd_opts[] = {
+        {"emulate", no_argument, 0, D_EMULATE},         {"serial", required_argument, 0, D_SERIAL},
+        {"exposure-us", required_argument, 0, D_EXPOSURE}, {"dark-us", required_argument, 0, D_DARK},
+        {"passes", required_argument, 0, D_PASSES},     {"timeout-ms", required_argument, 0, D_TIMEOUT},
+        {"seed", required_argument, 0, D_SEED},         {"trigger", required_argument, 0, D_TRIGGER},
+        {"help", no_argument, 0, 'h'},                  {0, 0, 0, 0},
+    };
+    optind = 1;
+    int oc, li = 0;
+    while ((oc = getopt_long(argc, argv, "+h", dmd_opts, &li)) != -1) {
+        char a[48];
+        snprintf(a, sizeof a, "--%s", dmd_opts[li].name);
+        switch (oc) {
+        case 'h': usage(stdout); return 0;
+        case D_EMULATE: o.emulate = 1; break;
+        case D_SERIAL: o.serial = optarg; break;
+        case D_EXPOSURE:
+            if (parse_uint(a, optarg, 16777215, &v) < 0)
                 return 2;
             o.timing.exposure_us = (uint32_t)v;
-            i++;
-        } else if (!strcmp(a, "--dark-us")) {
-            if (parse_uint(a, next, 16777215, &v) < 0)
+            break;
+        case D_DARK:
+            if (parse_uint(a, optarg, 16777215, &v) < 0)
                 return 2;
             o.timing.dark_us = (uint32_t)v;
-            i++;
-        } else if (!strcmp(a, "--passes")) {
-            if (parse_uint(a, next, 1000000, &v) < 0)
+            break;
+        case D_PASSES:
+            if (parse_uint(a, optarg, 1000000, &v) < 0)
                 return 2;
             o.timing.passes = (uint32_t)v;
-            i++;
-        } else if (!strcmp(a, "--timeout-ms")) {
-            if (parse_uint(a, next, 60000, &v) < 0 || v == 0)
+            break;
+        case D_TIMEOUT:
+            if (parse_uint(a, optarg, 60000, &v) < 0 || v == 0)
                 return 2;
             o.timeout_ms = (int)v;
-            i++;
-        } else if (!strcmp(a, "--seed")) {
-            if (parse_uint(a, next, 0xFFFFFFFFul, &v) < 0)
+            break;
+        case D_SEED:
+            if (parse_uint(a, optarg, 0xFFFFFFFFul, &v) < 0)
                 return 2;
             o.seed = v;
-            i++;
-        } else if (!strcmp(a, "--trigger") && next) {
-            if (!strcmp(next, "internal"))
+            break;
+        case D_TRIGGER:
+            if (!strcmp(optarg, "internal"))
                 o.timing.trigger = DMD_TRIGGER_INTERNAL;
-            else if (!strcmp(next, "external"))
+            else if (!strcmp(optarg, "external"))
                 o.timing.trigger = DMD_TRIGGER_EXTERNAL;
             else {
-                fprintf(stderr, "scicap dmd: --trigger is internal or external (got \"%s\")\n", next);
+                fprintf(stderr, "scicap dmd: --trigger is internal or external (got \"%s\")\n", optarg);
                 return 2;
             }
-            i++;
-        } else if (a[0] == '-') {
-            fprintf(stderr, "scicap dmd: unknown option %s (see --help)\n", a);
-            return 2;
-        } else {
-            first_cmd = i;
             break;
+        default: fprintf(stderr, "scicap dmd: see --help\n"); return 2;
         }
     }
+    const int first_cmd = optind;
     if (first_cmd == argc) {
         usage(stderr);
         return 2;

@@ -13,8 +13,8 @@ typedef struct command {
 } command;
 
 static const command commands[] = {
-    {"sim", cli_sim_main, "simulate coded snapshots of a scene (video2d, static3d) with the effects it lists"},
-    {"recon", cli_recon_main, "reconstruct the frames of SCI snapshots (GAP-TV, ADMM-TV)"},
+    {"sim", cli_sim_main, "simulate coded snapshots of a scene (video2d, static3d, colour) with its effects"},
+    {"recon", cli_recon_main, "reconstruct SCI snapshots: gap-tv, admm-tv, rayformer, scinerf; any .mat, colour"},
     {"status", cli_client_main, "daemon: state, devices, queues"},
     {"devices", cli_client_main, "daemon: the devices it drives and their identities"},
     {"capture", cli_client_main, "daemon: capture snapshots (--recon METHOD, --wait)"},
@@ -34,7 +34,12 @@ static void usage(FILE *f)
                "Video snapshot compressive imaging: simulate, capture and reconstruct.\n\ncommands:\n");
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
         fprintf(f, "  %-10s %s\n", commands[i].name, commands[i].summary);
-    fprintf(f, "\n'scicap COMMAND --help' documents each command.\n");
+    fprintf(f, "\nreconstruction methods (scicap recon --method):\n"
+               "  gap-tv     generalized alternating projection with TV denoising (default; the PnP-SCI benchmark)\n"
+               "  admm-tv    ADMM with TV denoising\n"
+               "  rayformer  NeRF with a ray transformer (static scenes seen by a moving camera)\n"
+               "  scinerf    SCINeRF, a hash-grid NeRF (static scenes seen by a moving camera)\n"
+               "\n'scicap COMMAND --help' documents each command; man scicap documents them all.\n");
 }
 
 int main(int argc, char **argv)

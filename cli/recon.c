@@ -59,6 +59,15 @@ static void usage(FILE *f)
             "              --checkpoint FILE write a checkpoint every --checkpoint-every K steps (default 100), at\n"
             "                                the end, and when interrupted (Ctrl-C, SIGTERM)\n"
             "              --resume FILE     continue a run from its checkpoint (same input and options)\n"
+            "              --checkpoint-every K  steps between checkpoints (default 100)\n"
+            "              recipe knobs (all off by default, results unchanged):\n"
+            "              --spacing linear|disparity|log  how the coarse samples divide [near, far]\n"
+            "              --distortion X    weight of the distortion loss on the coarse weights (0: off)\n"
+            "              --prior-steps K   GAP-TV warm start: the first K steps also pull the frames toward\n"
+            "                                GAP-TV's reconstruction, --prior-weight X falling linearly to 0\n"
+            "              --density-bias X  added to the density before its activation\n"
+            "              --zero-gates 0|1  rayformer: each block's output projections start at zero\n"
+            "              --sh-degree D     spherical-harmonics degree of the view direction encoding (1-4)\n"
             "  .mat input:  --mask FILE        the masks are in FILE (its only variable, or --mask-var)\n"
             "              --mask-var NAME    the masks' variable (default mask): H×W×N shared, H×W×N×k per snapshot\n"
             "              --meas-var NAME    the measurements' variable (default meas), H×W×k\n"
@@ -356,7 +365,11 @@ int cli_recon_main(int argc, char **argv)
             break;
         }
         case 'q': o.quiet = 1; break;
-        case 'h': usage(stdout); return 0;
+        case 'h':
+            usage(stdout);
+            printf("\nThrough the daemon (scicap recon --capture ID ...):\n\n");
+            cli_client_usage(stdout, "reconstruct");
+            return 0;
         default: usage(stderr); return 2;
         }
         if (bad)
