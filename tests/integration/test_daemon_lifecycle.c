@@ -187,7 +187,9 @@ static void dmd_disconnects_and_returns(void **state)
     hconn_open(&w, &h);
     json_decref(hconn_request(&w, "watch", NULL));
     json_decref(hconn_request(&c, "simulate", json_pack("{s:s, s:i}", "fault", "acquire-delay", "n", 150)));
-    json_decref(hconn_request(&c, "capture", json_pack("{s:i}", "count", 6)));
+    /* 40 snapshots of >= 150 ms: still running when the first is announced, even when a loaded machine delays
+     * the writer by seconds (with 6, the job could end before the unplug: no capture.failed, a 20 s timeout) */
+    json_decref(hconn_request(&c, "capture", json_pack("{s:i}", "count", 40)));
     json_decref(hconn_wait_event(&c, "capture.stored", 20000));
     /* unplug while the capture job runs */
     json_decref(hconn_request(&c, "simulate", json_pack("{s:s}", "fault", "dmd-unplug")));
