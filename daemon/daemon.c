@@ -183,7 +183,8 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
     if (scicapd_job_settle(d->jobs, j, 1) == c->count && scicapd_job_state_get(d->jobs, j) == SCICAPD_JOB_RUNNING) {
         scicapd_job_set_state(d->jobs, j, SCICAPD_JOB_DONE, NULL);
         json_t *o = scicapd_job_json(d->jobs, j);
-        scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1, scicapd_event("capture.done", j->id, j->request_id, o));
+        scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1,
+                             scicapd_event("capture.done", j->id, j->request_id, o));
     }
     scicapd_snapshot_free(d->jobs, s);
 }
@@ -327,7 +328,8 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
     case SCICAPD_CMD_STATUS: reply(d, c, scicapd_reply_ok(r.id, status_json(d))); break;
     case SCICAPD_CMD_DEVICES: reply(d, c, scicapd_reply_ok(r.id, scicapd_acquire_devices_json(d->acq))); break;
     case SCICAPD_CMD_JOBS: /* a user sees their own jobs; admins see everyone's */
-        reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:o}", "jobs", scicapd_jobs_json(d->jobs, c->uid, is_admin(d, c)))));
+        reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:o}", "jobs",
+                                                     scicapd_jobs_json(d->jobs, c->uid, is_admin(d, c)))));
         break;
     case SCICAPD_CMD_WATCH:
         c->watching = 1;

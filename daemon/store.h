@@ -64,8 +64,8 @@ typedef struct scicapd_store_recovery {
 
 /* Lock ROOT (ROOT/scicapd.lock, flock, for the store's life: -EBUSY naming the holder's pid when another
  * scicapd has it, before anything is touched), create ROOT/captures and ROOT/calibrations if needed, remove
- * partial outputs of a previous run, find the next capture id. Errors: -errno naming the folder; SCI_EFORMAT when ROOT/ids.json is unreadable (the daemon
- * will not guess ids it may already have given out). */
+ * partial outputs of a previous run, find the next capture id. Errors: -errno naming the folder; SCI_EFORMAT
+ * when ROOT/ids.json is unreadable (the daemon will not guess ids it may already have given out). */
 int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, const sci_log *log,
                        scicapd_store_recovery *rec, sci_error *err);
 void scicapd_store_close(scicapd_store *s);
