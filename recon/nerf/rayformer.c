@@ -36,6 +36,8 @@ struct nerf_rayformer_ws {
     float **scratch;   /* per thread */
     float *pgrad;      /* per patch: gradient of the parameters after the hash table (n_params − n_hash) */
     size_t scratch_floats;
+    int n_levels, n_features, levels_partial; /* coarse-to-fine: levels_partial = 1 when some weight is < 1 */
+    float level_w[NERF_HASHGRID_MAX_LEVELS];
 };
 
 nerf_rayformer_config nerf_rayformer_config_default(void)
@@ -175,6 +177,8 @@ int nerf_rayformer_ws_new(nerf_rayformer_ws **out, const nerf_rayformer *n, int 
     nerf_rayformer_ws *w = calloc(1, sizeof *w);
     if (!w) return sci_error_set(err, -ENOMEM, "rayformer: out of memory");
     w->max_patches = max_patches, w->n_threads = n_threads;
+    w->n_levels = n->cfg.grid.n_levels, w->n_features = n->cfg.grid.n_features;
+    for (int l = 0; l < NERF_HASHGRID_MAX_LEVELS; l++) w->level_w[l] = 1.0f;
     const size_t rows = (size_t)max_patches * n->R * n->L, C = (size_t)n->C, chunk = (size_t)n->R * n->L;
     w->rows_max = rows;
     size_t per_row = 3 + C + 1 + (size_t)n->G + 1 + (size_t)n->cin + (size_t)n->Hc + 3 + 2 * C +
@@ -221,6 +225,30 @@ void nerf_rayformer_ws_free(nerf_rayformer_ws *w)
 }
 
 size_t nerf_rayformer_ws_bytes(const nerf_rayformer_ws *w) { return w->bytes; }
+
+void nerf_rayformer_ws_set_levels(nerf_rayformer_ws *w, double alpha)
+{
+    if (!(alpha >= 1.0)) alpha = 1.0;
+    w->levels_partial = 0;
+    for (int l = 0; l < w->n_levels; l++) {
+        double a = alpha - l, x = a <= 0 ? 0.0 : a >= 1 ? 1.0 : a;
+        w->level_w[l] = (float)((1.0 - cos(M_PI * x)) / 2.0);
+        if (w->level_w[l] < 1.0f) w->levels_partial = 1;
+    }
+}
+
+/* Scale the columns of n rows (stride C) level by level: the coarse-to-fine weights on features or gradients. */
+static void scale_levels(const nerf_rayformer_ws *w, long n, float *y, int C, int only_level)
+{
+    const int F = w->n_features;
+    for (int l = 0; l < w->n_levels; l++) {
+        if (only_level >= 0 && l != only_level) continue;
+        const float s = w->level_w[l];
+        if (s == 1.0f) continue;
+        for (long i = 0; i < n; i++)
+            for (int f = 0; f < F; f++) y[(size_t)i * C + l * F + f] *= s;
+    }
+}
 
 /* Forward of one patch (rows [row0, row0 + R·L)) on the calling thread, after the hash encoding of its rows. */
 static void patch_forward(const nerf_rayformer *n, const float *P, nerf_rayformer_ws *w, int p, const float *pos,
@@ -284,6 +312,7 @@ int nerf_rayformer_forward(const nerf_rayformer *n, const float *P, nerf_rayform
                 for (int d = 0; d < 3; d++)
                     u[3 * i + d] = (pos[(c0 + i) * 3 + d] - cf->aabb_min[d]) / (cf->aabb_max[d] - cf->aabb_min[d]);
             nerf_hashgrid_forward(n->grid, P, (int)cnt, u, w->act[0] + c0 * n->C, n->C);
+            if (w->levels_partial) scale_levels(w, cnt, w->act[0] + c0 * n->C, n->C, -1);
         }
 #pragma omp for schedule(dynamic, 1)
         for (int p = 0; p < n_patches; p++)
@@ -370,8 +399,10 @@ int nerf_rayformer_backward(const nerf_rayformer *n, const float *P, nerf_rayfor
 #pragma omp for schedule(static)
         for (size_t j = 0; j < nh; j += 4096) memset(grad + j, 0, (nh - j < 4096 ? nh - j : 4096) * sizeof *grad);
 #pragma omp for schedule(dynamic, 1)
-        for (int l = 0; l < levels; l++)
+        for (int l = 0; l < levels; l++) {
+            if (w->levels_partial) scale_levels(w, N, w->act[0], C, l); /* this level's columns only */
             nerf_hashgrid_backward_level(n->grid, (int)N, w->u, w->act[0], C, grad, l);
+        }
         if (d_pos) {
 #pragma omp for schedule(dynamic, 1)
             for (long c0 = 0; c0 < N; c0 += HASH_CHUNK) {

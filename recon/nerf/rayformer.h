@@ -87,6 +87,11 @@ int nerf_rayformer_ws_new(nerf_rayformer_ws **out, const nerf_rayformer *net, in
 void nerf_rayformer_ws_free(nerf_rayformer_ws *ws);
 size_t nerf_rayformer_ws_bytes(const nerf_rayformer_ws *ws);
 
+/* Coarse-to-fine (BARF's ramp over hash levels, sci-reconstruction.md §14): level l's features are multiplied by
+ * (1 − cos(π·clamp(alpha − l, 0, 1)))/2 in this workspace's forward and backward; alpha >= n_levels (the default
+ * after _ws_new) uses every level fully. Values below 1 are taken as 1 (level 0 always on). */
+void nerf_rayformer_ws_set_levels(nerf_rayformer_ws *ws, double alpha);
+
 /* pos: N×3 (N = n_patches·R·L), dir: n_patches·R × 3. Writes sigma (N) and rgb (N×3); saves what the backward
  * needs in ws. */
 int nerf_rayformer_forward(const nerf_rayformer *net, const float *params, nerf_rayformer_ws *ws, int n_patches,

@@ -97,6 +97,8 @@ static void train_config(const sci_rayformer_params *p, nerf_train_config *c)
                              .tv_eps = p->tv_eps,
                              .spacing = p->recipe.spacing,
                              .distortion_weight = p->recipe.distortion_weight,
+                             .depth_tv_weight = p->recipe.depth_tv_weight,
+                             .c2f_steps = p->recipe.c2f_steps,
                              .prior_steps = p->recipe.prior_steps,
                              .prior_weight = p->recipe.prior_weight,
                              .pose_mode = p->pose_mode,
@@ -166,7 +168,19 @@ static int rf_backward(void *self, const float *params, const float *d_sigma, co
     return nerf_rayformer_backward(m->net, params, m->ws, d_sigma, d_rgb, grad, d_pos, d_dir);
 }
 
-static const nerf_model_ops rf_ops = {.init = rf_init, .forward = rf_forward, .backward = rf_backward};
+/* Coarse-to-fine: 4 levels at the start, every level from c2f_steps on (a linear ramp of BARF's alpha). */
+static void rf_progress(void *self, int it, int iters, int c2f_steps)
+{
+    rf_model *m = self;
+    const int levels = nerf_rayformer_config_of(m->net)->grid.n_levels;
+    const double a0 = levels < 4 ? levels : 4;
+    double alpha = c2f_steps > 0 && it < c2f_steps ? a0 + (levels - a0) * (double)it / c2f_steps : levels;
+    (void)iters;
+    nerf_rayformer_ws_set_levels(m->ws, alpha);
+}
+
+static const nerf_model_ops rf_ops = {
+    .init = rf_init, .forward = rf_forward, .backward = rf_backward, .progress = rf_progress};
 
 int sci_rayformer_solve(const sci_problem *problem, const sci_rayformer_params *params, sci_result *result,
                         sci_progress_fn progress, void *user)

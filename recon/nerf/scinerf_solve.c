@@ -86,6 +86,8 @@ static void train_config(const sci_scinerf_params *p, nerf_train_config *c)
                              .tv_weight = 0,
                              .spacing = p->recipe.spacing,
                              .distortion_weight = p->recipe.distortion_weight,
+                             .depth_tv_weight = p->recipe.depth_tv_weight,
+                             .c2f_steps = p->recipe.c2f_steps,
                              .prior_steps = p->recipe.prior_steps,
                              .prior_weight = p->recipe.prior_weight,
                              .pose_mode = p->pose_mode,

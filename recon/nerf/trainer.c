@@ -54,6 +54,11 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
     if (c->prior_steps < 0 || !(c->prior_weight >= 0) || !isfinite(c->prior_weight))
         return sci_error_set(err, -EINVAL, "%s: prior steps (%d) and weight (%g) must be >= 0", m, c->prior_steps,
                              c->prior_weight);
+    if (!(c->depth_tv_weight >= 0) || !isfinite(c->depth_tv_weight))
+        return sci_error_set(err, -EINVAL, "%s: depth TV weight must be finite and >= 0 (got %g)", m,
+                             c->depth_tv_weight);
+    if (c->c2f_steps < 0)
+        return sci_error_set(err, -EINVAL, "%s: c2f steps must be >= 0 (got %d)", m, c->c2f_steps);
     if (c->pose_mode != NERF_POSES_KNOWN && c->pose_mode != NERF_POSES_LINEAR &&
         c->pose_mode != NERF_POSES_PER_FRAME)
         return sci_error_set(err, -EINVAL, "%s: unknown pose mode %d", m, (int)c->pose_mode);
@@ -122,7 +127,7 @@ static void pass_free(pass *p)
     nerf_adam_free(p->adam);
     void *b[] = {p->params, p->grad,  p->t,       p->pcam,    p->delta, p->pos,   p->sigma, p->rgb,
                  p->color,  p->grey,  p->dC,      p->d_color, p->d_sigma, p->d_rgb, p->d_pos, p->d_dir,
-                 p->d_sigma_dist};
+                 p->d_sigma_dist, p->tn, p->depth, p->d_depth};
     for (size_t i = 0; i < sizeof b / sizeof b[0]; i++)
         free(b[i]);
 }
@@ -168,7 +173,11 @@ static int pass_init(run *r, pass *p, const nerf_model *m, int L, int per_group,
     p->d_dir = pose_grads ? malloc(rays * 3 * sizeof(float)) : NULL;
     const int dist = !per_group && c->distortion_weight > 0;
     p->d_sigma_dist = dist ? malloc(pts * sizeof(float)) : NULL;
-    if ((dist && !p->d_sigma_dist) || !p->params || !p->grad || (per_group && !p->t) || !p->pcam || !p->delta || !p->pos || !p->sigma ||
+    const int dtv = !per_group && c->depth_tv_weight > 0 && c->patch_sampling;
+    p->tn = dtv ? malloc(pts * sizeof(float)) : NULL;
+    p->depth = dtv ? malloc(rays * sizeof(float)) : NULL;
+    p->d_depth = dtv ? malloc(rays * sizeof(float)) : NULL;
+    if ((dist && !p->d_sigma_dist) || (dtv && (!p->tn || !p->depth || !p->d_depth)) || !p->params || !p->grad || (per_group && !p->t) || !p->pcam || !p->delta || !p->pos || !p->sigma ||
         !p->rgb || !p->color || !p->grey || !p->dC || !p->d_color || !p->d_sigma || !p->d_rgb ||
         (pose_grads && (!p->d_pos || !p->d_dir)))
         return sci_error_set(err, -ENOMEM, "%s: out of memory for a batch of %d groups × %d rays × %d samples",
@@ -263,6 +272,11 @@ static int pass_forward(run *r, pass *p, int n_loc, int n_pose, const double (*T
     int rc = p->m->ops->forward(p->m->self, p->params, ng, L, p->pos, r->dir, p->sigma, p->rgb);
     if (rc < 0)
         return rc;
+    if (p->tn) { /* the coarse pass's camera-frame samples are per location */
+        const double inv = 1.0 / (r->far - r->near);
+        for (size_t k = 0; k < (size_t)n_loc * gp; k++)
+            p->tn[k] = (float)((-p->pcam[3 * k + 2] - r->near) * inv);
+    }
 #pragma omp parallel for schedule(static)
     for (int q = 0; q < ng; q++) {
         int b = q % n_loc, i = q / n_loc;
@@ -271,8 +285,9 @@ static int pass_forward(run *r, pass *p, int n_loc, int n_pose, const double (*T
                                .sigma = p->sigma + (size_t)q * gp,
                                .rgb = p->rgb + (size_t)q * gp * 3,
                                .delta = p->delta + cam_slot(p, n_loc, i, b) * gp,
+                               .t = p->tn ? p->tn + cam_slot(p, n_loc, i, b) * gp : NULL,
                                .t_stop = NERF_RENDER_T_STOP};
-        nerf_render_forward(&rr, p->color + (size_t)q * R * 3, NULL, NULL, NULL);
+        nerf_render_forward(&rr, p->color + (size_t)q * R * 3, p->tn ? p->depth + (size_t)q * R : NULL, NULL, NULL);
     }
     const size_t nr = (size_t)ng * R;
     for (size_t k = 0; k < nr; k++)
@@ -358,6 +373,12 @@ static double pass_loss(run *r, pass *p, int with_tv, double prior_w, double *da
     double loss = *data / (double)P;
     if (with_tv && c->tv_weight > 0 && c->patch_sampling)
         loss += nerf_loss_tv(ng, c->group_w, c->group_h, 1, p->grey, c->tv_eps, c->tv_weight / (double)nr, p->dC);
+    if (p->tn) {
+        memset(p->d_depth, 0, nr * sizeof(float));
+        if (with_tv)
+            loss += nerf_loss_tv(ng, c->group_w, c->group_h, 1, p->depth, 1e-3, c->depth_tv_weight / (double)nr,
+                                 p->d_depth);
+    }
     if (prior_w > 0 && r->Xp) {
         /* (β/(N·P))·Σ (C − X_gap)²: every frame pulled toward GAP-TV's at the same pixel */
         double sq = 0.0;
@@ -399,8 +420,10 @@ static int pass_backward(run *r, pass *p, int pose_grads)
                                .sigma = p->sigma + (size_t)q * gp,
                                .rgb = p->rgb + (size_t)q * gp * 3,
                                .delta = p->delta + cam_slot(p, r->B, i, b) * gp,
+                               .t = p->tn ? p->tn + cam_slot(p, r->B, i, b) * gp : NULL,
                                .t_stop = NERF_RENDER_T_STOP};
-        nerf_render_backward(&rr, p->d_color + (size_t)q * R * 3, NULL, NULL, p->d_sigma + (size_t)q * gp,
+        nerf_render_backward(&rr, p->d_color + (size_t)q * R * 3, p->tn ? p->d_depth + (size_t)q * R : NULL, NULL,
+                             p->d_sigma + (size_t)q * gp,
                              p->d_rgb + (size_t)q * gp * 3, NULL);
         if (p->d_sigma_dist)
             for (size_t k = (size_t)q * gp; k < (size_t)(q + 1) * gp; k++)
@@ -462,6 +485,9 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
     }
     for (int i = 0; i < N; i++)
         nerf_poses_get(r->poses, i, r->T[i]);
+    for (int k = 0; k < r->n_pass; k++)
+        if (r->ps[k].m->ops->progress)
+            r->ps[k].m->ops->progress(r->ps[k].m->self, it, c->iters, c->c2f_steps);
     int rc = pass_forward(r, pc, B, N, (const double(*)[12])r->T);
     if (rc == 0 && r->n_pass == 2) {
         importance(r, B, N, &r->rng);

@@ -60,6 +60,9 @@ typedef struct nerf_model_ops {
                    float *sigma, float *rgb);
     int (*backward)(void *self, const float *params, const float *d_sigma, const float *d_rgb, float *grad,
                     float *d_pos, float *d_dir);
+    /* Optional (NULL: none): told the step about to run (1 … iters) and the coarse-to-fine length c2f_steps of
+     * the config, before that step's forward; the final render follows a call with it = iters. */
+    void (*progress)(void *self, int it, int iters, int c2f_steps);
 } nerf_model_ops;
 
 typedef struct nerf_model {
@@ -88,6 +91,10 @@ typedef struct nerf_train_config {
     double tv_weight, tv_eps;     /* λ and the Charbonnier ε of the TV term (patch sampling only) */
     nerf_spacing spacing;         /* how the coarse samples divide [near, far] (patch_sampler.h) */
     double distortion_weight;     /* λ_dist of the distortion loss on the coarse weights (loss.h), 0: off */
+    int c2f_steps;                /* coarse-to-fine: the model's fine levels fade in over this many steps (0: all
+                                     on from the start; models without a progress callback ignore it) */
+    double depth_tv_weight;       /* λ of a TV term on the rendered depth (normalised to [0, 1] over near … far)
+                                     within each window (RegNeRF's depth smoothness; patch sampling only), 0: off */
     int prior_steps;              /* GAP-TV warm start: for the first prior_steps steps the rendered frames are
                                      also pulled toward GAP-TV's reconstruction, with a weight falling linearly
                                      from prior_weight to 0 (0: off) */
@@ -118,6 +125,8 @@ typedef struct nerf_train_config {
 typedef struct nerf_recipe {
     nerf_spacing spacing;      /* sample spacing along rays */
     double distortion_weight;  /* λ_dist, 0: off */
+    double depth_tv_weight;    /* depth smoothness within windows (patch sampling only), 0: off */
+    int c2f_steps;             /* coarse-to-fine hash levels over this many steps, 0: off */
     int prior_steps;           /* GAP-TV warm start length, 0: off */
     double prior_weight;       /* its starting weight */
     double density_bias;       /* added before the density activation: ln σ at initialisation (trunc_exp) */

@@ -24,6 +24,8 @@ typedef struct pass {
     float *color, *grey, *dC, *d_color;   /* G·R */
     float *d_sigma, *d_rgb, *d_pos, *d_dir;
     float *d_sigma_dist;                  /* G·R·L: the distortion loss's σ gradient (coarse pass, when on) */
+    float *tn, *depth, *d_depth;          /* depth TV (coarse pass, when on): sample depths normalised over
+                                             near … far (G·R·L), rendered depth and its gradient (G·R) */
 } pass;
 
 typedef struct run {

@@ -261,6 +261,49 @@ static void test_loss_tv(void **s)
     for (int i = 0; i < 4; i++) assert_float_equal(dZ[i], 0, 0);
 }
 
+/* Distortion loss: gradient w.r.t. σ against central differences in σ; a ray whose weight sits in one bin beats
+ * the same total weight spread over the ray (fog); σ = 0 gives 0; extreme σ and δ stay finite. */
+static void test_loss_distortion(void **s)
+{
+    (void)s;
+    enum { NRAY = 3, LS = 12, n = NRAY * LS };
+    float sg[n], dl[n], ds[n] = {0};
+    for (int i = 0; i < n; i++) sg[i] = (float)unif(0.05, 3), dl[i] = (float)unif(0.05, 0.4);
+    double ld = nerf_loss_distortion(NRAY, LS, sg, dl, 0.7, ds);
+    assert_true(ld > 0 && isfinite(ld));
+    double num = 0, den = 0;
+    for (int i = 0; i < n; i++) {
+        float s0 = sg[i], h = 0x1p-10f * fmaxf(1.0f, s0);
+        sg[i] = s0 + h;
+        double hp = (double)sg[i] - s0, a = nerf_loss_distortion(NRAY, LS, sg, dl, 0.7, NULL);
+        sg[i] = s0 - h;
+        double hm = s0 - (double)sg[i], b = nerf_loss_distortion(NRAY, LS, sg, dl, 0.7, NULL);
+        sg[i] = s0;
+        double g = (a - b) / (hp + hm);
+        num += (ds[i] - g) * (ds[i] - g), den += g * g;
+    }
+    printf("distortion gradient %.2g\n", sqrt(num / den));
+    assert_true(sqrt(num / den) < 1e-3);
+    /* a surface (all weight in bin 5) against fog (opacity 0.91 spread along the ray) */
+    float surf[LS] = {0}, fog[LS], one[LS];
+    surf[5] = 50;
+    for (int i = 0; i < LS; i++) fog[i] = 0.2f, one[i] = 1; /* optical depth 2.4 spread along the ray */
+    double ls = nerf_loss_distortion(1, LS, surf, one, 1, NULL), lf = nerf_loss_distortion(1, LS, fog, one, 1, NULL);
+    printf("distortion: surface %.4g, fog %.4g\n", ls, lf);
+    assert_true(ls < 0.2 * lf);
+    assert_float_equal(ls, 1.0 / (3 * LS), 1e-6); /* w = 1 in one bin: only the self term (1/3)·w²/LS */
+    float zero[LS] = {0}, dz[LS] = {0};
+    assert_float_equal(nerf_loss_distortion(1, LS, zero, one, 1, dz), 0, 0);
+    for (int i = 0; i < LS; i++) assert_float_equal(dz[i], 0, 0);
+    /* hard cases: σ 1e30 (opaque at once), δ 1e-30 … 1e6, a ray longer than the stack buffer */
+    enum { LL = 300 };
+    float big[LL], dd[LL], dg[LL] = {0};
+    for (int i = 0; i < LL; i++) big[i] = i % 7 == 0 ? 1e30f : 1e-3f, dd[i] = i % 2 ? 1e-30f : 1e6f;
+    double lb = nerf_loss_distortion(1, LL, big, dd, 1, dg);
+    assert_true(isfinite(lb));
+    for (int i = 0; i < LL; i++) assert_true(isfinite(dg[i]));
+}
+
 int main(void)
 {
     sci_rng_seed(&RNG_, test_seed(), 4);
@@ -268,7 +311,7 @@ int main(void)
         cmocka_unit_test(test_render_random),      cmocka_unit_test(test_render_sigma_zero),
         cmocka_unit_test(test_render_opaque),      cmocka_unit_test(test_render_delta_range),
         cmocka_unit_test(test_render_early_end),   cmocka_unit_test(test_loss_measurement),
-        cmocka_unit_test(test_loss_tv),
+        cmocka_unit_test(test_loss_tv),            cmocka_unit_test(test_loss_distortion),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -222,6 +222,40 @@ static void test_supersampling(void **state)
     sim_scene_free(sc);
 }
 
+/* The example scenes' near/far bound their depth range (what the NeRF methods sample): every frame renders bit for
+ * bit as with the default 0.05 … 100, so no visible surface lies outside it. */
+static void test_example_depth_ranges(void **state)
+{
+    static const char *const files[] = {"etc/scenes/static3d_corridor.json", "etc/scenes/static3d_orbit.json",
+                                        "etc/scenes/static3d_noisy.json", "etc/scenes/static3d_tabletop.json"};
+    for (size_t f = 0; f < sizeof files / sizeof files[0]; f++) {
+        sim_scene *sc;
+        sci_error err = {0};
+        if (sim_scene_load_file(&sc, files[f], &err) < 0)
+            fail_msg("%s", err.msg);
+        const size_t px = (size_t)sc->w * sc->h;
+        float *a = malloc(px * sizeof *a), *b = malloc(px * sizeof *b);
+        assert_non_null(a);
+        assert_non_null(b);
+        const double near = sc->static3d.near_m, far = sc->static3d.far_m;
+        assert_true(near > 0.05 && far < 100); /* the file sets a range of its own */
+        size_t differ = 0;
+        for (int g = 0; g < sc->n; g++) {
+            sc->static3d.near_m = near, sc->static3d.far_m = far;
+            sim_render_frame(sc, g, a);
+            sc->static3d.near_m = 0.05, sc->static3d.far_m = 100;
+            sim_render_frame(sc, g, b);
+            for (size_t i = 0; i < px; i++)
+                differ += a[i] != b[i];
+        }
+        printf("%s: near %g far %g, %zu pixels differ from 0.05 … 100\n", files[f], near, far, differ);
+        assert_int_equal(differ, 0);
+        free(a);
+        free(b);
+        sim_scene_free(sc);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -230,6 +264,7 @@ int main(void)
         cmocka_unit_test(test_occlusion),
         cmocka_unit_test(test_camera_convention),
         cmocka_unit_test(test_supersampling),
+        cmocka_unit_test(test_example_depth_ranges),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
