@@ -17,7 +17,7 @@ OPT     ?= -O3
 CFLAGS  ?= $(OPT) -g
 CXXFLAGS ?= $(OPT) -g
 WARN    := -Wall -Wextra -Werror -Wshadow -Wno-unused-parameter -Wno-format-truncation
-PKGS    := OpenImageIO matio jansson openblas hidapi-hidraw libusb-1.0 libgpiod libsystemd aravis-0.8
+PKGS    := OpenImageIO matio zlib jansson openblas hidapi-hidraw libusb-1.0 libgpiod libsystemd aravis-0.8
 PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 # libgpiod 1.6 (Debian 12) and 2.x have different APIs; drivers/ picks one at compile time.

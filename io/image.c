@@ -139,21 +139,54 @@ int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_
     return publish(tmp, path, rc, msg, err);
 }
 
+/* The smallest f with ceil(w/f)·ceil(h/f) <= SCI_GIF_MAX_PIXELS and both sides <= 65535. */
+static int gif_factor(int w, int h)
+{
+    int f = 1;
+    for (;; f++) {
+        const long long gw = (w + f - 1) / f, gh = (h + f - 1) / f;
+        if (gw * gh <= SCI_GIF_MAX_PIXELS && gw <= 65535 && gh <= 65535)
+            return f;
+    }
+}
+
 int sci_image_write_gif(const char *path, const sci_cube *c, double scale, int delay_ms, sci_error *err)
 {
-    const size_t count = sci_cube_count(c);
-    unsigned char *buf = malloc(count);
+    return sci_image_write_gif_opt(path, c, scale, delay_ms, NULL, err);
+}
+
+int sci_image_write_gif_opt(const char *path, const sci_cube *c, double scale, int delay_ms, int *factor,
+                            sci_error *err)
+{
+    const int f = gif_factor(c->w, c->h);
+    const int gw = (c->w + f - 1) / f, gh = (c->h + f - 1) / f;
+    const size_t gfs = (size_t)gw * (size_t)gh;
+    unsigned char *buf = malloc(gfs * (size_t)c->n);
     if (!buf)
         return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
-    for (size_t i = 0; i < count; i++) {
-        double v = (double)c->data[i] * scale;
-        v = isnan(v) ? 0 : nearbyint(v);
-        buf[i] = (unsigned char)(v < 0 ? 0 : (v > 255 ? 255 : v));
+    for (int k = 0; k < c->n; k++) {
+        const float *src = sci_cube_frame(c, k);
+        for (int gy = 0; gy < gh; gy++)
+            for (int gx = 0; gx < gw; gx++) {
+                /* mean of the block (edge blocks are smaller); NaN counts as black */
+                double acc = 0;
+                int cnt = 0;
+                for (int y = gy * f; y < gy * f + f && y < c->h; y++)
+                    for (int x = gx * f; x < gx * f + f && x < c->w; x++, cnt++) {
+                        const float v = src[(size_t)y * c->w + x];
+                        acc += isnan(v) ? 0 : v;
+                    }
+                double v = acc / cnt * scale;
+                v = isnan(v) ? 0 : nearbyint(v);
+                buf[(size_t)k * gfs + (size_t)gy * gw + gx] = (unsigned char)(v < 0 ? 0 : (v > 255 ? 255 : v));
+            }
     }
     char tmp[4096], msg[SCI_ERROR_MSG_MAX];
     tmp_name(tmp, sizeof tmp, path);
-    int rc = sci_oiio_write_gif(tmp, buf, c->w, c->h, c->n, delay_ms, msg, sizeof msg);
+    int rc = sci_oiio_write_gif(tmp, buf, gw, gh, c->n, delay_ms, msg, sizeof msg);
     free(buf);
+    if (factor)
+        *factor = f;
     return publish(tmp, path, rc, msg, err);
 }
 
@@ -215,6 +248,12 @@ int sci_stack_write(const char *dir, const char *stem, const char *ext, const sc
 
 int sci_stack_read(const char *sidecar_path, sci_cube **out, json_t **provenance, sci_error *err)
 {
+    return sci_stack_read_opts(sidecar_path, NULL, out, provenance, err);
+}
+
+int sci_stack_read_opts(const char *sidecar_path, const sci_io_limits *lim, sci_cube **out, json_t **provenance,
+                        sci_error *err)
+{
     *out = NULL;
     if (provenance)
         *provenance = NULL;
@@ -242,7 +281,12 @@ int sci_stack_read(const char *sidecar_path, sci_cube **out, json_t **provenance
                            sidecar_path);
         goto out;
     }
-    if ((rc = sci_cube_new(out, (int)w, (int)h, (int)n, err)) < 0)
+    if (w < 1 || h < 1 || n < 1 || w > 1 << 30 || h > 1 << 30 || n > 1 << 30) {
+        rc = sci_error_set(err, SCI_ESHAPE, "%s: unusable size %lldx%lldx%lld", sidecar_path, (long long)w,
+                           (long long)h, (long long)n);
+        goto out;
+    }
+    if (lim && (rc = sci_io_limits_check_cube(lim, sidecar_path, w, h, n, err)) < 0)
         goto out;
     char dir[4096];
     snprintf(dir, sizeof dir, "%s", sidecar_path);
@@ -251,6 +295,28 @@ int sci_stack_read(const char *sidecar_path, sci_cube **out, json_t **provenance
         slash[1] = 0;
     else
         dir[0] = 0;
+    /* The first frame's header before the allocation: the sidecar's w×h is a claim, the file is the fact. */
+    const char *first = json_string_value(json_array_get(files, 0));
+    if (first && !strchr(first, '/')) {
+        char fpath[8192], msg[SCI_ERROR_MSG_MAX];
+        int fw = 0, fh = 0;
+        snprintf(fpath, sizeof fpath, "%s%s", dir, first);
+        if (access(fpath, R_OK) != 0) {
+            rc = sci_error_set(err, -errno, "%s: %s", fpath, strerror(errno));
+            goto out;
+        }
+        if ((rc = sci_oiio_probe(fpath, &fw, &fh, msg, sizeof msg)) < 0) {
+            rc = sci_error_set(err, rc, "%s", msg);
+            goto out;
+        }
+        if (fw != w || fh != h) {
+            rc = sci_error_set(err, SCI_ESHAPE, "%s: is %dx%d but the sidecar %s says %lldx%lld", fpath, fw, fh,
+                               sidecar_path, (long long)w, (long long)h);
+            goto out;
+        }
+    }
+    if ((rc = sci_cube_new(out, (int)w, (int)h, (int)n, err)) < 0)
+        goto out;
     for (json_int_t k = 0; k < n && rc == 0; k++) {
         const char *name = json_string_value(json_array_get(files, (size_t)k));
         char path[8192];

@@ -25,6 +25,7 @@
 
 #include "base/cube.h"
 #include "base/error.h"
+#include "io/limits.h"
 
 typedef enum sci_pixel_type {
     SCI_PIXEL_U8,   /* 8-bit unsigned */
@@ -52,8 +53,15 @@ int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type t
 int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_type type, double scale,
                         sci_error *err);
 
-/* Write an animated GIF preview of all frames (8-bit, value × scale clamped), `delay_ms` per frame. */
+/* Write an animated GIF preview of all frames (8-bit, value × scale clamped), `delay_ms` per frame.
+ * Frames above SCI_GIF_MAX_PIXELS (or wider or taller than GIF's 65535) are shrunk by the smallest integer factor
+ * that fits, averaging factor×factor blocks: OpenImageIO 2.4's GIF writer crashes (SIGSEGV, no error) on frames
+ * over 2^24 pixels (4096² works, 4200² does not), and a preview needs no more. *factor (may be NULL) receives the
+ * factor used (1: full size). */
+#define SCI_GIF_MAX_PIXELS (2048 * 2048)
 int sci_image_write_gif(const char *path, const sci_cube *c, double scale, int delay_ms, sci_error *err);
+int sci_image_write_gif_opt(const char *path, const sci_cube *c, double scale, int delay_ms, int *factor,
+                            sci_error *err);
 
 /* Write cube `c` as a stack in folder `dir` (created if missing) with sidecar <dir>/<stem>.json. `ext` is the
  * file extension without dot ("exr", "tif", "png"). `provenance` (may be NULL, borrowed) is copied into the
@@ -65,5 +73,10 @@ int sci_stack_write(const char *dir, const char *stem, const char *ext, const sc
  * returns values divided by the sidecar's scale. *provenance (may be NULL) receives a new reference the caller
  * must json_decref, or NULL if the sidecar has none. */
 int sci_stack_read(const char *sidecar_path, sci_cube **out, json_t **provenance, sci_error *err);
+/* Same, with the sidecar's claim checked before anything is allocated: against `lim` (io/limits.h; NULL: no
+ * limit, as sci_stack_read), and against the first frame file's header (its size must be the sidecar's w×h), so a
+ * sidecar that lies costs a file open, not w·h·n floats. -EFBIG over a limit, SCI_ESHAPE on a mismatch. */
+int sci_stack_read_opts(const char *sidecar_path, const sci_io_limits *lim, sci_cube **out, json_t **provenance,
+                        sci_error *err);
 
 #endif

@@ -1,5 +1,7 @@
 #include "io/matfile.h"
 
+#include "io/mat_verify.h"
+
 #include <errno.h>
 #include <math.h>
 #include <matio.h>
@@ -156,61 +158,6 @@ static int to_cube(const matvar_t *v, const size_t dims[3], size_t f0, int n, do
     return 0;
 }
 
-/* A MAT v5 file is a 128-byte header and a chain of tagged elements; a truncated file ends inside an element.
- * matio stops quietly at such an element (it looks like the end of the file), so walk the chain ourselves.
- * v7.3 files (HDF5) carry their own integrity checks and are left to the HDF5 library. */
-static int check_v5_complete(const char *path, sci_error *err)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
-    unsigned char hdr[128];
-    int rc = 0;
-    if (fread(hdr, 1, sizeof hdr, f) != sizeof hdr) {
-        rc = sci_error_set(err, SCI_EFORMAT, "%s: shorter than a MAT-file header (truncated?)", path);
-        goto out;
-    }
-    int swap = hdr[126] == 'M' && hdr[127] == 'I';
-    int version = swap ? (hdr[124] << 8 | hdr[125]) : (hdr[125] << 8 | hdr[124]);
-    if (version != 0x0100)
-        goto out; /* v7.3 (0x0200) or something matio will judge */
-    if (fseeko(f, 0, SEEK_END) != 0) {
-        rc = sci_error_set(err, -EIO, "%s: cannot seek", path);
-        goto out;
-    }
-    off_t size = ftello(f), pos = 128;
-    while (pos + 8 <= size) {
-        unsigned char tag[8];
-        if (fseeko(f, pos, SEEK_SET) != 0 || fread(tag, 1, 8, f) != 8)
-            break;
-        uint32_t type, nbytes;
-        if (swap) {
-            type = (uint32_t)tag[0] << 24 | (uint32_t)tag[1] << 16 | (uint32_t)tag[2] << 8 | tag[3];
-            nbytes = (uint32_t)tag[4] << 24 | (uint32_t)tag[5] << 16 | (uint32_t)tag[6] << 8 | tag[7];
-        } else {
-            type = (uint32_t)tag[3] << 24 | (uint32_t)tag[2] << 16 | (uint32_t)tag[1] << 8 | tag[0];
-            nbytes = (uint32_t)tag[7] << 24 | (uint32_t)tag[6] << 16 | (uint32_t)tag[5] << 8 | tag[4];
-        }
-        if (type >> 16) { /* small data element: 4 bytes of data inside the tag */
-            pos += 8;
-            continue;
-        }
-        off_t len = 8 + (off_t)nbytes;
-        if (type != 15) /* miMATRIX elements are padded to 8 bytes; miCOMPRESSED (15) is not */
-            len = (len + 7) & ~(off_t)7;
-        if (pos + 8 + (off_t)nbytes > size) {
-            rc = sci_error_set(err, SCI_EFORMAT,
-                               "%s: truncated: an element at byte %lld needs %u bytes, the file ends %lld bytes later",
-                               path, (long long)pos, (unsigned)nbytes, (long long)(size - pos - 8));
-            goto out;
-        }
-        pos += len;
-    }
-out:
-    fclose(f);
-    return rc;
-}
-
 /* The only numeric variable of a file, or NULL when there are none or several (name copied into buf). */
 static const char *only_numeric_var(mat_t *mat, char *buf, size_t n)
 {
@@ -297,7 +244,7 @@ static int mat_read(const char *path, const sci_mat_options *o, double divisor, 
     for (int i = 0; i < (o->mask_path ? 2 : 1); i++) {
         if (access(paths[i], R_OK) != 0)
             return sci_error_set(err, -errno, "%s: %s", paths[i], strerror(errno));
-        int rc0 = check_v5_complete(paths[i], err);
+        int rc0 = sci_mat_verify(paths[i], err);
         if (rc0 < 0)
             return rc0;
     }

@@ -106,6 +106,25 @@ extern "C" int sci_oiio_read(const char *path, float **data, int *w, int *h, int
     }
 }
 
+extern "C" int sci_oiio_probe(const char *path, int *w, int *h, char *errbuf, size_t errlen)
+{
+    try {
+        auto in = ImageInput::open(path);
+        if (!in) {
+            std::string e = OIIO::geterror();
+            return fail(errbuf, errlen, SCI_EFORMAT, std::string(path) + ": cannot read image (" + e + ")");
+        }
+        *w = in->spec().width;
+        *h = in->spec().height;
+        in->close();
+        return 0;
+    } catch (const std::exception &e) {
+        return fail(errbuf, errlen, -EIO, std::string(path) + ": " + e.what());
+    } catch (...) {
+        return fail(errbuf, errlen, -EIO, std::string(path) + ": unknown C++ exception in OpenImageIO");
+    }
+}
+
 extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h, int pixel_type,
                               const char *description, char *errbuf, size_t errlen)
 {

@@ -18,6 +18,9 @@ extern "C" {
 int sci_oiio_read(const char *path, float **data, int *w, int *h, int *nframes, int *bits, char *errbuf,
                   size_t errlen);
 
+/* The size of the first subimage of `path`, from its header alone (no pixels read, nothing allocated for them). */
+int sci_oiio_probe(const char *path, int *w, int *h, char *errbuf, size_t errlen);
+
 /* Write one w×h grey image. `pixel_type` 0 = uint8, 1 = uint16, 2 = half, 3 = float; values must already be in
  * the type's range (integer types: rounded by the caller). description may be NULL. Not atomic: io/image.c
  * writes to a temporary name and renames. */

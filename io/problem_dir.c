@@ -4,6 +4,7 @@
 
 #include <dirent.h>
 #include <errno.h>
+#include <limits.h>
 #include <ftw.h>
 #include <math.h>
 #include <stdio.h>
@@ -260,6 +261,19 @@ static int camera_from_json(const json_t *cam, int frame0, int n, const char *pa
 
 int sci_problem_dir_read(const char *dir, sci_problem ***out, int *k, sci_error *err)
 {
+    sci_io_limits none;
+    sci_io_limits_none(&none);
+    return sci_problem_dir_read_opts(dir, &none, out, k, err);
+}
+
+int sci_problem_dir_read_opts(const char *dir, const sci_io_limits *lim, sci_problem ***out, int *k,
+                              sci_error *err)
+{
+    sci_io_limits deflim;
+    if (!lim) {
+        sci_io_limits_default(&deflim);
+        lim = &deflim;
+    }
     *out = NULL;
     *k = 0;
     char base[4096], path[4200];
@@ -287,17 +301,27 @@ int sci_problem_dir_read(const char *dir, sci_problem ***out, int *k, sci_error 
         rc = sci_error_set(err, SCI_EFORMAT, "%s: not a scicap problem manifest (%s)", path, je.text);
         goto out;
     }
+    if (snaps < 1 || snaps > INT_MAX) {
+        rc = sci_error_set(err, SCI_ESHAPE, "%s: snapshots = %lld is not a usable count", path, (long long)snaps);
+        goto out;
+    }
+    /* The manifest's own claim first (w, h, n are written by every writer; older folders may lack them). */
+    const json_int_t mw = json_integer_value(json_object_get(man, "w")),
+                     mh = json_integer_value(json_object_get(man, "h")),
+                     mn = json_integer_value(json_object_get(man, "n"));
+    if ((rc = sci_io_limits_check_input(lim, path, mw, mh, mn, snaps, err)) < 0)
+        goto out;
     char sub[4400];
     snprintf(sub, sizeof sub, "%s/%s", base, meas_f);
-    if ((rc = sci_stack_read(sub, &meas, NULL, err)) < 0)
+    if ((rc = sci_stack_read_opts(sub, lim, &meas, NULL, err)) < 0)
         goto out;
     snprintf(sub, sizeof sub, "%s/%s", base, mask_f);
-    if ((rc = sci_stack_read(sub, &mask, NULL, err)) < 0)
+    if ((rc = sci_stack_read_opts(sub, lim, &mask, NULL, err)) < 0)
         goto out;
     const char *truth_f = json_string_value(json_object_get(man, "truth"));
     if (truth_f) {
         snprintf(sub, sizeof sub, "%s/%s", base, truth_f);
-        if ((rc = sci_stack_read(sub, &truth, NULL, err)) < 0)
+        if ((rc = sci_stack_read_opts(sub, lim, &truth, NULL, err)) < 0)
             goto out;
     }
     const int n = mask->n;

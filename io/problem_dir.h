@@ -19,6 +19,7 @@
 
 #include <jansson.h>
 
+#include "io/limits.h"
 #include "recon/problem.h"
 
 /* Write problems[0..k-1] (all the same w, h, n; same masks: problems[0]'s are written) to DIR, creating it.
@@ -49,5 +50,12 @@ int sci_problem_dir_read_color(const char *dir, int *cfa, sci_cube ***truth_rgb,
 /* Read DIR (or DIR/problem.json). On success *out is a malloc'd array of *k problem pointers, freed with
  * sci_problem_array_free (recon/problem.h). */
 int sci_problem_dir_read(const char *dir, sci_problem ***out, int *k, sci_error *err);
+
+/* Same, with the manifest's and each sidecar's declared sizes checked against `lim` (io/limits.h; NULL: the
+ * defaults) before anything is allocated: -EFBIG naming the file and the limit. sci_problem_dir_read applies no
+ * limit (the daemon reads its own captures), but both check each stack's first frame against its sidecar before
+ * allocating (io/image.h, sci_stack_read_opts). */
+int sci_problem_dir_read_opts(const char *dir, const sci_io_limits *lim, sci_problem ***out, int *k,
+                              sci_error *err);
 
 #endif

@@ -1,7 +1,6 @@
 #include "io/recon_store.h"
 
 #include <errno.h>
-#include <ftw.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -10,9 +9,8 @@
 #include <unistd.h>
 
 #include "io/image.h"
+#include "io/staging.h"
 #include "recon/metrics.h"
-
-static int rm_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw) { return remove(path); }
 
 static json_t *num_or_null(double v) { return isfinite(v) ? json_real(v) : json_null(); }
 
@@ -62,8 +60,25 @@ json_t *sci_recon_summary(const sci_problem *p, const sci_result *r, const json_
     return s;
 }
 
+void sci_recon_store_estimate(long long w, long long h, long long n, long long snapshots, double *bytes,
+                              double *files)
+{
+    const double px = (double)w * (double)h, block = 4096;
+    const double gif_px = px < SCI_GIF_MAX_PIXELS ? px : SCI_GIF_MAX_PIXELS;
+    /* per frame: EXR (4 B/px) + PNG (1 B/px) + a block each; per snapshot: gif, frame.json, trace, result */
+    const double per = (double)n * (5 * px + 2 * block) + (double)n * gif_px + 4 * block + 65536;
+    *bytes = (double)snapshots * per;
+    *files = (double)snapshots * (2.0 * (double)n + 5);
+}
+
 int sci_recon_store_write(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
                           int overwrite, sci_error *err)
+{
+    return sci_recon_store_write_opt(dir, p, r, params, overwrite, NULL, err);
+}
+
+int sci_recon_store_write_opt(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
+                              int overwrite, const volatile sig_atomic_t *stop, sci_error *err)
 {
     struct stat st;
     if (!r->frames)
@@ -72,15 +87,21 @@ int sci_recon_store_write(const char *dir, const sci_problem *p, const sci_resul
     if (stat(dir, &st) == 0 && !overwrite)
         return sci_error_set(err, -EEXIST, "%s: already exists (use --force to replace it)", dir);
     char tmp[4096], path[4300];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%d", dir, (int)getpid());
-    nftw(tmp, rm_entry, 16, FTW_DEPTH | FTW_PHYS);
+    if (sci_staging_name(tmp, sizeof tmp, dir) < 0)
+        return sci_error_set(err, -ENAMETOOLONG, "%s: name too long", dir);
     json_t *prov = json_pack("{s:s, s:s}", "method", r->method, "problem", p->name);
     int rc = sci_stack_write(tmp, "frame", "exr", r->frames, SCI_PIXEL_F32, 1.0, prov, err);
     json_decref(prov);
     for (int k = 0; k < r->frames->n && rc == 0; k++) {
+        if (stop && *stop) {
+            rc = sci_error_set(err, SCI_ECANCELED, "%s: interrupted; not written", dir);
+            break;
+        }
         snprintf(path, sizeof path, "%s/preview_%03d.png", tmp, k);
         rc = sci_image_write(path, r->frames, k, SCI_PIXEL_U8, 255.0 / p->peak, NULL, err);
     }
+    if (rc == 0 && stop && *stop)
+        rc = sci_error_set(err, SCI_ECANCELED, "%s: interrupted; not written", dir);
     if (rc == 0) {
         snprintf(path, sizeof path, "%s/preview.gif", tmp);
         rc = sci_image_write_gif(path, r->frames, 255.0 / p->peak, 125, err);
@@ -96,17 +117,8 @@ int sci_recon_store_write(const char *dir, const sci_problem *p, const sci_resul
             rc = sci_error_set(err, -EIO, "%s: cannot write", path);
         json_decref(s);
     }
-    if (rc == 0 && stat(dir, &st) == 0) {
-        char old[4300];
-        snprintf(old, sizeof old, "%s.old-%d", dir, (int)getpid());
-        if (rename(dir, old) != 0)
-            rc = sci_error_set(err, -errno, "%s: cannot replace: %s", dir, strerror(errno));
-        else
-            nftw(old, rm_entry, 16, FTW_DEPTH | FTW_PHYS);
-    }
-    if (rc == 0 && rename(tmp, dir) != 0)
-        rc = sci_error_set(err, -errno, "%s: %s", dir, strerror(errno));
-    if (rc < 0)
-        nftw(tmp, rm_entry, 16, FTW_DEPTH | FTW_PHYS);
+    if (rc == 0)
+        return sci_staging_publish(tmp, dir, overwrite, stop, err);
+    sci_staging_remove(tmp);
     return rc;
 }

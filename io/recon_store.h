@@ -6,18 +6,32 @@
  *     DIR/trace.csv           the solver trace (iteration, wall and CPU time, residual, PSNR, SSIM)
  *     DIR/result.json         method, parameters, status, final metrics (both PSNR conventions named), timings
  *
- * The folder is written under DIR.tmp-<pid> and renamed at the end: a reader sees all of it or nothing.
- * `params` (may be NULL, borrowed) is copied into result.json. An existing DIR is replaced only if `overwrite`.
+ * The folder is written under DIR.tmp-<pid> and renamed at the end (io/staging.h): a reader sees all of it or
+ * nothing, and on any failure the temporary is removed. `params` (may be NULL, borrowed) is copied into
+ * result.json. An existing DIR is replaced only if `overwrite`. The GIF is scaled down for large frames
+ * (io/image.h, SCI_GIF_MAX_PIXELS).
  */
 #ifndef SCICAP_IO_RECON_STORE_H
 #define SCICAP_IO_RECON_STORE_H
 
 #include <jansson.h>
+#include <signal.h>
 
 #include "recon/problem.h"
 
 int sci_recon_store_write(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
                           int overwrite, sci_error *err);
+
+/* Same, interruptible: `stop` (may be NULL, e.g. a SIGTERM handler's flag) is polled between files; once it is
+ * nonzero the temporary is removed and SCI_ECANCELED returned — an interrupted write never publishes DIR. */
+int sci_recon_store_write_opt(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
+                              int overwrite, const volatile sig_atomic_t *stop, sci_error *err);
+
+/* What sci_recon_store_write makes for `snapshots` reconstructions of w×h×n: *bytes (an upper estimate: float
+ * EXR frames uncompressed, 8-bit previews, a block of file-system overhead per file) and *files (files and
+ * folders). For io/limits.h, before the work starts. */
+void sci_recon_store_estimate(long long w, long long h, long long n, long long snapshots, double *bytes,
+                              double *files);
 
 /* The summary that goes into result.json, as a new JSON object (caller json_decrefs). */
 json_t *sci_recon_summary(const sci_problem *p, const sci_result *r, const json_t *params);
