@@ -418,6 +418,9 @@ static int package(scicapd_acquire *a, scicapd_job *j, int index, const sci_cube
                                   "sync_mode", sync_mode_name(c->sync), "counts_per_unit", cpu, "dark_level_counts",
                                   level, "calibration", cm ? "measured-masks" : dark ? "dark-only" : "none"));
     json_object_set_new(m, "devices", scicapd_acquire_devices_json(a));
+    json_t *ct = scicapd_devices_camera_trigger_json(a->dev);
+    if (ct)
+        json_object_set_new(m, "camera_trigger", ct); /* the software triggers the host sent, up to this frame */
     json_object_set_new(m, "requested", json_pack("{s:I}", "mono_ns", (json_int_t)j->submitted_ns));
     json_object_set_new(m, "captured", time_json(a->snap->start_ns));
     if (a->sim)
@@ -434,7 +437,7 @@ fail:
 static int bind_devices(scicapd_acquire *a, enum sync_mode mode, sci_error *err)
 {
     int rc = scicapd_devices_ready(a->dev, err);
-    if (rc < 0)
+    if (rc < 0 || (rc = scicapd_devices_check_sync(a->dev, mode, err)) < 0)
         return rc;
     a->sim = scicapd_devices_sim(a->dev);
     /* the simulated camera free-runs in camera master, waits for its trigger otherwise */

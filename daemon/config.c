@@ -1,14 +1,43 @@
 /* daemon/config.c — parse and validate scicapd.json (docs/config.md). */
 #include "daemon/config.h"
 
+#include <assert.h>
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "base/json.h"
+#include "daemon/backends.h"
 #include "drivers/camera.h"
 #include "drivers/trigger.h"
+
+/* The measured curves when the file does not name them: $SCICAP_DATADIR/results.csv when the variable is set (an
+ * install elsewhere than PREFIX), else the installed SCICAP_DATADIR/results.csv (`buf` on entry); when that is not
+ * readable and the binary runs from a build tree (<tree>/build/scicapd), the tree's bench/results.csv, so that a
+ * reconstruction with a budget works before `make install`. Nothing readable: buf names the first candidate, and
+ * the budget request's error names it. */
+static void default_curves(char *buf, size_t n)
+{
+    const char *env = getenv("SCICAP_DATADIR");
+    if (env && env[0])
+        snprintf(buf, n, "%s/results.csv", env);
+    if (access(buf, R_OK) == 0)
+        return;
+    char exe[SCICAPD_PATH_MAX], tree[SCICAPD_PATH_MAX + 32];
+    ssize_t len = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (len <= 0)
+        return;
+    exe[len] = '\0';
+    char *slash = strrchr(exe, '/');
+    if (!slash)
+        return;
+    *slash = '\0';
+    snprintf(tree, sizeof tree, "%s/../bench/results.csv", exe);
+    if (access(tree, R_OK) == 0 && strlen(tree) < n)
+        snprintf(buf, n, "%s", tree);
+}
 
 static void defaults(scicapd_config *c)
 {
@@ -50,6 +79,7 @@ static void defaults(scicapd_config *c)
     strcpy(c->recon_method, "gap-tv");
     strcpy(c->recon_preset, "default");
     snprintf(c->recon_curves, sizeof c->recon_curves, "%s/results.csv", SCICAP_DATADIR);
+    default_curves(c->recon_curves, sizeof c->recon_curves);
     c->recon_auto = 0;
     c->workers = 1;
     c->capture_queue = 16;
@@ -247,7 +277,7 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
 {
     static const char *const keys[] = {"dmd", "camera", "trigger", NULL};
     static const char *const dmds[] = {"sim", "dlpc900", NULL};
-    static const char *const cams[] = {"sim", "v4l2", NULL};
+    static const char *const cams[] = {"sim", "v4l2", "aravis", NULL};
     static const char *const trigs[] = {"sim", "gpiod", NULL};
     static const char *const cam_strip[] = {"readout_us", NULL};
     int rc;
@@ -270,22 +300,29 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
                              "(its size is the scene's)");
     if (sim_trig && c->trigger_json && json_object_size(c->trigger_json) > 0)
         return sci_json_fail(doc, err, "devices.trigger", "the sim trigger takes no settings besides \"backend\"");
-    if (sim_cam != sim_trig)
+    /* The drivers' own validation, at load time, so that a typo is found by --check-config and by reload. */
+    sci_error e2 = {0};
+    int fake_cam = 0;
+    if (!sim_cam) {
+        const scicapd_camera_backend *b = scicapd_camera_backend_find(c->camera_backend);
+        camera_config cc;
+        scicapd_camera_opts opts;
+        assert(b); /* cams[] above lists only backends of the table, and "sim" */
+        if (b->parse(c->camera_json, "devices.camera", &cc, &opts, &e2) < 0)
+            return driver_fail(doc, &e2, err);
+        if (!cc.device && !cc.card && !cc.bus_info)
+            return sci_json_fail(doc, err, "devices.camera", "%s", b->locate_hint);
+        fake_cam = scicapd_camera_is_fake(b, &cc);
+    }
+    /* Aravis's fake camera lives inside the daemon's process: no wire reaches it either way, so besides a gpiod
+     * trigger it may run with the simulated one (tests and dry runs of the GenICam path, docs/config.md). */
+    if (sim_cam != sim_trig && !(fake_cam && sim_trig))
         return sci_json_fail(doc, err, json_object_get(o, "trigger") ? "devices.trigger.backend" : "devices.camera.backend",
                              "camera \"%s\" with trigger \"%s\": the trigger output starts the camera and the "
                              "camera's strobe comes back to a trigger input, so both are simulated (\"sim\") or "
-                             "both real (\"v4l2\" with \"gpiod\"); the DMD may be either",
-                             c->camera_backend, c->trigger_backend);
-    /* The drivers' own validation, at load time, so that a typo is found by --check-config and by reload. */
-    sci_error e2 = {0};
-    if (!sim_cam) {
-        camera_config cc;
-        if (camera_config_from_json(c->camera_json, "devices.camera", &cc, &e2) < 0)
-            return driver_fail(doc, &e2, err);
-        if (!cc.device && !cc.card && !cc.bus_info)
-            return sci_json_fail(doc, err, "devices.camera", "the v4l2 camera needs \"device\" (best a "
-                                 "/dev/v4l/by-id/... path), or \"card\" and/or \"bus_info\" to find it");
-    }
+                             "both real (\"v4l2\" or \"aravis\" with \"gpiod\"); the DMD may be either. Only "
+                             "Aravis's in-process fake camera (\"device\": \"Fake_1\") may also pair with the "
+                             "\"sim\" trigger", c->camera_backend, c->trigger_backend);
     if (!sim_trig) {
         trigger_config tc;
         if (trigger_config_from_json(c->trigger_json, "devices.trigger", &tc,

@@ -59,7 +59,7 @@ typedef struct scicapd_config {
     int fsync;                            /* 1: fsync files and folders before a capture is announced */
     int writers;                          /* storage writer threads, 1..16 (capture folders written in parallel) */
     int previews;                         /* 1: 8-bit PNG/GIF previews in each capture folder */
-    /* devices: backend names ("sim", "dlpc900", "v4l2", "gpiod") and their own config objects (owned copies) */
+    /* devices: backend names ("sim", "dlpc900", "v4l2", "aravis", "gpiod") and their own config objects (owned copies) */
     char dmd_backend[16], camera_backend[16], trigger_backend[16];
     char dmd_serial[SCICAPD_NAME_MAX];    /* "" = first found */
     int dmd_emulator;                     /* dlpc900 only: drive the in-process DLPC900 emulator instead of USB */
@@ -91,7 +91,9 @@ typedef struct scicapd_config {
     char recon_preset[16];                /* "default" */
     char recon_curves[SCICAPD_PATH_MAX];  /* measured accuracy-against-time curves (scicap bench CSV) used to
                                              honour a reconstruct request's budget_s; default
-                                             SCICAP_DATADIR/results.csv, installed by make install */
+                                             $SCICAP_DATADIR/results.csv when that variable is set, else
+                                             SCICAP_DATADIR/results.csv (installed by make install), else, from a
+                                             build tree, <exe dir>/../bench/results.csv */
     int recon_auto;                       /* reconstruct every capture unless the request says otherwise */
     int workers;                          /* reconstruction threads, 1..16 */
     int recon_threads;                    /* OpenMP threads per reconstruction; 0 = OpenMP's default */

@@ -9,10 +9,12 @@
 #include <string.h>
 
 #include "base/clock.h"
-#include "drivers/camera_v4l2.h"
+#include "daemon/backends.h"
+#include "daemon/swtrigger.h"
 #include "drivers/dlpc900_emu.h"
 #include "drivers/trigger_gpiod.h"
 #include "sim/dmd_sim.h"
+#include "sim/trigger_sim.h"
 
 enum { DEV_DMD, DEV_CAMERA, DEV_TRIGGER, DEV_COUNT };
 static const char *const dev_names[DEV_COUNT] = {"dmd", "camera", "trigger"};
@@ -28,6 +30,8 @@ struct scicapd_devices {
     int dmd_open;
     dmd_identity dmd_id;
     camera *cam;               /* real camera (the simulated one belongs to sim) */
+    int cam_software;          /* cam waits for its software trigger: trig is a scicapd_swtrigger around the
+                                  configured trigger (daemon/swtrigger.h) */
     trigger *trig;
     char error[DEV_COUNT][512]; /* open error, "" when open */
     int64_t last_try_ns;
@@ -132,6 +136,77 @@ void scicapd_devices_dmd_event(scicapd_devices *d, dmd_event ev)
     publish(d);
 }
 
+/* The real camera, through the backend table (daemon/backends.h). */
+static void open_camera(scicapd_devices *d)
+{
+    const scicapd_config *c = d->cfg;
+    sci_error e = {0};
+    const scicapd_camera_backend *b = scicapd_camera_backend_find(c->camera_backend);
+    camera_config cc;
+    scicapd_camera_opts opts; /* cc.backend_options points here: alive until camera_open returns */
+    camera *cam = NULL;
+    int rc = b ? b->parse(c->camera_json, "devices.camera", &cc, &opts, &e)
+               : sci_error_set(&e, -ENOTSUP, "no camera backend \"%s\"", c->camera_backend);
+    if (rc == 0)
+        rc = camera_open(&cam, b->ops, &cc, &e);
+    if (rc == 0 && (rc = camera_start(cam, &e)) < 0)
+        camera_close(cam);
+    if (rc < 0) {
+        set_error(d, DEV_CAMERA, e.msg);
+        return;
+    }
+    d->cam = cam;
+    d->cam_software = scicapd_camera_software_trigger(b, &opts);
+    d->error[DEV_CAMERA][0] = '\0';
+}
+
+/* The configured trigger: gpiod, or (with Aravis's in-process fake camera only, daemon/config.c) a simulated one
+ * whose output reaches nothing and whose inputs are not wired, like a bench with only the output line connected.
+ * A camera in software-trigger mode gets it wrapped so that each pulse also fires the camera (swtrigger.h); the
+ * wrapper needs the camera, so the trigger waits for it. */
+static void open_trigger(scicapd_devices *d)
+{
+    const scicapd_config *c = d->cfg;
+    sci_error e = {0};
+    trigger *t = NULL;
+    int rc;
+    if (d->cam_software && !d->cam) {
+        set_error(d, DEV_TRIGGER, "waiting for the camera (its software trigger is fired with each pulse)");
+        return;
+    }
+    if (strcmp(c->trigger_backend, "sim") == 0) {
+        trigger_sim_options so = {.seed = c->sim_seed};
+        trigger_config tc = trigger_config_default();
+        tc.chip = "sim-gpiochip";
+        tc.output.offset = 0;
+        tc.backend_options = &so;
+        rc = trigger_open(&t, &trigger_sim_ops, &tc, &e);
+    } else {
+        trigger_config tc;
+        rc = trigger_config_from_json(c->trigger_json, "devices.trigger", &tc, &e);
+        if (rc == 0) {
+            if (!tc.consumer)
+                tc.consumer = "scicapd";
+            rc = trigger_open(&t, &trigger_gpiod_ops, &tc, &e);
+        }
+    }
+    if (rc == 0 && d->cam_software) {
+        scicapd_swtrigger_options so = {.inner = t, .cam = d->cam};
+        trigger_config tc = trigger_config_default();
+        tc.backend_options = &so;
+        trigger *w = NULL;
+        if ((rc = trigger_open(&w, &scicapd_swtrigger_ops, &tc, &e)) < 0)
+            trigger_close(t);
+        t = w;
+    }
+    if (rc < 0) {
+        set_error(d, DEV_TRIGGER, e.msg);
+        return;
+    }
+    d->trig = t;
+    d->error[DEV_TRIGGER][0] = '\0';
+}
+
 static void open_bench(scicapd_devices *d)
 {
     const scicapd_config *c = d->cfg;
@@ -146,35 +221,10 @@ static void open_bench(scicapd_devices *d)
         atomic_store(&d->can_bench_faults, 1);
         return;
     }
-    if (!d->cam) {
-        camera_config cc;
-        camera *cam = NULL;
-        int rc = camera_config_from_json(c->camera_json, "devices.camera", &cc, &e);
-        if (rc == 0)
-            rc = camera_open(&cam, &camera_v4l2_ops, &cc, &e);
-        if (rc == 0 && (rc = camera_start(cam, &e)) < 0)
-            camera_close(cam);
-        if (rc < 0)
-            set_error(d, DEV_CAMERA, e.msg);
-        else {
-            d->cam = cam;
-            d->error[DEV_CAMERA][0] = '\0';
-        }
-    }
-    if (!d->trig) {
-        trigger_config tc;
-        int rc = trigger_config_from_json(c->trigger_json, "devices.trigger", &tc, &e);
-        if (rc == 0) {
-            if (!tc.consumer)
-                tc.consumer = "scicapd";
-            rc = trigger_open(&d->trig, &trigger_gpiod_ops, &tc, &e);
-        }
-        if (rc < 0) {
-            d->trig = NULL;
-            set_error(d, DEV_TRIGGER, e.msg);
-        } else
-            d->error[DEV_TRIGGER][0] = '\0';
-    }
+    if (!d->cam)
+        open_camera(d);
+    if (!d->trig)
+        open_trigger(d);
 }
 
 static void open_dmd(scicapd_devices *d)
@@ -192,6 +242,14 @@ static void open_dmd(scicapd_devices *d)
     int w = 0, h = 0, rc;
     if (d->sim)
         scicapd_simbench_size(d->sim, &w, &h); /* emulated mirrors: one per simulated pixel */
+    else if (d->cam) {
+        /* an emulated DMD before a real camera: one mirror per pixel too, so that the masks it shows are the
+         * reconstruction's (a real DMD has its own size: calibrate then, docs/config.md) */
+        camera_format cf;
+        camera_format_get(d->cam, &cf);
+        w = (int)cf.width;
+        h = (int)cf.height;
+    }
     const dmd_ops *ops = &dmd_dlpc900_ops;
     if (strcmp(c->dmd_backend, "sim") == 0) {
         ops = &dmd_sim_ops;
@@ -249,10 +307,11 @@ static void close_all(scicapd_devices *d)
     d->emu = NULL;
     scicapd_simbench_close(d->sim);
     d->sim = NULL;
+    trigger_close(d->trig); /* first: a software-trigger wrapper borrows the camera */
+    d->trig = NULL;
     camera_close(d->cam);
     d->cam = NULL;
-    trigger_close(d->trig);
-    d->trig = NULL;
+    d->cam_software = 0;
 }
 
 int scicapd_devices_open(scicapd_devices **out, const scicapd_config *cfg, const sci_log *log,
@@ -399,4 +458,26 @@ void scicapd_devices_fault_apply(scicapd_devices *d, scicapd_fault fault, long n
         break;
     default: break;
     }
+}
+
+int scicapd_devices_check_sync(const scicapd_devices *d, enum sync_mode mode, sci_error *err)
+{
+    if (!d->cam_software || mode == SYNC_MODE_HOST_MASTER)
+        return 0;
+    /* dmd-master starts the DMD by dmd_start (no pulse to send the command with); camera-master needs a
+     * free-running camera whose strobe starts the DMD */
+    return sci_error_set(err, -EINVAL, "camera (%s) is in \"trigger\": \"software\" mode: the host starts each "
+                         "exposure, so sync_mode must be host-master (got %s; for dmd-master use \"trigger\": "
+                         "\"line\" wired to the DMD's trigger output, for camera-master \"free-run\")",
+                         d->cfg->camera_backend, sync_mode_name(mode));
+}
+
+json_t *scicapd_devices_camera_trigger_json(scicapd_devices *d)
+{
+    uint64_t sent;
+    int64_t last;
+    if (!d->cam_software || scicapd_swtrigger_stats(d->trig, &sent, &last) < 0)
+        return NULL;
+    return json_pack("{s:s, s:I, s:I}", "mode", "software", "sent", (json_int_t)sent, "last_sent_ns",
+                     (json_int_t)last);
 }

@@ -2,12 +2,18 @@
  *
  *     DMD      "sim" (sim/dmd_sim.h: the dlpc900 backend on an emulator) or "dlpc900" (drivers/dmd_dlpc900.c over
  *              USB HID, or over the in-process DLPC900 emulator with "emulator": true)
- *     camera   "sim" (the simulated bench, daemon/simbench.h) or "v4l2" (drivers/camera_v4l2.h)
+ *     camera   "sim" (the simulated bench, daemon/simbench.h), or a backend of daemon/backends.h's table: "v4l2"
+ *              (drivers/camera_v4l2.h), "aravis" (drivers/camera_aravis.h, GenICam)
  *     trigger  "sim" (the simulated bench) or "gpiod" (drivers/trigger_gpiod.h)
  *
  * Camera and trigger are both simulated or both real (the config refuses a mix: the trigger output starts the
  * camera and the camera's strobe comes back to a trigger input). When they are simulated the DMD, whatever its
- * backend, is wired into the simulated bench (its masks shape the simulated image); otherwise it is used as is.
+ * backend, is wired into the simulated bench (its masks shape the simulated image); otherwise it is used as is,
+ * and an emulated DMD ("sim", or the DLPC900 emulator) gets the real camera's size (one mirror per pixel).
+ * One exception: Aravis's in-process fake camera ("device": "Fake_1") may run with the "sim" trigger, opened
+ * alone (its output reaches nothing, no input wired): the GenICam path end to end without hardware.
+ * An aravis camera in "trigger": "software" mode gets the trigger wrapped (daemon/swtrigger.h): each pulse also
+ * sends the camera's TriggerSoftware, where the exposure starts; only host-master sync can work that way.
  *
  * A device that fails to open does not stop the daemon: its error (naming the device) is kept, logged, shown by
  * `devices` and `status`, and returned by scicapd_devices_ready to every capture; scicapd_devices_retry re-opens
@@ -61,6 +67,13 @@ int64_t scicapd_devices_dmd_latency_ns(const scicapd_devices *d);
 int64_t scicapd_devices_readout_ns(const scicapd_devices *d);
 /* What the DMD needs in its dmd_timing beyond exposure/dark/trigger mode (DLPC900 trigger-in settings). */
 void scicapd_devices_timing_defaults(const scicapd_devices *d, dmd_timing *t);
+
+/* 0 when the camera can be started the way `mode` needs; -EINVAL with the reason otherwise (a camera in software
+ * trigger mode needs host master). */
+int scicapd_devices_check_sync(const scicapd_devices *d, enum sync_mode mode, sci_error *err);
+/* For meta.json: {"mode": "software", "sent": software triggers sent since the camera opened, "last_sent_ns":
+ * CLOCK_MONOTONIC just before the last one}, or NULL when the camera is not in software-trigger mode. New ref. */
+json_t *scicapd_devices_camera_trigger_json(scicapd_devices *d);
 
 /* Mark the DMD (dis)connected after a hotplug event (the acquisition thread's event callback calls this). */
 void scicapd_devices_dmd_event(scicapd_devices *d, dmd_event ev);
