@@ -1,6 +1,8 @@
 /* scicapd's reconstruct request with a time budget: it picks, from the measured accuracy-against-time curves,
  * the most accurate setting that fits, says what it picked, and refuses a budget nothing fits. The curves here
- * are a small hand-written CSV in the `scicap bench` format, so the expected choice is known exactly. */
+ * are a small hand-written CSV in the `scicap bench` format, so the expected choice is known exactly. Without
+ * reconstruction.curves the daemon finds them as installed, or through $SCICAP_DATADIR, or — run from a build tree
+ * before `make install` — in the tree's bench/results.csv. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -85,8 +87,104 @@ static void budget_picks_from_curves(void **state)
     harness_cleanup(&h);
 }
 
+static char *stored_capture(hconn *c, char *id, size_t n)
+{
+    json_decref(hconn_request(c, "capture", json_pack("{s:b}", "reconstruct", 0)));
+    json_t *st = hconn_wait_event(c, "capture.stored", 20000);
+    snprintf(id, n, "%s", json_string_value(json_object_get(json_object_get(st, "data"), "capture")));
+    json_decref(st);
+    return id;
+}
+
+/* No curves in the config: $SCICAP_DATADIR/results.csv wins over the installed file (here: the hand-written
+ * curves, so the choice is known: gap-tv 50 iterations for 0.1 s). */
+static void budget_curves_from_env_datadir(void **state)
+{
+    (void)state;
+    harness h;
+    harness_init(&h, NULL);
+    char csv[400], env[400], cap[64];
+    snprintf(csv, sizeof csv, "%s/results.csv", h.dir);
+    FILE *f = fopen(csv, "w");
+    assert_non_null(f);
+    fputs(curves, f);
+    fclose(f);
+    snprintf(env, sizeof env, "SCICAP_DATADIR=%s", h.dir);
+    char *envv[] = {env, NULL};
+    harness_spawn(&h, envv);
+    hconn c;
+    hconn_open(&c, &h);
+    stored_capture(&c, cap, sizeof cap);
+    json_decref(hconn_request(&c, "reconstruct", json_pack("{s:s, s:f}", "capture", cap, "budget_s", 0.1)));
+    json_decref(hconn_wait_event(&c, "recon.done", 60000));
+    json_t *p = result_params(&h, cap, "gap-tv");
+    assert_int_equal(json_integer_value(json_object_get(p, "iters")), 50);
+    json_decref(p);
+    hconn_close(&c);
+    harness_stop(&h);
+    harness_cleanup(&h);
+}
+
+/* The binary run from the build tree, nothing installed where $SCICAP_DATADIR points: the daemon falls back to
+ * <build>/../bench/results.csv, the measured curves `scicap recon --capture ID --budget S` needs before
+ * `make install`. The chosen setting must be one of that file's rows. */
+static void budget_curves_from_build_tree(void **state)
+{
+    (void)state;
+    char self[1024], tree_csv[1100];
+    ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
+    assert_true(len > 0);
+    self[len] = '\0';
+    /* BUILD/tests/integration/test_daemon_budget -> BUILD/../bench/results.csv, as the daemon computes it */
+    snprintf(tree_csv, sizeof tree_csv, "%s/../../../bench/results.csv", dirname(self));
+    if (access(tree_csv, R_OK) != 0)
+        fail_msg("no %s: the build tree's curves are part of the checkout", tree_csv);
+    harness h;
+    harness_init(&h, NULL);
+    char env[400], cap[64];
+    snprintf(env, sizeof env, "SCICAP_DATADIR=%s/not-installed", h.dir);
+    char *envv[] = {env, NULL};
+    harness_spawn(&h, envv);
+    hconn c;
+    hconn_open(&c, &h);
+    stored_capture(&c, cap, sizeof cap);
+    json_decref(hconn_request(&c, "reconstruct", json_pack("{s:s, s:f}", "capture", cap, "budget_s", 5.0)));
+    json_t *e = hconn_wait_event(&c, "recon.done", 60000);
+    const char *method = json_string_value(json_object_get(json_object_get(e, "data"), "method"));
+    assert_non_null(method);
+    char m[32];
+    snprintf(m, sizeof m, "%s", method);
+    json_decref(e);
+    json_t *p = result_params(&h, cap, m);
+    json_t *b = json_object_get(p, "budget");
+    assert_non_null(b);
+    double predicted = json_number_value(json_object_get(b, "predicted_s"));
+    json_int_t iters = json_integer_value(json_object_get(p, "iters"));
+    json_int_t tv = json_integer_value(json_object_get(p, "tv_iters"));
+    printf("  5 s from the build tree's curves: %s iters=%lld tv_iters=%lld, predicted %.3f s, expected %.2f dB\n",
+           m, (long long)iters, (long long)tv, predicted, json_number_value(json_object_get(b, "expected_psnr_db")));
+    assert_true(predicted > 0 && predicted <= 5.0);
+    /* the setting it ran is a row of bench/results.csv (the hand-written curves above have no such row) */
+    FILE *f = fopen(tree_csv, "r");
+    assert_non_null(f);
+    char line[4096], want[256];
+    snprintf(want, sizeof want, ",%s,iters=%lld tv_iters=%lld,", m, (long long)iters, (long long)tv);
+    int found = 0;
+    while (!found && fgets(line, sizeof line, f))
+        found = strstr(line, want) != NULL;
+    fclose(f);
+    if (!found)
+        fail_msg("no row '%s' in %s", want, tree_csv);
+    json_decref(p);
+    hconn_close(&c);
+    harness_stop(&h);
+    harness_cleanup(&h);
+}
+
 int main(void)
 {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(budget_picks_from_curves)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(budget_picks_from_curves),
+                                       cmocka_unit_test(budget_curves_from_env_datadir),
+                                       cmocka_unit_test(budget_curves_from_build_tree)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
