@@ -126,6 +126,8 @@ int main(int argc, char **argv)
             rp.finest_res = sp.finest_res = atof(v);
         else if (rf && strcmp(key, "zero_gates") == 0)
             rp.zero_gates = atoi(v);
+        else if (rf && strcmp(key, "heads_full_lr") == 0)
+            rp.heads_full_lr = atoi(v);
         else if (rf && strcmp(key, "net_lr_scale") == 0)
             rp.net_lr_scale = atof(v);
         else if (rf && strcmp(key, "tv_weight") == 0)

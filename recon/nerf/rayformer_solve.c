@@ -222,6 +222,7 @@ int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_param
                         .self = &m,
                         .n_params = nerf_rayformer_param_count(m.net),
                         .n_hash = nerf_rayformer_hash_param_count(m.net),
+                        .n_scaled = params->heads_full_lr ? nerf_rayformer_layout_of(m.net).lnf_g : 0,
                         .max_groups = groups};
     rc = nerf_train_run(problem, &tc, &model, NULL, result, progress, user, poses_out);
 out:

@@ -40,7 +40,9 @@ typedef struct sci_rayformer_params {
     double finest_res;           /* finest hash-grid resolution (the coarsest is 16) */
     int sh_degree;               /* direction encoding degree 1 … 4 (4: the paper's 16 SH outputs) */
     double lr, lr_final;         /* network learning rate, decayed exponentially over the steps */
-    double net_lr_scale;         /* the transformer and heads learn at lr × this, the hash table at lr (0: 1) */
+    double net_lr_scale;         /* the transformer learns at lr × this, the hash table at lr (0: 1) */
+    int heads_full_lr;           /* 1: only the transformer blocks are scaled, the final LN and the density and colour
+                                    heads learn at lr; 0: the heads are scaled too */
     double tv_weight;            /* λ of the TV term (0: off) */
     double tv_eps;               /* Charbonnier ε of the TV term (0: plain |d|) */
     int patch_sampling;          /* 1: patches; 0: scattered random rays in groups of patch² (ablation baseline) */

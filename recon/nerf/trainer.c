@@ -508,9 +508,12 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
         pass *p = &r->ps[k];
         if ((rc = pass_backward(r, p, pose_grads)) < 0)
             return rc;
+        const size_t scaled_end = p->m->n_scaled > p->m->n_hash ? p->m->n_scaled : p->m->n_params;
         nerf_adam_step(p->adam, p->params, p->grad, 0, p->m->n_hash, lr, 1, 0);
-        nerf_adam_step(p->adam, p->params, p->grad, p->m->n_hash, p->m->n_params,
+        nerf_adam_step(p->adam, p->params, p->grad, p->m->n_hash, scaled_end,
                        lr * (c->net_lr_scale > 0 ? c->net_lr_scale : 1), 0, 0);
+        if (scaled_end < p->m->n_params)
+            nerf_adam_step(p->adam, p->params, p->grad, scaled_end, p->m->n_params, lr, 0, 0);
     }
     if (pose_grads) {
         double plr = c->pose_lr > 0 ? lr_at(c->pose_lr, c->pose_lr_final > 0 ? c->pose_lr_final : c->pose_lr, it,

@@ -70,6 +70,8 @@ typedef struct nerf_model {
     void *self;       /* borrowed: the solver owns the network and its workspace */
     size_t n_params;  /* floats */
     size_t n_hash;    /* the first n_hash parameters are a hash table (lazy Adam) */
+    size_t n_scaled;  /* parameters [n_hash, n_scaled) learn at lr × net_lr_scale, the rest at lr; 0: every
+                         parameter after the table is scaled */
     int max_groups;   /* largest n_groups per call (at least N·B) */
 } nerf_model;
 
@@ -86,7 +88,7 @@ typedef struct nerf_train_config {
     int samples;                  /* L (coarse) stratified samples per ray */
     int fine_samples;             /* importance samples of the fine pass (needs a fine model), 0: none */
     double lr, lr_final;          /* network Adam, exponential decay over the run */
-    double net_lr_scale;          /* the weights after the hash table learn at lr × this (0: 1, the same lr) */
+    double net_lr_scale;          /* the model's scaled range (nerf_model.n_scaled) learns at lr × this (0: 1) */
     double adam_beta2, adam_eps;  /* network Adam β2, ε (β1 = 0.9) */
     double tv_weight, tv_eps;     /* λ and the Charbonnier ε of the TV term (patch sampling only) */
     nerf_spacing spacing;         /* how the coarse samples divide [near, far] (patch_sampler.h) */

@@ -154,12 +154,43 @@ static void test_huge_learning_rate(void **state)
     sci_problem_free(p);
 }
 
+/* The issue-15 recipe with every knob on (disparity and log spacing, distortion loss, depth TV, GAP-TV warm start,
+ * coarse-to-fine levels, zero-initialised gates) on the hard scenes: all-black (weights → 0, the distortion and
+ * depth terms see empty rays), all-white (opaque at the first sample), and a learning rate of 9. */
+static void test_recipe_hard_cases(void **state)
+{
+    sci_problem *black = scene(16, 16, 3, 0.02, 0.05, 0.0, 0.0);
+    sci_problem *white = scene(16, 16, 3, 0.02, 0.05, 1.0, 1.0);
+    sci_problem *tex = scene(16, 16, 3, 0.02, 0.05, 0.2, 0.8);
+    for (int sp = NERF_SPACING_LINEAR; sp <= NERF_SPACING_LOG; sp++) {
+        sci_rayformer_params q;
+        small(&q);
+        q.iters = 20;
+        q.zero_gates = 1;
+        q.heads_full_lr = 1;
+        q.recipe = (nerf_recipe){.spacing = (nerf_spacing)sp, .distortion_weight = 0.5, .depth_tv_weight = 5,
+                                 .prior_steps = 10, .prior_weight = 10, .density_bias = -3, .c2f_steps = 15};
+        char what[64];
+        snprintf(what, sizeof what, "recipe, spacing %d, all-black", sp);
+        expect_finite_or_clear_error(black, &q, what);
+        snprintf(what, sizeof what, "recipe, spacing %d, all-white", sp);
+        expect_finite_or_clear_error(white, &q, what);
+        q.lr = q.lr_final = 9;
+        q.recipe.density_bias = 8; /* e^8 ≈ 3000: opaque everywhere at the start */
+        snprintf(what, sizeof what, "recipe, spacing %d, lr 9, density bias 8", sp);
+        expect_finite_or_clear_error(tex, &q, what);
+    }
+    sci_problem_free(black);
+    sci_problem_free(white);
+    sci_problem_free(tex);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_sizes_not_multiple_of_patch), cmocka_unit_test(test_nonfinite_refused),
         cmocka_unit_test(test_degenerate_pose_paths), cmocka_unit_test(test_extreme_densities),
-        cmocka_unit_test(test_huge_learning_rate),
+        cmocka_unit_test(test_huge_learning_rate), cmocka_unit_test(test_recipe_hard_cases),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

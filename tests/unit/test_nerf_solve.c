@@ -91,6 +91,16 @@ static void test_learns_tiny_scene(void **state)
            r.trace.e[r.trace.len - 1].wall_s);
     assert_true(last < 0.5 * first);
     assert_true(psnr > base + 1.5);
+    /* the diagnostics of the final render: the residual over the whole snapshot agrees with the frames (recomputed
+     * here), the largest ray weight is a weight; rows without a render carry NaN */
+    const sci_trace_entry *e = &r.trace.e[r.trace.len - 1];
+    double res = sci_op_residual(p->mask, r.frames, p->meas);
+    printf("final render: measurement residual %.4g (recomputed %.4g), mean largest weight %.3f\n", e->meas_residual,
+           res, e->max_weight);
+    assert_true(fabs(e->meas_residual - res) <= 1e-9 * (1 + res));
+    assert_true(e->meas_residual < 1);
+    assert_true(e->max_weight > 0 && e->max_weight <= 1);
+    assert_true(isnan(r.trace.e[0].meas_residual) && isnan(r.trace.e[0].max_weight));
     sci_result_free_contents(&r);
     sci_problem_free(p);
 }
