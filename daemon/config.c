@@ -317,7 +317,8 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
     /* Aravis's fake camera lives inside the daemon's process: no wire reaches it either way, so besides a gpiod
      * trigger it may run with the simulated one (tests and dry runs of the GenICam path, docs/config.md). */
     if (sim_cam != sim_trig && !(fake_cam && sim_trig))
-        return sci_json_fail(doc, err, json_object_get(o, "trigger") ? "devices.trigger.backend" : "devices.camera.backend",
+        return sci_json_fail(doc, err,
+                             json_object_get(o, "trigger") ? "devices.trigger.backend" : "devices.camera.backend",
                              "camera \"%s\" with trigger \"%s\": the trigger output starts the camera and the "
                              "camera's strobe comes back to a trigger input, so both are simulated (\"sim\") or "
                              "both real (\"v4l2\" or \"aravis\" with \"gpiod\"); the DMD may be either. Only "

@@ -59,7 +59,8 @@ typedef struct scicapd_config {
     int fsync;                            /* 1: fsync files and folders before a capture is announced */
     int writers;                          /* storage writer threads, 1..16 (capture folders written in parallel) */
     int previews;                         /* 1: 8-bit PNG/GIF previews in each capture folder */
-    /* devices: backend names ("sim", "dlpc900", "v4l2", "aravis", "gpiod") and their own config objects (owned copies) */
+    /* devices: backend names ("sim", "dlpc900", "v4l2", "aravis", "gpiod") and their own config objects
+     * (owned copies) */
     char dmd_backend[16], camera_backend[16], trigger_backend[16];
     char dmd_serial[SCICAPD_NAME_MAX];    /* "" = first found */
     int dmd_emulator;                     /* dlpc900 only: drive the in-process DLPC900 emulator instead of USB */

@@ -130,9 +130,13 @@ static void fake_camera_captured_by_daemon(void **state)
         json_int_t ts = jint(m, "frame", "timestamp_ns"), start = jint(m, "start_ns", NULL);
         json_int_t seq = jint(m, "frame", "sequence"), lost = jint(m, "frame", "lost_total");
         json_int_t stale = jint(m, "stale_frames", NULL), sent = jint(m, "camera_trigger", "sent");
+        const json_t *sync = json_object_get(m, "sync");
+        char *flags = json_dumps(json_object_get(sync, "flags"), JSON_COMPACT | JSON_ENCODE_ANY);
         printf("  snapshot %d: sequence %lld, lost_total %lld, stale %lld, frame %.2f ms after the start, "
-               "software triggers %lld\n", i, (long long)seq, (long long)lost, (long long)stale,
-               (double)(ts - start) * 1e-6, (long long)sent);
+               "software triggers %lld, sync broken %d %s\n", i, (long long)seq, (long long)lost, (long long)stale,
+               (double)(ts - start) * 1e-6, (long long)sent, json_is_true(json_object_get(sync, "broken")),
+               flags ? flags : "");
+        free(flags);
         assert_true(ts > start);     /* the kept frame follows the snapshot's start */
         assert_true(ts > prev_ts);   /* timestamps increase */
         assert_true(lost >= prev_lost);

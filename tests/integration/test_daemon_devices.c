@@ -80,6 +80,35 @@ static void config_validation_per_backend(void **state)
     expect_invalid("{\"storage\": {\"writers\": 0}}", "storage.writers", NULL);
 }
 
+/* The example configurations shipped in etc/ (the simulated bench, DLPC900 + GenICam camera + GPIO, DLPC900 +
+ * V4L2 camera + GPIO) pass the daemon's own validation, as `scicapd --check-config -c FILE` runs it. */
+static void example_configs_are_valid(void **state)
+{
+    (void)state;
+    static const char *const files[] = {"scicapd.json", "scicapd-aravis.json", "scicapd-v4l2.json"};
+    char self[1024];
+    ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
+    assert_true(len > 0);
+    self[len] = '\0';
+    char etc[1100];
+    snprintf(etc, sizeof etc, "%s/../../../etc", dirname(self)); /* BUILD/tests/integration -> the checkout */
+    harness h;
+    harness_init(&h, NULL);
+    for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {
+        char cmd[3000], out[2048];
+        snprintf(cmd, sizeof cmd, "%s --check-config -c %s/%s 2>&1", h.bin, etc, files[i]);
+        FILE *p = popen(cmd, "r");
+        assert_non_null(p);
+        size_t n = fread(out, 1, sizeof out - 1, p);
+        out[n] = '\0';
+        int st = pclose(p);
+        printf("  %s", out);
+        if (!WIFEXITED(st) || WEXITSTATUS(st) != 0 || !strstr(out, "valid"))
+            fail_msg("etc/%s: %s", files[i], out);
+    }
+    harness_cleanup(&h);
+}
+
 static const char *const MISSING =
     "{\"devices\": {\"dmd\": {\"backend\": \"dlpc900\", \"serial\": \"NOSUCHDMD\", \"timeout_ms\": 200},"
     " \"camera\": {\"backend\": \"v4l2\", \"device\": \"/dev/video-scicap-missing\"},"
@@ -291,6 +320,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(config_validation_per_backend),
+        cmocka_unit_test(example_configs_are_valid),
         cmocka_unit_test(missing_hardware_then_reload),
         cmocka_unit_test(dlpc900_backend_on_the_emulator),
         cmocka_unit_test(camera_master_on_the_simulated_bench),
