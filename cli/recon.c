@@ -17,9 +17,11 @@
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "cli/recon_color.h"
+#include "io/limits.h"
 #include "io/problem_dir.h"
 #include "io/recon_store.h"
 #include "io/source.h"
+#include "io/staging.h"
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
 #include "recon/metrics.h"
@@ -43,6 +45,8 @@ static void usage(FILE *f)
             "                         scene with a camera, e.g. from a static3d scene; see docs/nerf-methods.md)\n"
             "  -o, --output DIR       output folder (required); replaced only with --force\n"
             "  -f, --force            replace an existing output folder\n"
+            "      --allow-large      lift the size limits checked before any work: %.0f GB of input in memory,\n"
+            "                         %.0f GB or %zu files of output (a small file can declare huge sizes)\n"
             "  -s, --snapshot J       reconstruct only snapshot J (1-based); default all\n"
             "  -i, --iters N          outer iterations (default 100)\n"
             "  -l, --lambda X         step size lambda (default 1)\n"
@@ -87,7 +91,10 @@ static void usage(FILE *f)
             "Defaults are the PnP-SCI benchmark settings (accelerated GAP, lambda 1, 100 iterations, TV weight\n"
             "0.07, 5 TV passes). PSNR 'peak = frame max' uses each truth frame's maximum (the MATLAB reference's\n"
             "convention); 'peak = 1' uses the data's white level. Exit status: 0 ok, 1 failure, 2 usage; on\n"
-            "SIGINT/SIGTERM it stops, writes nothing more, and dies of that signal.\n");
+            "SIGINT/SIGTERM it stops, removes what it had begun to write, and dies of that signal: OUTDIR appears\n"
+            "only once complete (written as OUTDIR.tmp-PID and renamed).\n",
+            (double)SCI_IO_LIMIT_INPUT_BYTES / 1e9, (double)SCI_IO_LIMIT_OUTPUT_BYTES / 1e9,
+            (size_t)SCI_IO_LIMIT_OUTPUT_FILES);
 }
 
 typedef struct recon_opts {
@@ -222,10 +229,13 @@ int cli_recon_main(int argc, char **argv)
     enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET,
            OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME, OPT_NET_LR, OPT_SPACING, OPT_DIST, OPT_PRIOR_STEPS,
            OPT_PRIOR_W, OPT_DBIAS, OPT_ZERO_GATES, OPT_SH, OPT_MASK, OPT_MASK_VAR, OPT_MEAS_VAR, OPT_TRUTH_VAR,
-           OPT_SCALE, OPT_CFA, OPT_DEMOSAIC };
+           OPT_SCALE, OPT_CFA, OPT_DEMOSAIC, OPT_ALLOW_LARGE };
     const char *cfa_opt = NULL;
     sci_demosaic_method demosaic = SCI_DEMOSAIC_MHC;
     sci_mat_options mo = {0};
+    sci_io_limits limits;
+    sci_io_limits_default(&limits);
+    mo.limits = &limits;
     static const struct option longopts[] = {
         {"method", required_argument, 0, 'm'},   {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},          {"snapshot", required_argument, 0, 's'},
@@ -248,6 +258,7 @@ int cli_recon_main(int argc, char **argv)
         {"meas-var", required_argument, 0, OPT_MEAS_VAR}, {"truth-var", required_argument, 0, OPT_TRUTH_VAR},
         {"scale", required_argument, 0, OPT_SCALE},
         {"cfa", required_argument, 0, OPT_CFA}, {"demosaic", required_argument, 0, OPT_DEMOSAIC},
+        {"allow-large", no_argument, 0, OPT_ALLOW_LARGE},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
     };
     optind = 1;
@@ -271,6 +282,7 @@ int cli_recon_main(int argc, char **argv)
             break;
         case 'o': out = optarg; break;
         case 'f': force = 1; break;
+        case OPT_ALLOW_LARGE: sci_io_limits_none(&limits); break;
         case 's': bad = parse_int(optarg, "--snapshot", 1, 1 << 30, &snapshot); break;
         case 'i': bad = parse_int(optarg, "--iters", 1, 10000000, &iters); break;
         case 'l': bad = parse_double(optarg, "--lambda", &lambda); break;
@@ -453,10 +465,42 @@ int cli_recon_main(int argc, char **argv)
         return 1;
     }
 
+    /* Limits before any work (io/limits.h): what the input declares, and what writing it would make. */
+    long long dw, dh, dn, dk;
+    int rrc = sci_source_probe(input, &mo, &dw, &dh, &dn, &dk, &err);
+    if (rrc == 0) {
+        double bytes, files;
+        const long long nsel = snapshot ? 1 : dk;
+        sci_recon_store_estimate(dw, dh, dn, nsel, &bytes, &files);
+        char what[4400];
+        snprintf(what, sizeof what, "%s (from %s: %lld snapshot(s) of %lldx%lld pixels, %lld frames each)", out,
+                 input, nsel, dw, dh, dn);
+        rrc = sci_io_limits_check_output(&limits, what, bytes, files + (nsel > 1), &err);
+    }
+    if (rrc < 0) {
+        fprintf(stderr, "scicap recon: %s\n", err.msg);
+        return rrc == -EINVAL ? 2 : 1;
+    }
+    /* The output's folder must be there and writable before hours of solving, not after. */
+    {
+        char parent[4096];
+        snprintf(parent, sizeof parent, "%s", out);
+        char *slash = strrchr(parent, '/');
+        while (slash && slash > parent && slash[1] == 0) /* "out/" */
+            *slash = 0, slash = strrchr(parent, '/');
+        if (!slash)
+            snprintf(parent, sizeof parent, ".");
+        else
+            slash[slash == parent] = 0; /* "/out" keeps "/" */
+        if (access(parent, W_OK | X_OK) != 0) {
+            fprintf(stderr, "scicap recon: cannot write %s: %s: %s\n", out, parent, strerror(errno));
+            return 1;
+        }
+    }
     sci_problem **probs = NULL;
     int k = 0;
     sci_mat_info minfo = {0};
-    int rrc = sci_source_read_opts(input, &mo, &probs, &k, &minfo, &err);
+    rrc = sci_source_read_opts(input, &mo, &probs, &k, &minfo, &err);
     if (rrc < 0) {
         fprintf(stderr, "scicap recon: %s\n", err.msg);
         return rrc == -EINVAL ? 2 : 1;
@@ -517,6 +561,15 @@ int cli_recon_main(int argc, char **argv)
     sigaction(SIGINT, &sa, &old_int);
     sigaction(SIGTERM, &sa, &old_term);
     json_t *params = params_json(&o);
+    /* Several snapshots: all of them go into OUTDIR.tmp-PID, renamed to OUTDIR once the last is written (one alone
+     * is staged by the store itself). Nothing is published on failure or on a signal. */
+    char stage[4096] = "";
+    if (first != last) {
+        if (sci_staging_name(stage, sizeof stage, out) < 0 || mkdir(stage, 0755) != 0) {
+            fprintf(stderr, "scicap recon: %s: %s\n", stage[0] ? stage : out, strerror(errno ? errno : ENAMETOOLONG));
+            status = 1;
+        }
+    }
     for (int j = first; j <= last && status == 0; j++) {
         const sci_problem *p = probs[j];
         static const char *const names[] = {"gap-tv", "admm-tv", "rayformer", "scinerf"};
@@ -527,27 +580,24 @@ int cli_recon_main(int argc, char **argv)
         const int total = o.method == 0 ? o.gap.iters : o.method == 1 ? o.admm.iters : o.method == 2 ? o.rf.iters : o.sn.iters;
         cli_progress_init(&prog, o.quiet ? -1 : 2, total);
         prog.stop = &stop_requested;
-        char dir[4096];
+        char dir[4096], shown[4096];
+        snprintf(shown, sizeof shown, first == last ? "%s" : "%s/snap_%03d", out, j + 1);
         if (first == last)
             snprintf(dir, sizeof dir, "%s", out);
         else
-            snprintf(dir, sizeof dir, "%s/snap_%03d", out, j + 1);
+            snprintf(dir, sizeof dir, "%s/snap_%03d", stage, j + 1);
         if (cfa != SCI_CFA_NONE) {
             const cli_color_job job = {.cfa = cfa, .demosaic = demosaic, .method = o.method, .gap = &o.gap,
                                        .admm = &o.admm, .params = params, .quiet = o.quiet, .stop = &stop_requested};
-            int crc = 0;
-            if (first != last && j == first && access(out, F_OK) != 0 && mkdir(out, 0755) != 0)
-                crc = sci_error_set(&err, -errno, "%s: %s", out, strerror(errno));
-            if (crc == 0)
-                crc = cli_recon_color(&job, p, truth_rgb && j < kc ? truth_rgb[j] : NULL, dir, force, &err);
+            int crc = cli_recon_color(&job, p, truth_rgb && j < kc ? truth_rgb[j] : NULL, dir, force, &err);
             if (crc == SCI_ECANCELED || stop_requested) {
-                fprintf(stderr, "scicap recon: interrupted; %s not written\n", first == last ? out : "this snapshot");
+                fprintf(stderr, "scicap recon: interrupted; %s not written\n", out);
                 status = 1;
             } else if (crc < 0) {
                 fprintf(stderr, "scicap recon: %s\n", err.msg);
                 status = 1;
             } else {
-                printf("  wrote %s/ (RGB: rgb_NNN.exr, preview_rgb_NNN.png)\n", dir);
+                printf("  wrote %s/ (RGB: rgb_NNN.exr, preview_rgb_NNN.png)\n", shown);
             }
             continue;
         }
@@ -560,10 +610,7 @@ int cli_recon_main(int argc, char **argv)
         double secs = sci_clock_s(t0, sci_clock_mono_ns());
         cli_progress_done(&prog);
         if (rc == SCI_ECANCELED || (rc == 0 && stop_requested)) {
-            fprintf(stderr, "scicap recon: interrupted after %d iterations; %s not written", r.iters_done,
-                    first == last ? out : "this snapshot");
-            if (j > first)
-                fprintf(stderr, " (snapshots %d to %d are in %s)", first + 1, j, out);
+            fprintf(stderr, "scicap recon: interrupted after %d iterations; %s not written", r.iters_done, out);
             if (ck.written)
                 fprintf(stderr, "; checkpoint of step %d in %s (continue with --resume %s)", ck.iter, ck.path,
                         ck.path);
@@ -583,16 +630,28 @@ int cli_recon_main(int argc, char **argv)
                r.iters_done, solver_s, secs, r.trace.len ? r.trace.e[r.trace.len - 1].residual : NAN);
         if (p->truth)
             print_metrics(p, &r);
-        if (first != last && j == first && access(out, F_OK) != 0 && mkdir(out, 0755) != 0) {
-            fprintf(stderr, "scicap recon: %s: %s\n", out, strerror(errno));
+        int wrc = sci_recon_store_write_opt(dir, p, &r, params, first == last ? force : 0, &stop_requested, &err);
+        if (wrc == SCI_ECANCELED) {
+            fprintf(stderr, "scicap recon: interrupted while writing; %s not written\n", out);
             status = 1;
-        } else if (sci_recon_store_write(dir, p, &r, params, force, &err) < 0) {
+        } else if (wrc < 0) {
             fprintf(stderr, "scicap recon: %s\n", err.msg);
             status = 1;
         } else {
-            printf("  wrote %s/\n", dir);
+            printf("  wrote %s/\n", shown);
         }
         sci_result_free_contents(&r);
+    }
+    if (stage[0] && status == 0) {
+        if (sci_staging_publish(stage, out, force, &stop_requested, &err) < 0) {
+            if (err.code != SCI_ECANCELED)
+                fprintf(stderr, "scicap recon: %s\n", err.msg);
+            status = 1;
+        } else {
+            printf("wrote %s/\n", out);
+        }
+    } else if (stage[0]) {
+        sci_staging_remove(stage);
     }
     sigaction(SIGINT, &old_int, NULL);
     sigaction(SIGTERM, &old_term, NULL);

@@ -10,6 +10,7 @@
 #include "cli/progress.h"
 #include "io/image.h"
 #include "io/recon_store.h"
+#include "io/staging.h"
 #include "recon/metrics.h"
 
 typedef struct plane_ctx {
@@ -126,18 +127,29 @@ int cli_recon_color(const cli_color_job *job, const sci_problem *p, const sci_cu
                             json_pack("{s:f, s:o, s:f}", "mean", m1, "frames", a1, "peak", p->peak));
         free(v);
     }
-    if ((rc = sci_recon_store_write(dir, p, &r, job->params, force, err)) < 0)
+    /* Publish on success only: the grey store and the RGB files go into a staging folder renamed into place at
+     * the end (io/staging.h), so an interrupted or failed run leaves no half-coloured DIR. */
+    char stage[4096];
+    if (sci_staging_name(stage, sizeof stage, dir) < 0) {
+        rc = sci_error_set(err, -ENAMETOOLONG, "%s: name too long", dir);
+        goto out;
+    }
+    if ((rc = sci_recon_store_write_opt(stage, p, &r, job->params, 0, job->stop, err)) < 0)
         goto out;
     for (int f = 0; f < n && rc == 0; f++) {
         char path[4200];
-        snprintf(path, sizeof path, "%s/rgb_%03d.exr", dir, f);
+        snprintf(path, sizeof path, "%s/rgb_%03d.exr", stage, f);
         rc = sci_image_write_rgb(path, rgb, f, SCI_PIXEL_F32, 1.0, err);
-        snprintf(path, sizeof path, "%s/preview_rgb_%03d.png", dir, f);
+        snprintf(path, sizeof path, "%s/preview_rgb_%03d.png", stage, f);
         if (rc == 0)
             rc = sci_image_write_rgb(path, rgb, f, SCI_PIXEL_U8, 255.0 / p->peak, err);
     }
     if (rc == 0)
-        rc = add_color_record(dir, color, err);
+        rc = add_color_record(stage, color, err);
+    if (rc == 0)
+        rc = sci_staging_publish(stage, dir, force, job->stop, err);
+    else
+        sci_staging_remove(stage);
 out:
     json_decref(color);
     for (int i = 0; i < 4; i++)

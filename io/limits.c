@@ -38,8 +38,9 @@ int sci_io_limits_check_input(const sci_io_limits *lim, const char *what, long l
     const sci_io_limits *l = or_default(lim, &tmp);
     if (w < 1 || h < 1 || n < 1 || k < 1)
         return 0;
-    /* mask n frames + meas k frames + truth n·k frames, float32 */
-    const double frames = (double)n + (double)k + (double)n * (double)k;
+    /* each of the k problems holds its own copy of the n masks, its measurement and its n truth frames (float32);
+     * the shared masks are read once more */
+    const double frames = (double)n + (double)k + 2.0 * (double)n * (double)k;
     char claim[160];
     snprintf(claim, sizeof claim, "declares %lld snapshot(s) of %lldx%lld pixels with %lld frames each", k, w, h, n);
     return check_bytes(l, what, claim, frames * (double)w * (double)h * 4.0, err);

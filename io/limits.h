@@ -36,8 +36,8 @@ void sci_io_limits_default(sci_io_limits *lim);
 /* No limit at all (--allow-large). Sizes are still checked for arithmetic overflow (base/cube.h). */
 void sci_io_limits_none(sci_io_limits *lim);
 
-/* An input declaring k snapshots of w×h pixels with n frames each (masks n, measurements k, truth n·k frames, all
- * float32): 0, or -EFBIG naming `what` (a path) and the limit. lim NULL: the defaults. Non-positive sizes are the
+/* An input declaring k snapshots of w×h pixels with n frames each (each problem's copy of the masks, its
+ * measurement and truth: 2·n·k + k + n float32 frames): 0, or -EFBIG naming `what` (a path) and the limit. lim NULL: the defaults. Non-positive sizes are the
  * caller's to refuse (they pass here). */
 int sci_io_limits_check_input(const sci_io_limits *lim, const char *what, long long w, long long h, long long n,
                               long long k, sci_error *err);

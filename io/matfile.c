@@ -227,6 +227,85 @@ static double white_for(double range)
     return range;
 }
 
+/* How many frames per snapshot and whether masks are per snapshot, from the declared sizes (dims as read_var's:
+ * H, W, frames, k). Shared masks H×W×N; per snapshot H×W×N×k, or H×W×(N·k) when the truth says N. */
+static void split_masks(const size_t dm[4], const size_t dt[4], int have_truth, size_t nsnap, size_t *n, int *per)
+{
+    *n = dm[2];
+    *per = 0;
+    if (dm[3] > 1 || (nsnap > 1 && have_truth && dt[2] % nsnap == 0 && dt[2] / nsnap != dm[2] && dm[2] == dt[2])) {
+        *per = 1;
+        *n = dm[2] / nsnap;
+    }
+}
+
+/* Declared H, W, frames (with rank-4 k folded in) and k of a variable from its header alone; -1 if absent. */
+static int info_dims(mat_t *mat, const char *name, size_t d[4])
+{
+    matvar_t *info = Mat_VarReadInfo(mat, name);
+    if (!info)
+        return -1;
+    d[0] = info->rank >= 1 ? info->dims[0] : 1;
+    d[1] = info->rank >= 2 ? info->dims[1] : 1;
+    d[2] = info->rank >= 3 ? info->dims[2] : 1;
+    d[3] = info->rank >= 4 ? info->dims[3] : 1;
+    d[2] *= d[3];
+    Mat_VarFree(info);
+    return 0;
+}
+
+static int probe_open(mat_t *mat, mat_t *msrc, const char *path, const char *mask_name, const char *meas_name,
+                      const char *truth_name, long long *w, long long *h, long long *n, long long *k)
+{
+    size_t dm[4], dy[4], dt[4];
+    if (!has_var(mat, meas_name) || !has_var(msrc, mask_name) || info_dims(mat, meas_name, dy) < 0 ||
+        info_dims(msrc, mask_name, dm) < 0)
+        return -1;
+    const int have_truth = has_var(mat, truth_name) && info_dims(mat, truth_name, dt) == 0;
+    size_t nn;
+    int per;
+    split_masks(dm, dt, have_truth, dy[2], &nn, &per);
+    *w = (long long)dm[1], *h = (long long)dm[0], *n = (long long)nn, *k = (long long)dy[2];
+    return 0;
+}
+
+int sci_mat_probe(const char *path, const sci_mat_options *opts, long long *w, long long *h, long long *n,
+                  long long *k, sci_error *err)
+{
+    const sci_mat_options none = {0};
+    const sci_mat_options *o = opts ? opts : &none;
+    const char *paths[2] = {path, o->mask_path};
+    for (int i = 0; i < (o->mask_path ? 2 : 1); i++) {
+        if (access(paths[i], R_OK) != 0)
+            return sci_error_set(err, -errno, "%s: %s", paths[i], strerror(errno));
+        int rc0 = sci_mat_verify(paths[i], err);
+        if (rc0 < 0)
+            return rc0;
+    }
+    mat_t *mat = Mat_Open(path, MAT_ACC_RDONLY), *mmat = NULL;
+    if (!mat)
+        return sci_error_set(err, SCI_EFORMAT, "%s: not a MATLAB .mat file (v5 or v7.3), or truncated", path);
+    if (o->mask_path && !(mmat = Mat_Open(o->mask_path, MAT_ACC_RDONLY))) {
+        Mat_Close(mat);
+        return sci_error_set(err, SCI_EFORMAT, "%s: not a MATLAB .mat file (v5 or v7.3), or truncated",
+                             o->mask_path);
+    }
+    mat_t *msrc = mmat ? mmat : mat;
+    char only[64];
+    const char *mask_name = o->mask_var ? o->mask_var : "mask";
+    if (mmat && !o->mask_var && !has_var(mmat, "mask") && only_numeric_var(mmat, only, sizeof only))
+        mask_name = only;
+    int rc = probe_open(mat, msrc, path, mask_name, o->meas_var ? o->meas_var : "meas",
+                        o->truth_var ? o->truth_var : "orig", w, h, n, k);
+    if (rc < 0)
+        rc = sci_error_set(err, SCI_EFORMAT, "%s: no variable '%s' or '%s' (the reader names what is there)", path,
+                           o->meas_var ? o->meas_var : "meas", mask_name);
+    if (mmat)
+        Mat_Close(mmat);
+    Mat_Close(mat);
+    return rc;
+}
+
 /* The common reader: values divided by `divisor`, problems' peak set to `peak` (auto: divisor chosen here). */
 static int mat_read(const char *path, const sci_mat_options *o, double divisor, double peak, sci_problem ***out,
                     int *k, sci_mat_info *info, sci_error *err)
@@ -270,6 +349,17 @@ static int mat_read(const char *path, const sci_mat_options *o, double divisor, 
     if (mmat && !o->mask_var && !has_var(mmat, "mask") && only_numeric_var(mmat, only, sizeof only))
         mask_name = only;
     snprintf(info->mask_var, sizeof info->mask_var, "%s", mask_name);
+    /* What the variables declare, before libmatio allocates it: a 2 KB file can declare gigabytes. */
+    {
+        sci_io_limits deflim;
+        const sci_io_limits *lim = o->limits;
+        if (!lim)
+            sci_io_limits_default(&deflim), lim = &deflim;
+        long long pw, ph, pn, pk;
+        if (probe_open(mat, msrc, path, mask_name, meas_name, truth_name, &pw, &ph, &pn, &pk) == 0 &&
+            (rc = sci_io_limits_check_input(lim, path, pw, ph, pn, pk, err)) < 0)
+            goto out;
+    }
     if (!(meas = read_var(mat, path, meas_name, 1, "Name the measurements with --meas-var NAME", dy, err, &rc)) ||
         !(mask = read_var(msrc, mask_file, mask_name, 1, o->mask_path ? "Name the masks with --mask-var NAME"
                                      : "Name the masks with --mask-var NAME, or give their file with --mask FILE",
@@ -294,17 +384,15 @@ static int mat_read(const char *path, const sci_mat_options *o, double divisor, 
     }
     const int nsnap = (int)dy[2];
     /* Shared or per-snapshot masks: H×W×N×k says so; H×W×(N·k) does when the truth gives N = frames / k. */
-    int n = (int)dm[2], per = 0;
-    if (dm[3] > 1 || (nsnap > 1 && orig && dt[2] % (size_t)nsnap == 0 && dt[2] / nsnap != dm[2] &&
-                      dm[2] == dt[2])) {
-        if (dm[2] % (size_t)nsnap != 0 || (dm[3] > 1 && dm[3] != (size_t)nsnap)) {
-            rc = sci_error_set(err, SCI_ESHAPE, "%s: per-snapshot masks '%s' (%zu frames) do not divide into %d snapshots",
-                               mask_file, mask_name, dm[2], nsnap);
-            goto out;
-        }
-        per = 1;
-        n = (int)(dm[2] / (size_t)nsnap);
+    size_t nsplit;
+    int per;
+    split_masks(dm, dt, orig != NULL, (size_t)nsnap, &nsplit, &per);
+    if (per && (dm[2] % (size_t)nsnap != 0 || (dm[3] > 1 && dm[3] != (size_t)nsnap))) {
+        rc = sci_error_set(err, SCI_ESHAPE, "%s: per-snapshot masks '%s' (%zu frames) do not divide into %d snapshots",
+                           mask_file, mask_name, dm[2], nsnap);
+        goto out;
     }
+    const int n = (int)nsplit;
     info->mask_per_snapshot = per;
     if (divisor == SCI_MAT_WHITE_AUTO) {
         double range;

@@ -8,12 +8,17 @@
  * A file with k measurements gives k problems; problem j's truth is orig(:, :, N·j + 1 ... N·j + N) when orig
  * has at least N·(j+1) frames.
  *
- * Errors (message names the file and the fault): -ENOENT/-EACCES, SCI_EFORMAT (not a MAT file, truncated,
- * missing variable, non-numeric or complex variable), SCI_ESHAPE (sizes that disagree), SCI_ENONFINITE.
+ * Before libmatio sees a file, io/mat_verify.h checks its header, element chain, sizes and the adler32 of every
+ * compressed variable, and the sizes the variables declare are held against io/limits.h before one is read.
+ *
+ * Errors (message names the file and the fault): -ENOENT/-EACCES, SCI_EFORMAT (not a MAT file, truncated, corrupt,
+ * missing variable, non-numeric or complex variable), SCI_ESHAPE (sizes that disagree), SCI_ENONFINITE, -EFBIG
+ * (over a limit of io/limits.h).
  */
 #ifndef SCICAP_IO_MATFILE_H
 #define SCICAP_IO_MATFILE_H
 
+#include "io/limits.h"
 #include "recon/problem.h"
 
 int sci_mat_read(const char *path, double scale, sci_problem ***out, int *k, sci_error *err);
@@ -43,6 +48,8 @@ typedef struct sci_mat_options {
     const char *meas_var;  /* NULL: "meas" */
     const char *truth_var; /* NULL: "orig", optional */
     double white;          /* 0: 255; SCI_MAT_WHITE_AUTO: from the data; else > 0 */
+    const struct sci_io_limits *limits; /* NULL: the defaults (io/limits.h); checked on the declared sizes
+                                         * before any variable is read: -EFBIG */
 } sci_mat_options;
 
 typedef struct sci_mat_info {
@@ -54,6 +61,12 @@ typedef struct sci_mat_info {
 
 int sci_mat_read_opts(const char *path, const sci_mat_options *opts, sci_problem ***out, int *k,
                       sci_mat_info *info, sci_error *err);
+
+/* The sizes a .mat declares, from the variables' headers alone (after io/mat_verify.h's checks; no data read):
+ * *w × *h pixels, *n frames per snapshot, *k snapshots, as sci_mat_read_opts would split them. For limits
+ * checked before the work starts. 0, or the errors of sci_mat_read. */
+int sci_mat_probe(const char *path, const sci_mat_options *opts, long long *w, long long *h, long long *n,
+                  long long *k, sci_error *err);
 
 /* List the variables of a .mat file as "name HxWxN class, ..." into buf (for messages). 0 or SCI_EFORMAT. */
 int sci_mat_list(const char *path, char *buf, size_t n);

@@ -1,9 +1,12 @@
 #include "io/source.h"
 
 #include <errno.h>
+#include <jansson.h>
+#include <stdio.h>
 #include <string.h>
 #include <strings.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "io/matfile.h"
 #include "io/problem_dir.h"
@@ -15,7 +18,7 @@ int sci_source_read(const char *path, sci_problem ***out, int *k, sci_error *err
         return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
     size_t l = strlen(path);
     if (S_ISDIR(st.st_mode) || (l > 5 && strcmp(path + l - 5, ".json") == 0))
-        return sci_problem_dir_read(path, out, k, err);
+        return sci_problem_dir_read_opts(path, NULL, out, k, err);
     if (l > 4 && strcasecmp(path + l - 4, ".mat") == 0)
         return sci_mat_read(path, 255, out, k, err);
     return sci_error_set(err, SCI_EFORMAT,
@@ -32,12 +35,46 @@ int sci_source_read_opts(const char *path, const sci_mat_options *opts, sci_prob
                          sci_mat_info *info, sci_error *err)
 {
     const int any = opts && (opts->mask_path || opts->mask_var || opts->meas_var || opts->truth_var || opts->white);
-    if (!any)
+    if (!any && !sci_source_is_mat(path)) {
+        struct stat st;
+        if (stat(path, &st) != 0)
+            return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
+        size_t l = strlen(path);
+        if (S_ISDIR(st.st_mode) || (l > 5 && strcmp(path + l - 5, ".json") == 0))
+            return sci_problem_dir_read_opts(path, opts ? opts->limits : NULL, out, k, err);
         return sci_source_read(path, out, k, err);
+    }
     if (!sci_source_is_mat(path))
         return sci_error_set(err, -EINVAL,
                              "%s: --mask, --mask-var, --meas-var, --truth-var and --scale are for .mat input (a "
                              "problem folder names its parts and scale in problem.json)",
                              path);
     return sci_mat_read_opts(path, opts, out, k, info, err);
+}
+
+int sci_source_probe(const char *path, const sci_mat_options *opts, long long *w, long long *h, long long *n,
+                     long long *k, sci_error *err)
+{
+    if (sci_source_is_mat(path))
+        return sci_mat_probe(path, opts, w, h, n, k, err);
+    char man[4200];
+    size_t l = strlen(path);
+    if (l > 5 && strcmp(path + l - 5, ".json") == 0)
+        snprintf(man, sizeof man, "%s", path);
+    else
+        snprintf(man, sizeof man, "%s/problem.json", path);
+    json_error_t je;
+    json_t *j = json_load_file(man, 0, &je);
+    if (!j) {
+        if (access(man, R_OK) != 0)
+            return sci_error_set(err, -errno, "%s: %s (not a scicap problem folder?)", man, strerror(errno));
+        return sci_error_set(err, SCI_EFORMAT, "%s:%d:%d: %s", man, je.line, je.column, je.text);
+    }
+    json_int_t jw = 0, jh = 0, jn = 0, jk = 0;
+    int rc = json_unpack_ex(j, &je, 0, "{s:I, s:I, s:I, s:I}", "w", &jw, "h", &jh, "n", &jn, "snapshots", &jk);
+    json_decref(j);
+    if (rc != 0)
+        return sci_error_set(err, SCI_EFORMAT, "%s: not a scicap problem manifest (%s)", man, je.text);
+    *w = jw, *h = jh, *n = jn, *k = jk;
+    return 0;
 }
