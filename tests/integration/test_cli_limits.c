@@ -1,13 +1,11 @@
-/* `scicap recon` against inputs that claim too much, and against being stopped while it writes (issue 17, items
- * 3, 4, 5). Runs the real binary ($BUILD/scicap) in a child and watches it:
+/* `scicap recon` against inputs that claim too much (issue 17, item 5). Runs the real binary ($BUILD/scicap) in a
+ * child and watches it:
  *   - a 2 KB .mat declaring a 1×1×2,000,000 mask, and one declaring 2,000,000 snapshots, are refused before any
- *     work, naming the limit and --allow-large, with nothing written (before: 17 GB, 140,716 folders);
+ *     work, naming the limit and --allow-large, with nothing written (before: 4,000,005 files, 17 GB; 140,716
+ *     folders when it was stopped);
+ *   - --allow-large lifts the limits (the run gets to the next check);
  *   - a stack sidecar claiming 24576² is refused before the cube is allocated (child's peak RSS < 300 MB; before:
- *     2.4 GB allocated and zeroed, then a shape error), by the limit, and with --allow-large by the first frame;
- *   - SIGTERM while the output is being written (one snapshot; and between snapshots of three) leaves neither
- *     OUTDIR nor OUTDIR.tmp-PID and the child dies of SIGTERM (before: OUTDIR published, exit 143);
- *   - a 4200×4200 problem reconstructs with a scaled-down preview.gif (before: SIGSEGV in OpenImageIO's GIF
- *     writer, a temporary folder left behind). */
+ *     2.4 GB allocated and zeroed, then a shape error), by the limit, and with --allow-large by the first frame. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -226,99 +224,6 @@ static void test_sidecar_claim_refused_before_allocating(void **state)
     assert_nothing_at(out);
 }
 
-static int exists(const char *path)
-{
-    struct stat st;
-    return stat(path, &st) == 0;
-}
-
-/* Start a reconstruction, wait until `watch` (a path under the child's pid) appears, SIGTERM it at once. */
-static void sigterm_when(const char *in, const char *out, const char *watch_fmt, int *still_writing, child *c)
-{
-    c->pid = start((const char *const[]){"-q", "--iters", "1", in, "-o", out, NULL});
-    char w1[700], w2[700];
-    snprintf(w1, sizeof w1, watch_fmt, out, ".tmp-", (int)c->pid);
-    snprintf(w2, sizeof w2, watch_fmt, out, "", (int)c->pid);
-    struct timespec t0, t;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
-    int seen = 0;
-    for (;;) {
-        if (exists(w1) || exists(w2)) {
-            seen = 1;
-            break;
-        }
-        if (waitpid(c->pid, &c->status, WNOHANG) == c->pid)
-            fail_msg("scicap recon ended (status 0x%x) before %s appeared", c->status, w1);
-        clock_gettime(CLOCK_MONOTONIC, &t);
-        if (t.tv_sec - t0.tv_sec > 20)
-            break;
-        usleep(500);
-    }
-    kill(c->pid, SIGTERM);
-    *still_writing = seen && (exists(w1) || exists(w2));
-    finish(c);
-    if (!seen)
-        fail_msg("%s never appeared", w1);
-}
-
-static void test_sigterm_while_writing_publishes_nothing(void **state)
-{
-    char in[512], out[512];
-    snprintf(in, sizeof in, "%s/large", dir);
-    snprintf(out, sizeof out, "%s/out_large", dir);
-    write_problem(in, 1024, 1024, 16, 1);
-    /* the staging folder OUT.tmp-PID exists from the first file written to the rename that publishes it */
-    int mid = 0;
-    child c;
-    sigterm_when(in, out, "%s%s%d", &mid, &c);
-    if (!mid)
-        fail_msg("the write had finished before SIGTERM; make the problem larger");
-    if (!WIFSIGNALED(c.status) || WTERMSIG(c.status) != SIGTERM)
-        fail_msg("status 0x%x, not death by SIGTERM; stderr: %s", c.status, c.err);
-    assert_nothing_at(out);
-}
-
-static void test_sigterm_between_snapshots_publishes_nothing(void **state)
-{
-    char in[512], out[512];
-    snprintf(in, sizeof in, "%s/three", dir);
-    snprintf(out, sizeof out, "%s/out_three", dir);
-    write_problem(in, 256, 256, 8, 3);
-    /* snapshot 1 finished: OUT.tmp-PID/snap_001 now (OUT/snap_001 before publish-on-success) */
-    int mid = 0;
-    child c;
-    sigterm_when(in, out, "%s%s%d/snap_001", &mid, &c);
-    if (!WIFSIGNALED(c.status) || WTERMSIG(c.status) != SIGTERM)
-        fail_msg("status 0x%x, not death by SIGTERM; stderr: %s", c.status, c.err);
-    assert_nothing_at(out);
-}
-
-static void test_4200_square_reconstructs_with_small_gif(void **state)
-{
-    char in[512], out[512], gif[600];
-    snprintf(in, sizeof in, "%s/huge", dir);
-    snprintf(out, sizeof out, "%s/out_huge", dir);
-    snprintf(gif, sizeof gif, "%s/preview.gif", out);
-    write_problem(in, 4200, 4200, 2, 1);
-    child c;
-    run(&c, (const char *const[]){"-q", "--iters", "1", "--tv-iters", "1", in, "-o", out, NULL});
-    if (exit_code(&c) != 0)
-        fail_msg("status 0x%x (signal %d), stderr: %s", c.status, WIFSIGNALED(c.status) ? WTERMSIG(c.status) : 0,
-                 c.err);
-    sci_cube *g = NULL;
-    sci_error err = {0};
-    if (sci_image_read(gif, &g, NULL, &err) < 0)
-        fail_msg("%s", err.msg);
-    assert_int_equal(g->w, 1400); /* 4200 / 3: the smallest factor under 2048² pixels */
-    assert_int_equal(g->h, 1400);
-    sci_cube_free(g);
-    char pat[600];
-    glob_t gl;
-    snprintf(pat, sizeof pat, "%s.tmp-*", out);
-    assert_int_not_equal(glob(pat, 0, NULL, &gl), 0);
-    globfree(&gl);
-}
-
 static int setup(void **state)
 {
     const char *build = getenv("BUILD");
@@ -344,9 +249,6 @@ int main(void)
         cmocka_unit_test(test_mat_declaring_2m_snapshots_refused),
         cmocka_unit_test(test_allow_large_lifts_the_limits),
         cmocka_unit_test(test_sidecar_claim_refused_before_allocating),
-        cmocka_unit_test(test_sigterm_while_writing_publishes_nothing),
-        cmocka_unit_test(test_sigterm_between_snapshots_publishes_nothing),
-        cmocka_unit_test(test_4200_square_reconstructs_with_small_gif),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

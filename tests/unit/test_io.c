@@ -300,10 +300,36 @@ static void test_mat_masks_per_snapshot(void **state)
     }
 }
 
+/* OpenImageIO 2.4's GIF writer dies of SIGSEGV on frames over 2^24 pixels (4096² works, 4200² crashed scicap recon
+ * and scicap sim): the preview is shrunk by the smallest integer factor under SCI_GIF_MAX_PIXELS. */
+static void test_gif_large_frames_scaled_down(void **state)
+{
+    const struct { int w, h, factor, gw, gh; } cases[] = {
+        {4200, 4200, 3, 1400, 1400}, {2048, 2048, 1, 2048, 2048}, {70000, 3, 2, 35000, 2},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        sci_cube *c = ramp(cases[i].w, cases[i].h, 1, 1.0f / 977), *back = NULL;
+        char path[512];
+        snprintf(path, sizeof path, "%s/large%zu.gif", tmpdir, i);
+        sci_error err = {0};
+        int factor = 0;
+        if (sci_image_write_gif_opt(path, c, 255.0, 100, &factor, &err) < 0)
+            fail_msg("%dx%d: %s", cases[i].w, cases[i].h, err.msg);
+        assert_int_equal(factor, cases[i].factor);
+        if (sci_image_read(path, &back, NULL, &err) < 0)
+            fail_msg("%s", err.msg);
+        assert_int_equal(back->w, cases[i].gw);
+        assert_int_equal(back->h, cases[i].gh);
+        sci_cube_free(back);
+        sci_cube_free(c);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_image_roundtrip), cmocka_unit_test(test_stack_roundtrip_exact),
+        cmocka_unit_test(test_gif_large_frames_scaled_down),
         cmocka_unit_test(test_problem_dir_roundtrip), cmocka_unit_test(test_mat_roundtrip_and_faults),
         cmocka_unit_test(test_drop40_shape), cmocka_unit_test(test_mat_masks_per_snapshot),
     };

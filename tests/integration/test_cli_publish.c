@@ -1,0 +1,253 @@
+/* `scicap recon` publishes its output only once complete (issue 17, items 3 and 4). Runs the real binary
+ * ($BUILD/scicap) in a child:
+ *   - SIGTERM while the output is being written (one snapshot; and between snapshots of three) leaves neither
+ *     OUTDIR nor OUTDIR.tmp-PID and the child dies of SIGTERM (before: OUTDIR published, exit by SIGTERM);
+ *   - a 4200×4200 problem reconstructs with a scaled-down preview.gif and no temporary left (before: SIGSEGV in
+ *     OpenImageIO's GIF writer, OUTDIR.tmp-PID left behind). */
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <glob.h>
+#include <jansson.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+#include <matio.h>
+
+#include "io/image.h"
+#include "io/problem_dir.h"
+
+static char dir[] = "/tmp/scicap-test-cli-publish-XXXXXX";
+static char scicap[1024];
+
+typedef struct child {
+    pid_t pid;
+    int status;
+    long maxrss_kb;
+    char err[8192]; /* its stderr */
+} child;
+
+/* Start `scicap recon ARGS...` (NULL-terminated) with stderr to dir/stderr.txt. */
+static pid_t start(const char *const *args)
+{
+    char *argv[64];
+    int n = 0;
+    argv[n++] = scicap;
+    argv[n++] = "recon";
+    for (; *args && n < 62; args++)
+        argv[n++] = (char *)*args;
+    argv[n] = NULL;
+    char errpath[512];
+    snprintf(errpath, sizeof errpath, "%s/stderr.txt", dir);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        int fd = open(errpath, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        int nul = open("/dev/null", O_WRONLY);
+        dup2(fd, 2);
+        dup2(nul, 1);
+        execv(scicap, argv);
+        _exit(127);
+    }
+    return pid;
+}
+
+static void finish(child *c)
+{
+    struct rusage ru;
+    assert_int_equal(wait4(c->pid, &c->status, 0, &ru), c->pid);
+    c->maxrss_kb = ru.ru_maxrss;
+    char errpath[512];
+    snprintf(errpath, sizeof errpath, "%s/stderr.txt", dir);
+    FILE *f = fopen(errpath, "r");
+    size_t n = f ? fread(c->err, 1, sizeof c->err - 1, f) : 0;
+    c->err[n] = 0;
+    if (f)
+        fclose(f);
+}
+
+static void run(child *c, const char *const *args)
+{
+    c->pid = start(args);
+    finish(c);
+}
+
+static int exit_code(const child *c) { return WIFEXITED(c->status) ? WEXITSTATUS(c->status) : -1; }
+
+/* Nothing named OUT or OUT.tmp-* / OUT.old-* exists. */
+static void assert_nothing_at(const char *out)
+{
+    struct stat st;
+    if (stat(out, &st) == 0)
+        fail_msg("%s exists", out);
+    char pat[600];
+    glob_t g;
+    for (int i = 0; i < 2; i++) {
+        snprintf(pat, sizeof pat, "%s.%s-*", out, i ? "old" : "tmp");
+        if (glob(pat, 0, NULL, &g) == 0) {
+            const char *first = g.gl_pathv[0];
+            fail_msg("%s left behind", first);
+        }
+        globfree(&g);
+    }
+}
+
+/* A small problem folder; optionally its mask sidecar rewritten to claim w×h. */
+static void write_problem(const char *path, int w, int h, int n, int k)
+{
+    sci_problem **p = calloc((size_t)k, sizeof *p);
+    assert_non_null(p);
+    sci_cube *mask;
+    assert_int_equal(sci_cube_new(&mask, w, h, n, NULL), 0);
+    for (size_t i = 0; i < sci_cube_count(mask); i++)
+        mask->data[i] = (float)((i * 2654435761u >> 7) & 1);
+    for (int j = 0; j < k; j++) {
+        p[j] = calloc(1, sizeof *p[j]);
+        assert_non_null(p[j]);
+        p[j]->peak = 1;
+        snprintf(p[j]->name, sizeof p[j]->name, "limits#%d", j + 1);
+        assert_int_equal(sci_cube_clone(&p[j]->mask, mask, NULL), 0);
+        assert_int_equal(sci_cube_new(&p[j]->meas, w, h, 1, NULL), 0);
+        for (size_t i = 0; i < sci_cube_frame_size(p[j]->meas); i++)
+            p[j]->meas->data[i] = (float)(i % 7) * 0.5f;
+    }
+    sci_error err = {0};
+    if (sci_problem_dir_write_opt(path, p, k, NULL, 1, 0, &err) < 0)
+        fail_msg("%s", err.msg);
+    sci_cube_free(mask);
+    sci_problem_array_free(p, k);
+}
+
+static int exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+/* Start a reconstruction, wait until OUT.tmp-PID<suffix> (or OUT<suffix>, where the code before
+ * publish-on-success wrote) appears, and SIGTERM it at once. *still_writing: the path was still there after the
+ * kill, so the signal came while the output was being written. */
+static void sigterm_when(const char *in, const char *out, const char *suffix, int *still_writing, child *c)
+{
+    c->pid = start((const char *const[]){"-q", "--iters", "1", in, "-o", out, NULL});
+    char w1[700], w2[700];
+    snprintf(w1, sizeof w1, "%s.tmp-%d%s", out, (int)c->pid, suffix);
+    snprintf(w2, sizeof w2, "%s%s", out, suffix);
+    struct timespec t0, t;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int seen = 0;
+    for (;;) {
+        if (exists(w1) || exists(w2)) {
+            seen = 1;
+            break;
+        }
+        if (waitpid(c->pid, &c->status, WNOHANG) == c->pid)
+            fail_msg("scicap recon ended (status 0x%x) before %s appeared", c->status, w1);
+        clock_gettime(CLOCK_MONOTONIC, &t);
+        if (t.tv_sec - t0.tv_sec > 20)
+            break;
+        usleep(500);
+    }
+    kill(c->pid, SIGTERM);
+    *still_writing = seen && (exists(w1) || exists(w2));
+    finish(c);
+    if (!seen)
+        fail_msg("%s never appeared", w1);
+}
+
+static void test_sigterm_while_writing_publishes_nothing(void **state)
+{
+    char in[512], out[512];
+    snprintf(in, sizeof in, "%s/large", dir);
+    snprintf(out, sizeof out, "%s/out_large", dir);
+    write_problem(in, 1024, 1024, 16, 1);
+    /* the staging folder OUT.tmp-PID exists from the first file written to the rename that publishes it; the
+     * 16 1024² frames take about a second to write (EXR, PNG, GIF) */
+    int mid = 0;
+    child c;
+    sigterm_when(in, out, "", &mid, &c);
+    if (!mid)
+        fail_msg("the write had finished before SIGTERM; make the problem larger");
+    if (!WIFSIGNALED(c.status) || WTERMSIG(c.status) != SIGTERM)
+        fail_msg("status 0x%x, not death by SIGTERM; stderr: %s", c.status, c.err);
+    assert_nothing_at(out);
+}
+
+static void test_sigterm_between_snapshots_publishes_nothing(void **state)
+{
+    char in[512], out[512];
+    snprintf(in, sizeof in, "%s/three", dir);
+    snprintf(out, sizeof out, "%s/out_three", dir);
+    write_problem(in, 256, 256, 8, 3);
+    /* snapshot 1 finished: OUT.tmp-PID/snap_001 now (OUT/snap_001 before publish-on-success) */
+    int mid = 0;
+    child c;
+    sigterm_when(in, out, "/snap_001", &mid, &c);
+    if (!WIFSIGNALED(c.status) || WTERMSIG(c.status) != SIGTERM)
+        fail_msg("status 0x%x, not death by SIGTERM; stderr: %s", c.status, c.err);
+    assert_nothing_at(out);
+}
+
+static void test_4200_square_reconstructs_with_small_gif(void **state)
+{
+    char in[512], out[512], gif[600];
+    snprintf(in, sizeof in, "%s/huge", dir);
+    snprintf(out, sizeof out, "%s/out_huge", dir);
+    snprintf(gif, sizeof gif, "%s/preview.gif", out);
+    write_problem(in, 4200, 4200, 2, 1);
+    child c;
+    run(&c, (const char *const[]){"-q", "--iters", "1", "--tv-iters", "1", in, "-o", out, NULL});
+    if (exit_code(&c) != 0)
+        fail_msg("status 0x%x (signal %d), stderr: %s", c.status, WIFSIGNALED(c.status) ? WTERMSIG(c.status) : 0,
+                 c.err);
+    sci_cube *g = NULL;
+    sci_error err = {0};
+    if (sci_image_read(gif, &g, NULL, &err) < 0)
+        fail_msg("%s", err.msg);
+    assert_int_equal(g->w, 1400); /* 4200 / 3: the smallest factor under 2048² pixels */
+    assert_int_equal(g->h, 1400);
+    sci_cube_free(g);
+    char pat[600];
+    glob_t gl;
+    snprintf(pat, sizeof pat, "%s.tmp-*", out);
+    assert_int_not_equal(glob(pat, 0, NULL, &gl), 0);
+    globfree(&gl);
+}
+
+static int setup(void **state)
+{
+    const char *build = getenv("BUILD");
+    snprintf(scicap, sizeof scicap, "%s/scicap", build ? build : "build");
+    if (access(scicap, X_OK) != 0) {
+        fprintf(stderr, "%s: not built\n", scicap);
+        return -1;
+    }
+    return mkdtemp(dir) ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_sigterm_while_writing_publishes_nothing),
+        cmocka_unit_test(test_sigterm_between_snapshots_publishes_nothing),
+        cmocka_unit_test(test_4200_square_reconstructs_with_small_gif),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
