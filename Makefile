@@ -1,5 +1,5 @@
 # scicap — one build for everything (GNU make).
-# Targets: all deps demo check check-gv check-vm bench fuzz install clean.  `make help` lists them.
+# Targets: all deps demo check check-asan check-gv check-vm bench fuzz install clean.  `make help` lists them.
 
 PREFIX  ?= /usr/local
 DESTDIR ?=
@@ -22,9 +22,13 @@ PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 # libgpiod 1.6 (Debian 12) and 2.x have different APIs; drivers/ picks one at compile time.
 GPIOD_MAJOR := $(shell pkg-config --modversion libgpiod 2>/dev/null | cut -d. -f1)
+# SANITIZE=1 (make check-asan): AddressSanitizer and UndefinedBehaviorSanitizer in every object and program; any
+# report fails the test that triggered it (UBSan does not recover).
+comma := ,
+SAN_FLAGS := $(if $(SANITIZE),-fsanitize=address$(comma)undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer)
 ALL_CFLAGS   = -std=c11 -D_GNU_SOURCE -fopenmp $(WARN) -I. $(PKG_CFLAGS) -DSCICAP_GPIOD_MAJOR=$(or $(GPIOD_MAJOR),0) \
-               -DSCICAP_VERSION='"$(VERSION)"' -DSCICAP_DATADIR='"$(PREFIX)/share/scicap"' $(CFLAGS) $(CPPFLAGS)
-ALL_CXXFLAGS = -std=c++17 -fopenmp $(filter-out -Wshadow,$(WARN)) -I. $(PKG_CFLAGS) $(CXXFLAGS) $(CPPFLAGS)
+               -DSCICAP_VERSION='"$(VERSION)"' -DSCICAP_DATADIR='"$(PREFIX)/share/scicap"' $(CFLAGS) $(SAN_FLAGS) $(CPPFLAGS)
+ALL_CXXFLAGS = -std=c++17 -fopenmp $(filter-out -Wshadow,$(WARN)) -I. $(PKG_CFLAGS) $(CXXFLAGS) $(SAN_FLAGS) $(CPPFLAGS)
 LDLIBS_ALL   = $(PKG_LIBS) -lstdc++ -lm -lpthread $(LDLIBS)
 VERSION := $(shell git describe --always --dirty 2>/dev/null || echo 0.1)
 
@@ -49,13 +53,14 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             libcmocka-dev libopenblas-dev libhidapi-dev libusb-1.0-0-dev libgpiod-dev gpiod libsystemd-dev \
             gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools
 
-.PHONY: all deps demo check check-gv check-vm bench bench-report fuzz install clean help tests benches
+.PHONY: all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
 all: $(BINS)
 
 help:
 	@echo "make deps      install missing Debian packages (apt-get)"
 	@echo "make demo      build and run the main job on its embedded default"
 	@echo "make check     build and run every test"
+	@echo "make check-asan  every test again under ASan + UBSan at -O1 (build-asan/)"
 	@echo "make check-gv  the GenICam (Aravis) backend against a fake GigE Vision camera on loopback"
 	@echo "make check-vm  run the device tests against real kernel drivers under qemu"
 	@echo "make bench     run the benchmarks and print the figures (writes bench/results/)"
@@ -102,6 +107,15 @@ benches: $(BENCH_BIN) $(BINS)
 check: deps
 	@$(MAKE) --no-print-directory tests
 	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" tests/run $(TEST_BIN)
+
+# Every test again with ASan + UBSan at -O1, in its own build folder (build-asan), programs the tests start
+# (scicap, scicapd) included. Leak checking is off: the goal is memory errors and undefined behaviour.
+ASAN_BUILD ?= build-asan
+check-asan: deps
+	@$(MAKE) --no-print-directory BUILD=$(ASAN_BUILD) OPT=-O1 SANITIZE=1 tests
+	@ASAN_OPTIONS=detect_leaks=0:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=0 \
+	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 BUILD=$(ASAN_BUILD) SCICAP_DATA="$(SCICAP_DATA)" \
+	  tests/run $(TEST_BIN:$(BUILD)/%=$(ASAN_BUILD)/%)
 
 demo: deps
 	@$(MAKE) --no-print-directory all

@@ -144,7 +144,7 @@ void nerf_ref_rayformer_forward(const nerf_rayformer *net, const double *P, int 
                                    .inter_off = !cf->inter_ray},
                            .hidden = cf->ffn_hidden};
     double *u = malloc(n * 3 * sizeof *u), *a = malloc(n * C * sizeof *a), *b = malloc(n * C * sizeof *b);
-    double *ho = malloc(n * (G + 1) * sizeof *ho), *ci = malloc(n * Ci * sizeof *ci);
+    double *ho = malloc(n * (G + 1) * sizeof *ho), *ci = calloc(n * Ci, sizeof *ci);
     double *c1 = malloc(n * (Hc ? Hc : 1) * sizeof *c1), *rp = malloc(n * 3 * sizeof *rp);
     for (size_t i = 0; i < n; i++)
         for (int d = 0; d < 3; d++)
