@@ -28,6 +28,17 @@ static const char CONFIG[] =
     " \"storage\": {\"previews\": false},"
     " \"reconstruction\": {\"preset\": \"fast\"}}";
 
+/* File-static, so that a failed test's daemon is stopped and its folder removed by the teardown. */
+static harness H;
+
+static int cleanup(void **state)
+{
+    (void)state;
+    harness_cleanup(&H);
+    memset(&H, 0, sizeof H);
+    return 0;
+}
+
 static json_t *load_meta(const char *dir)
 {
     char path[800];
@@ -76,10 +87,10 @@ static void expect_fake_ramp(const char *dir)
 static void fake_camera_captured_by_daemon(void **state)
 {
     (void)state;
-    harness h;
-    harness_start(&h, CONFIG, NULL);
+    harness *h = &H;
+    harness_start(h, CONFIG, NULL);
     hconn c;
-    hconn_open(&c, &h);
+    hconn_open(&c, h);
 
     json_t *r = hconn_request(&c, "devices", NULL);
     json_t *cam = json_object_get(r, "camera");
@@ -168,8 +179,7 @@ static void fake_camera_captured_by_daemon(void **state)
     assert_non_null(strstr(why, "host-master"));
     json_decref(e);
     hconn_close(&c);
-    harness_stop(&h);
-    harness_cleanup(&h);
+    harness_stop(h);
 }
 
 /* The pairing rule: only the fake camera may run with the simulated trigger; an aravis camera needs a name. */
@@ -212,7 +222,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(aravis_config_rules),
-        cmocka_unit_test(fake_camera_captured_by_daemon),
+        cmocka_unit_test_teardown(fake_camera_captured_by_daemon, cleanup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
