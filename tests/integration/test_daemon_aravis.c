@@ -29,13 +29,13 @@ static const char CONFIG[] =
     " \"reconstruction\": {\"preset\": \"fast\"}}";
 
 /* File-static, so that a failed test's daemon is stopped and its folder removed by the teardown. */
-static harness H;
+static harness daemon_h;
 
 static int cleanup(void **state)
 {
     (void)state;
-    harness_cleanup(&H);
-    memset(&H, 0, sizeof H);
+    harness_cleanup(&daemon_h);
+    memset(&daemon_h, 0, sizeof daemon_h);
     return 0;
 }
 
@@ -87,7 +87,7 @@ static void expect_fake_ramp(const char *dir)
 static void fake_camera_captured_by_daemon(void **state)
 {
     (void)state;
-    harness *h = &H;
+    harness *h = &daemon_h;
     harness_start(h, CONFIG, NULL);
     hconn c;
     hconn_open(&c, h);
