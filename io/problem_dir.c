@@ -193,6 +193,11 @@ int sci_problem_dir_read_color(const char *dir, int *cfa, sci_cube ***truth_rgb,
         goto out;
     }
     *cfa = (int)parsed;
+    if (rgb_f && parsed != SCI_CFA_NONE && (snaps < 1 || snaps > 1 << 24 || n < 1 || n > 1 << 24)) {
+        rc = sci_error_set(err, SCI_ESHAPE, "%s: snapshots = %lld, n = %lld: not usable counts", path,
+                           (long long)snaps, (long long)n);
+        goto out;
+    }
     *k = (int)snaps;
     if (truth_rgb && rgb_f && parsed != SCI_CFA_NONE) {
         char sub[4400];
