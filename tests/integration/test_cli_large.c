@@ -1,0 +1,162 @@
+/* 4200×4200 through `scicap recon` (issue 17, item 4): OpenImageIO 2.4's GIF writer dies of SIGSEGV on frames over
+ * 2^24 pixels, and the crash left OUTDIR.tmp-PID behind. Now the preview is shrunk (to 1400², io/image.h) and the
+ * run succeeds with no temporary left. Runs the real binary in a child. `scicap sim` wrote its preview_truth.gif
+ * through the same sci_image_write_gif (checked at 4200² in test_io): a 4200² simulation takes 30 s on a loaded
+ * 2-core machine, too long for this suite. */
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <glob.h>
+#include <jansson.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+#include <matio.h>
+
+#include "io/image.h"
+#include "io/problem_dir.h"
+
+static char dir[] = "/tmp/scicap-test-cli-large-XXXXXX";
+static char scicap[1024];
+
+typedef struct child {
+    pid_t pid;
+    int status;
+    long maxrss_kb;
+    char err[8192]; /* its stderr */
+} child;
+
+/* Start `scicap CMD ARGS...` (NULL-terminated) with stderr to dir/stderr.txt. */
+static pid_t start_cmd(const char *cmd, const char *const *args)
+{
+    char *argv[64];
+    int n = 0;
+    argv[n++] = scicap;
+    argv[n++] = (char *)cmd;
+    for (; *args && n < 62; args++)
+        argv[n++] = (char *)*args;
+    argv[n] = NULL;
+    char errpath[512];
+    snprintf(errpath, sizeof errpath, "%s/stderr.txt", dir);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        int fd = open(errpath, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        int nul = open("/dev/null", O_WRONLY);
+        dup2(fd, 2);
+        dup2(nul, 1);
+        execv(scicap, argv);
+        _exit(127);
+    }
+    return pid;
+}
+
+static void finish(child *c)
+{
+    struct rusage ru;
+    assert_int_equal(wait4(c->pid, &c->status, 0, &ru), c->pid);
+    c->maxrss_kb = ru.ru_maxrss;
+    char errpath[512];
+    snprintf(errpath, sizeof errpath, "%s/stderr.txt", dir);
+    FILE *f = fopen(errpath, "r");
+    size_t n = f ? fread(c->err, 1, sizeof c->err - 1, f) : 0;
+    c->err[n] = 0;
+    if (f)
+        fclose(f);
+}
+
+static void run_cmd(child *c, const char *cmd, const char *const *args)
+{
+    c->pid = start_cmd(cmd, args);
+    finish(c);
+}
+
+static int exit_code(const child *c) { return WIFEXITED(c->status) ? WEXITSTATUS(c->status) : -1; }
+
+/* A small problem folder; optionally its mask sidecar rewritten to claim w×h. */
+static void write_problem(const char *path, int w, int h, int n, int k)
+{
+    sci_problem **p = calloc((size_t)k, sizeof *p);
+    assert_non_null(p);
+    sci_cube *mask;
+    assert_int_equal(sci_cube_new(&mask, w, h, n, NULL), 0);
+    for (size_t i = 0; i < sci_cube_count(mask); i++)
+        mask->data[i] = (float)((i * 2654435761u >> 7) & 1);
+    for (int j = 0; j < k; j++) {
+        p[j] = calloc(1, sizeof *p[j]);
+        assert_non_null(p[j]);
+        p[j]->peak = 1;
+        snprintf(p[j]->name, sizeof p[j]->name, "limits#%d", j + 1);
+        assert_int_equal(sci_cube_clone(&p[j]->mask, mask, NULL), 0);
+        assert_int_equal(sci_cube_new(&p[j]->meas, w, h, 1, NULL), 0);
+        for (size_t i = 0; i < sci_cube_frame_size(p[j]->meas); i++)
+            p[j]->meas->data[i] = (float)(i % 7) * 0.5f;
+    }
+    sci_error err = {0};
+    if (sci_problem_dir_write_opt(path, p, k, NULL, 1, 0, &err) < 0)
+        fail_msg("%s", err.msg);
+    sci_cube_free(mask);
+    sci_problem_array_free(p, k);
+}
+
+static void test_4200_square_reconstructs_with_small_gif(void **state)
+{
+    char in[512], out[512], gif[600];
+    snprintf(in, sizeof in, "%s/huge", dir);
+    snprintf(out, sizeof out, "%s/out_huge", dir);
+    snprintf(gif, sizeof gif, "%s/preview.gif", out);
+    write_problem(in, 4200, 4200, 2, 1);
+    child c;
+    run_cmd(&c, "recon", (const char *const[]){"-q", "--iters", "1", "--tv-iters", "1", in, "-o", out, NULL});
+    if (exit_code(&c) != 0)
+        fail_msg("status 0x%x (signal %d), stderr: %s", c.status, WIFSIGNALED(c.status) ? WTERMSIG(c.status) : 0,
+                 c.err);
+    sci_cube *g = NULL;
+    sci_error err = {0};
+    if (sci_image_read(gif, &g, NULL, &err) < 0)
+        fail_msg("%s", err.msg);
+    assert_int_equal(g->w, 1400); /* 4200 / 3: the smallest factor under 2048² pixels */
+    assert_int_equal(g->h, 1400);
+    sci_cube_free(g);
+    char pat[600];
+    glob_t gl;
+    snprintf(pat, sizeof pat, "%s.tmp-*", out);
+    assert_int_not_equal(glob(pat, 0, NULL, &gl), 0);
+    globfree(&gl);
+}
+
+static int setup(void **state)
+{
+    const char *build = getenv("BUILD");
+    snprintf(scicap, sizeof scicap, "%s/scicap", build ? build : "build");
+    if (access(scicap, X_OK) != 0) {
+        fprintf(stderr, "%s: not built\n", scicap);
+        return -1;
+    }
+    return mkdtemp(dir) ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_4200_square_reconstructs_with_small_gif),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
