@@ -67,6 +67,12 @@ static void list_vars(mat_t *mat, char *buf, size_t n)
 
 int sci_mat_list(const char *path, char *buf, size_t n)
 {
+    /* libmatio allocates what a variable's header declares (a dims tag of 1.5 GB: fuzz_matfile): verify first */
+    sci_error verr = {0};
+    if (sci_mat_verify(path, &verr) < 0) {
+        snprintf(buf, n, "%s", verr.msg);
+        return SCI_EFORMAT;
+    }
     mat_t *mat = Mat_Open(path, MAT_ACC_RDONLY);
     if (!mat) {
         snprintf(buf, n, "not a .mat file");
