@@ -1,6 +1,7 @@
 /* io/: image round trips through OpenImageIO, stacks, problem folders, .mat round trip, and bad input that must
  * be refused with a message naming the file and the fault. */
 #include <errno.h>
+#include <signal.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -14,6 +15,8 @@
 #include <matio.h>
 
 #include "io/image.h"
+#include "io/limits.h"
+#include "io/staging.h"
 #include "io/matfile.h"
 #include "io/problem_dir.h"
 #include "io/source.h"
@@ -325,11 +328,68 @@ static void test_gif_large_frames_scaled_down(void **state)
     }
 }
 
+/* Publish-on-success (io/staging.h): a set stop flag publishes nothing and removes the staging folder; an existing
+ * output is kept without overwrite and replaced with it, with nothing left beside it. */
+static void test_staging_publish(void **state)
+{
+    char out[512], tmp[600], file[700], cmd[800];
+    snprintf(out, sizeof out, "%s/published", tmpdir);
+    volatile sig_atomic_t stop = 1;
+    sci_error err = {0};
+    for (int round = 0; round < 4; round++) {
+        assert_int_equal(sci_staging_name(tmp, sizeof tmp, out), 0);
+        assert_int_equal(mkdir(tmp, 0755), 0);
+        snprintf(file, sizeof file, "%s/round%d", tmp, round);
+        FILE *f = fopen(file, "w");
+        assert_non_null(f);
+        fclose(f);
+        const int rc = sci_staging_publish(tmp, out, round == 3, &stop, &err);
+        assert_int_equal(access(tmp, F_OK), -1); /* never left behind */
+        if (round == 0) {
+            assert_int_equal(rc, SCI_ECANCELED);
+            assert_int_equal(access(out, F_OK), -1);
+            stop = 0;
+        } else if (round == 1) {
+            assert_int_equal(rc, 0);
+        } else if (round == 2) {
+            assert_int_equal(rc, -EEXIST);
+            snprintf(file, sizeof file, "%s/round1", out);
+            assert_int_equal(access(file, F_OK), 0);
+        } else {
+            assert_int_equal(rc, 0);
+            snprintf(file, sizeof file, "%s/round3", out);
+            assert_int_equal(access(file, F_OK), 0);
+            snprintf(file, sizeof file, "%s/round1", out);
+            assert_int_equal(access(file, F_OK), -1);
+        }
+    }
+    snprintf(cmd, sizeof cmd, "ls -d '%s'.* 2>/dev/null | grep -q .", out);
+    assert_int_not_equal(system(cmd), 0); /* no .tmp-PID or .old-PID */
+}
+
+/* The limits name the figure, the limit and the override; sci_io_limits_none lifts them. */
+static void test_limits_messages(void **state)
+{
+    sci_io_limits none;
+    sci_io_limits_none(&none);
+    sci_error err = {0};
+    assert_int_equal(sci_io_limits_check_output(NULL, "OUT", 1e6, 4000005, &err), -EFBIG);
+    assert_non_null(strstr(err.msg, "4000005"));
+    assert_non_null(strstr(err.msg, "--allow-large"));
+    assert_int_equal(sci_io_limits_check_output(&none, "OUT", 1e15, 1e12, &err), 0);
+    assert_int_equal(sci_io_limits_check_cube(NULL, "mask.json", 24576, 24576, 1, &err), -EFBIG);
+    assert_non_null(strstr(err.msg, "24576x24576x1"));
+    assert_int_equal(sci_io_limits_check_cube(&none, "mask.json", 24576, 24576, 1, &err), 0);
+    assert_int_equal(sci_io_limits_check_input(NULL, "x.mat", 256, 256, 8, 5, &err), 0); /* drop40 */
+    assert_int_equal(sci_io_limits_check_input(NULL, "x.mat", 1LL << 31, 1LL << 31, 1LL << 31, 1, &err), -EFBIG);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_image_roundtrip), cmocka_unit_test(test_stack_roundtrip_exact),
-        cmocka_unit_test(test_gif_large_frames_scaled_down),
+        cmocka_unit_test(test_gif_large_frames_scaled_down), cmocka_unit_test(test_staging_publish),
+        cmocka_unit_test(test_limits_messages),
         cmocka_unit_test(test_problem_dir_roundtrip), cmocka_unit_test(test_mat_roundtrip_and_faults),
         cmocka_unit_test(test_drop40_shape), cmocka_unit_test(test_mat_masks_per_snapshot),
     };
