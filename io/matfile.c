@@ -92,6 +92,19 @@ static int has_var(mat_t *mat, const char *name)
     return found;
 }
 
+/* The error for a variable that is not there: what the file holds and the option that names another. */
+static int missing_var(mat_t *mat, const char *path, const char *name, const char *option, sci_error *err)
+{
+    char vars[360];
+    list_vars(mat, vars, sizeof vars);
+    return sci_error_set(err, SCI_EFORMAT, "%s: no variable '%s'; the file holds: %s. %s", path, name, vars, option);
+}
+
+#define MEAS_OPTION "Name the measurements with --meas-var NAME"
+#define MASK_OPTION(separate) \
+    ((separate) ? "Name the masks with --mask-var NAME" \
+                : "Name the masks with --mask-var NAME, or give their file with --mask FILE")
+
 /* Read variable `name` as H×W×F: rank 2 means F = 1, rank 4 (H×W×N×k) F = N·k with dims[3] = k (else 1).
  * `option` is the sentence naming the command-line option that picks another variable (for the message when it is missing).
  * Returns the matvar or NULL with err set (*rc = 0 when an optional variable is absent). */
@@ -100,12 +113,8 @@ static matvar_t *read_var(mat_t *mat, const char *path, const char *name, int re
 {
     *rc = 0;
     if (!has_var(mat, name)) {
-        if (required) {
-            char vars[360];
-            list_vars(mat, vars, sizeof vars);
-            *rc = sci_error_set(err, SCI_EFORMAT, "%s: no variable '%s'; the file holds: %s. %s", path, name,
-                                vars, option);
-        }
+        if (required)
+            *rc = missing_var(mat, path, name, option, err);
         return NULL;
     }
     matvar_t *v = Mat_VarRead(mat, name);
@@ -301,11 +310,14 @@ int sci_mat_probe(const char *path, const sci_mat_options *opts, long long *w, l
     const char *mask_name = o->mask_var ? o->mask_var : "mask";
     if (mmat && !o->mask_var && !has_var(mmat, "mask") && only_numeric_var(mmat, only, sizeof only))
         mask_name = only;
-    int rc = probe_open(mat, msrc, path, mask_name, o->meas_var ? o->meas_var : "meas",
-                        o->truth_var ? o->truth_var : "orig", w, h, n, k);
-    if (rc < 0)
-        rc = sci_error_set(err, SCI_EFORMAT, "%s: no variable '%s' or '%s' (the reader names what is there)", path,
-                           o->meas_var ? o->meas_var : "meas", mask_name);
+    const char *meas_name = o->meas_var ? o->meas_var : "meas";
+    int rc = 0;
+    if (!has_var(mat, meas_name))
+        rc = missing_var(mat, path, meas_name, MEAS_OPTION, err);
+    else if (!has_var(msrc, mask_name))
+        rc = missing_var(msrc, o->mask_path ? o->mask_path : path, mask_name, MASK_OPTION(o->mask_path), err);
+    else if (probe_open(mat, msrc, path, mask_name, meas_name, o->truth_var ? o->truth_var : "orig", w, h, n, k) < 0)
+        rc = sci_error_set(err, SCI_EFORMAT, "%s: variable '%s' or '%s' is unreadable", path, meas_name, mask_name);
     if (mmat)
         Mat_Close(mmat);
     Mat_Close(mat);
@@ -366,10 +378,8 @@ static int mat_read(const char *path, const sci_mat_options *o, double divisor, 
             (rc = sci_io_limits_check_input(lim, path, pw, ph, pn, pk, err)) < 0)
             goto out;
     }
-    if (!(meas = read_var(mat, path, meas_name, 1, "Name the measurements with --meas-var NAME", dy, err, &rc)) ||
-        !(mask = read_var(msrc, mask_file, mask_name, 1, o->mask_path ? "Name the masks with --mask-var NAME"
-                                     : "Name the masks with --mask-var NAME, or give their file with --mask FILE",
-                          dm, err, &rc)))
+    if (!(meas = read_var(mat, path, meas_name, 1, MEAS_OPTION, dy, err, &rc)) ||
+        !(mask = read_var(msrc, mask_file, mask_name, 1, MASK_OPTION(o->mask_path), dm, err, &rc)))
         goto out;
     /* The truth is optional, but a named one must be there, and one the directory lists must be readable (a
      * truncated file most often ends inside its largest variable). */

@@ -31,10 +31,24 @@ int sci_source_is_mat(const char *path)
     return l > 4 && strcasecmp(path + l - 4, ".mat") == 0;
 }
 
+/* Options that only a .mat takes (the limits apply to every input). */
+static int mat_opts_set(const sci_mat_options *o)
+{
+    return o && (o->mask_path || o->mask_var || o->meas_var || o->truth_var || o->white);
+}
+
+static int refuse_mat_opts(const char *path, sci_error *err)
+{
+    return sci_error_set(err, -EINVAL,
+                         "%s: --mask, --mask-var, --meas-var, --truth-var and --scale are for .mat input (a "
+                         "problem folder names its parts and scale in problem.json)",
+                         path);
+}
+
 int sci_source_read_opts(const char *path, const sci_mat_options *opts, sci_problem ***out, int *k,
                          sci_mat_info *info, sci_error *err)
 {
-    const int any = opts && (opts->mask_path || opts->mask_var || opts->meas_var || opts->truth_var || opts->white);
+    const int any = mat_opts_set(opts);
     if (!any && !sci_source_is_mat(path)) {
         struct stat st;
         if (stat(path, &st) != 0)
@@ -45,10 +59,7 @@ int sci_source_read_opts(const char *path, const sci_mat_options *opts, sci_prob
         return sci_source_read(path, out, k, err);
     }
     if (!sci_source_is_mat(path))
-        return sci_error_set(err, -EINVAL,
-                             "%s: --mask, --mask-var, --meas-var, --truth-var and --scale are for .mat input (a "
-                             "problem folder names its parts and scale in problem.json)",
-                             path);
+        return refuse_mat_opts(path, err);
     return sci_mat_read_opts(path, opts, out, k, info, err);
 }
 
@@ -57,6 +68,8 @@ int sci_source_probe(const char *path, const sci_mat_options *opts, long long *w
 {
     if (sci_source_is_mat(path))
         return sci_mat_probe(path, opts, w, h, n, k, err);
+    if (mat_opts_set(opts))
+        return refuse_mat_opts(path, err);
     char man[4200];
     size_t l = strlen(path);
     if (l > 5 && strcmp(path + l - 5, ".json") == 0)
@@ -70,11 +83,11 @@ int sci_source_probe(const char *path, const sci_mat_options *opts, long long *w
             return sci_error_set(err, -errno, "%s: %s (not a scicap problem folder?)", man, strerror(errno));
         return sci_error_set(err, SCI_EFORMAT, "%s:%d:%d: %s", man, je.line, je.column, je.text);
     }
-    json_int_t jw = 0, jh = 0, jn = 0, jk = 0;
-    int rc = json_unpack_ex(j, &je, 0, "{s:I, s:I, s:I, s:I}", "w", &jw, "h", &jh, "n", &jn, "snapshots", &jk);
+    /* Older folders lack w, h, n: 0 then (nothing to hold against a limit here; the reader checks the stacks). */
+    *w = json_integer_value(json_object_get(j, "w"));
+    *h = json_integer_value(json_object_get(j, "h"));
+    *n = json_integer_value(json_object_get(j, "n"));
+    *k = json_integer_value(json_object_get(j, "snapshots"));
     json_decref(j);
-    if (rc != 0)
-        return sci_error_set(err, SCI_EFORMAT, "%s: not a scicap problem manifest (%s)", man, je.text);
-    *w = jw, *h = jh, *n = jn, *k = jk;
     return 0;
 }

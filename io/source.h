@@ -16,8 +16,8 @@ int sci_source_read(const char *path, sci_problem ***out, int *k, sci_error *err
 int sci_source_read_opts(const char *path, const sci_mat_options *opts, sci_problem ***out, int *k,
                          sci_mat_info *info, sci_error *err);
 /* The sizes `path` declares, without reading its data: w × h pixels, n frames per snapshot, k snapshots (a .mat:
- * sci_mat_probe; a folder: its problem.json). For output limits checked before the work starts. 0 or an error as
- * the readers'. */
+ * sci_mat_probe; a folder: its problem.json, 0 for what it does not state). For output limits checked before the
+ * work starts. 0 or an error as the readers'. */
 int sci_source_probe(const char *path, const sci_mat_options *opts, long long *w, long long *h, long long *n,
                      long long *k, sci_error *err);
 
