@@ -126,6 +126,8 @@ int main(int argc, char **argv)
             rp.finest_res = sp.finest_res = atof(v);
         else if (rf && strcmp(key, "zero_gates") == 0)
             rp.zero_gates = atoi(v);
+        else if (rf && strcmp(key, "blocks") == 0)
+            rp.blocks = atoi(v);
         else if (rf && strcmp(key, "heads_full_lr") == 0)
             rp.heads_full_lr = atoi(v);
         else if (rf && strcmp(key, "net_lr_scale") == 0)

@@ -15,13 +15,20 @@ const char *const sci_rayformer_ablation_names[5] = {"baseline", "+patch", "+int
 
 void sci_rayformer_params_default(sci_rayformer_params *p)
 {
-    *p = (sci_rayformer_params){.iters = 2000,
+    /* the recipe of issue 15 (docs/nerf-methods.md, "The recipe"): view-independent colour, a 2^19 table, one
+     * I²R block that starts as the identity with its attention learning at 0.1× while the heads learn at the
+     * table's rate, 16 samples over the scene's depth range, the distortion loss */
+    *p = (sci_rayformer_params){.iters = 3000,
                                 .patch = 8,
                                 .patches_per_step = 8,
-                                .samples = 32,
-                                .log2_table = 16,
+                                .samples = 16,
+                                .blocks = 1,
+                                .log2_table = 19,
                                 .finest_res = 512,
-                                .sh_degree = 4,
+                                .sh_degree = 1,
+                                .zero_gates = 1,
+                                .heads_full_lr = 1,
+                                .recipe = {.spacing = NERF_SPACING_LINEAR, .distortion_weight = 0.01},
                                 .lr = 1e-2,
                                 .lr_final = 1e-3,
                                 /* the attention blocks at the hash table's 1e-2 collapsed on two scenes of three
@@ -54,14 +61,14 @@ int sci_rayformer_params_preset(sci_rayformer_params *p, const char *name)
         int iters, patches_per_step, log2_table;
         double finest_res;
     } t[] = {
-        {"fast", 1500, 4, 16, 512},
-        {"balanced", 2000, 8, 16, 512},
-        {"best", 3000, 8, 18, 1024},
+        {"fast", 1500, 8, 19, 512},
+        {"balanced", 3000, 8, 19, 512},
+        {"best", 4000, 16, 19, 1024},
     };
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (strcmp(name, t[i].name) == 0) {
             p->iters = t[i].iters, p->patches_per_step = t[i].patches_per_step, p->log2_table = t[i].log2_table;
-            p->finest_res = t[i].finest_res, p->patch = 8, p->samples = 32, p->lr = 1e-2, p->lr_final = 1e-3;
+            p->finest_res = t[i].finest_res, p->patch = 8, p->samples = 16, p->lr = 1e-2, p->lr_final = 1e-3;
             return 0;
         }
     return -EINVAL;
@@ -130,6 +137,8 @@ int sci_rayformer_params_check(const sci_rayformer_params *p, sci_error *err)
         return sci_error_set(err, -EINVAL, "rayformer: finest-res must be in [16, 1e6] (got %g)", p->finest_res);
     if (p->sh_degree < 1 || p->sh_degree > 4)
         return sci_error_set(err, -EINVAL, "rayformer: sh-degree must be in [1, 4] (got %d)", p->sh_degree);
+    if (p->blocks < 0 || p->blocks > 8)
+        return sci_error_set(err, -EINVAL, "rayformer: blocks must be in [1, 8] (got %d)", p->blocks);
     if (p->threads < 0 || p->threads > 1024)
         return sci_error_set(err, -EINVAL, "rayformer: threads must be in [0, 1024] (got %d)", p->threads);
     if ((p->inter_ray != 0 && p->inter_ray != 1) || (p->intra_ray != 0 && p->intra_ray != 1) ||
@@ -205,6 +214,8 @@ int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_param
     cfg.grid.finest_res = params->finest_res;
     cfg.patch_w = cfg.patch_h = params->patch;
     cfg.samples = params->samples;
+    if (params->blocks > 0)
+        cfg.n_blocks = params->blocks;
     cfg.sh_degree = params->sh_degree;
     cfg.inter_ray = params->inter_ray;
     cfg.intra_ray = params->intra_ray;

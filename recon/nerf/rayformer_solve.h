@@ -36,6 +36,7 @@ typedef struct sci_rayformer_params {
     int patch;                   /* patch side: 2, 4, 8 or 16 (paper: 8) */
     int patches_per_step;        /* B, patch locations per step, each rendered from all N poses */
     int samples;                 /* L, samples per ray (paper: 32) */
+    int blocks;                  /* I²R transformer blocks, 1 … 8 (0: 2, the default network) */
     int log2_table;              /* hash table entries per level, log2 (10 … 24) */
     double finest_res;           /* finest hash-grid resolution (the coarsest is 16) */
     int sh_degree;               /* direction encoding degree 1 … 4 (4: the paper's 16 SH outputs) */

@@ -19,7 +19,7 @@ void sci_scinerf_params_default(sci_scinerf_params *p)
                               .fine_samples = 0,
                               .pos_enc = NERF_MLP_POS_HASH,
                               .pos_freqs = 10,
-                              .log2_table = 16,
+                              .log2_table = 19,
                               .finest_res = 512,
                               .depth = 2,
                               .width = 64,
@@ -27,9 +27,10 @@ void sci_scinerf_params_default(sci_scinerf_params *p)
                               .feature_dim = 15,
                               .color_hidden = 64,
                               .dir_enc = NERF_MLP_DIR_SH,
-                              .sh_degree = 4,
+                              .sh_degree = 1, /* view-independent colour (issue 15's recipe) */
                               .lr = 1e-2,
                               .lr_final = 1e-3,
+                              .recipe = {.spacing = NERF_SPACING_LINEAR, .distortion_weight = 0.01},
                               .pose_mode = NERF_POSES_KNOWN,
                               .pose_lr = 1e-3,
                               .pose_lr_final = 1e-4,
@@ -52,9 +53,9 @@ int sci_scinerf_params_preset(sci_scinerf_params *p, const char *name)
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (strcmp(name, t[i].name) == 0) {
             p->iters = t[i].iters, p->rays_per_step = t[i].rays, p->samples = 32, p->fine_samples = t[i].fine;
-            p->pos_enc = NERF_MLP_POS_HASH, p->log2_table = 16, p->finest_res = 512;
+            p->pos_enc = NERF_MLP_POS_HASH, p->log2_table = 19, p->finest_res = 512;
             p->depth = 2, p->width = 64, p->skip = -1, p->feature_dim = 15, p->color_hidden = 64;
-            p->dir_enc = NERF_MLP_DIR_SH, p->sh_degree = 4, p->lr = 1e-2, p->lr_final = 1e-3;
+            p->dir_enc = NERF_MLP_DIR_SH, p->sh_degree = 1, p->lr = 1e-2, p->lr_final = 1e-3;
             return 0;
         }
     return -EINVAL;
