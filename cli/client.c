@@ -424,12 +424,15 @@ static int run(int argc, char **argv, int recon_mode)
         json_decref(args);
         return 1;
     }
-    if (conn_send(&cn, cmd, json_object_size(args) ? args : NULL) < 0) {
+    /* conn_send steals non-empty args (freed with the request): decide before, never look at args after */
+    json_t *send_args = json_object_size(args) ? args : NULL;
+    if (!send_args)
+        json_decref(args);
+    args = NULL;
+    if (conn_send(&cn, cmd, send_args) < 0) {
         conn_close(&cn);
         return 1;
     }
-    if (!json_object_size(args))
-        json_decref(args);
     int rc = 0;
     if (!strcmp(cmd, "watch")) {
         json_t *r = conn_reply(&cn, cmd);
