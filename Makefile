@@ -54,7 +54,7 @@ BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
 # Debian 12 packages the project needs, and what each is for (README, "Dependencies").
 DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools libmatio-dev libjansson-dev \
             libcmocka-dev libopenblas-dev libhidapi-dev libusb-1.0-0-dev libgpiod-dev gpiod libsystemd-dev \
-            gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools
+            gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools systemd zlib1g-dev
 
 .PHONY: all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
 all: $(BINS)
@@ -155,6 +155,8 @@ install: all
 	install -d $(DESTDIR)$(PREFIX)/share/scicap/scenes
 	install -m 644 bench/results.csv $(DESTDIR)$(PREFIX)/share/scicap/results.csv
 	install -m 644 etc/scenes/*.json etc/scenes/*.pgm $(DESTDIR)$(PREFIX)/share/scicap/scenes/
+	install -d $(DESTDIR)$(PREFIX)/share/scicap/examples
+	install -m 644 etc/scicapd-aravis.json etc/scicapd-v4l2.json $(DESTDIR)$(PREFIX)/share/scicap/examples/
 	install -d $(DESTDIR)$(PREFIX)/share/man/man1
 	install -m 644 docs/man/*.1 $(DESTDIR)$(PREFIX)/share/man/man1/
 	install -d $(DESTDIR)/etc/scicap $(DESTDIR)/lib/systemd/system $(DESTDIR)/usr/lib/sysusers.d \

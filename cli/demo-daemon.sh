@@ -7,8 +7,9 @@ bin=${BUILD:-build}
 dir=$(mktemp -d /tmp/scicap-demo-XXXXXX)
 export SCICAP_SOCKET=$dir/control.sock
 echo "== scicap demo: scicapd on the simulated bench, outputs in $dir"
+# as root outside systemd the daemon wants --allow-root (docs/man/scicapd.8)
 "$bin/scicapd" --no-config --socket "$SCICAP_SOCKET" --storage "$dir/store" --runtime-dir "$dir/run" \
-    2> "$dir/scicapd.log" &
+    $( [ "$(id -u)" = 0 ] && echo --allow-root ) 2> "$dir/scicapd.log" &
 pid=$!
 trap 'kill $pid 2>/dev/null || true' EXIT
 for _ in $(seq 100); do [ -S "$SCICAP_SOCKET" ] && break; sleep 0.1; done

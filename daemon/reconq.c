@@ -219,7 +219,8 @@ int scicapd_reconq_load(scicapd_store *st, const sci_log *log, scicapd_reconq_it
         len++;
     }
     closedir(d);
-    qsort(v, (size_t)len, sizeof *v, by_name);
+    if (len > 0) /* qsort(NULL, 0, ...) is undefined (UBSan) */
+        qsort(v, (size_t)len, sizeof *v, by_name);
     *items = v;
     *n = len;
     return 0;

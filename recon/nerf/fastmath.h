@@ -30,7 +30,7 @@ static inline float nerf_expf(float x)
     p = p * r + 0.5f;
     p = p * r + 1.0f;
     p = p * r + 1.0f;
-    int32_t bits = ((int32_t)n + 127) << 23;
+    int32_t bits = (int32_t)((uint32_t)((int32_t)n + 127) << 23); /* unsigned shift: a negative left shift is UB */
     float s;
     memcpy(&s, &bits, sizeof s);
     float y = p * s;
