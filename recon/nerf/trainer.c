@@ -177,9 +177,9 @@ static int pass_init(run *r, pass *p, const nerf_model *m, int L, int per_group,
     p->tn = dtv ? malloc(pts * sizeof(float)) : NULL;
     p->depth = dtv ? malloc(rays * sizeof(float)) : NULL;
     p->d_depth = dtv ? malloc(rays * sizeof(float)) : NULL;
-    if ((dist && !p->d_sigma_dist) || (dtv && (!p->tn || !p->depth || !p->d_depth)) || !p->params || !p->grad || (per_group && !p->t) || !p->pcam || !p->delta || !p->pos || !p->sigma ||
-        !p->rgb || !p->color || !p->grey || !p->dC || !p->d_color || !p->d_sigma || !p->d_rgb ||
-        (pose_grads && (!p->d_pos || !p->d_dir)))
+    if ((dist && !p->d_sigma_dist) || (dtv && (!p->tn || !p->depth || !p->d_depth)) || !p->params || !p->grad ||
+        (per_group && !p->t) || !p->pcam || !p->delta || !p->pos || !p->sigma || !p->rgb || !p->color || !p->grey ||
+        !p->dC || !p->d_color || !p->d_sigma || !p->d_rgb || (pose_grads && (!p->d_pos || !p->d_dir)))
         return sci_error_set(err, -ENOMEM, "%s: out of memory for a batch of %d groups × %d rays × %d samples",
                              c->method, r->G, r->R, L);
     m->ops->init(m->self, p->params, c->seed + (per_group ? 0x9e3779b9u : 0));
