@@ -54,7 +54,8 @@ BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
 # Debian 12 packages the project needs, and what each is for (README, "Dependencies").
 DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools libmatio-dev libjansson-dev \
             libcmocka-dev libopenblas-dev libhidapi-dev libusb-1.0-0-dev libgpiod-dev gpiod libsystemd-dev \
-            gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools systemd zlib1g-dev
+            gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools systemd zlib1g-dev \
+            python3-dev python3-numpy python3-pytest slurm-wlm munge
 
 .PHONY: all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
 all: $(BINS)
