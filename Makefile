@@ -57,7 +57,7 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools systemd zlib1g-dev \
             python3-dev python3-numpy python3-pytest slurm-wlm munge
 
-.PHONY: all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
+.PHONY: python all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
 all: $(BINS)
 
 help:
@@ -107,6 +107,48 @@ $(BUILD)/bench/%: bench/%.c $(LIB)
 
 tests: $(TEST_BIN) $(BINS)
 benches: $(BENCH_BIN) $(BINS)
+
+# The Python module (python/, docs/python.md): the extension scicap._scicap against the numpy C API, linked with a
+# position-independent copy of the library's offline layers built in $(BUILD)/pic/ only for it (the programs keep
+# the archive above as it is), and the pure-Python package beside it, so that
+# PYTHONPATH=$(BUILD)/python python3 -c 'import scicap' works from the build tree. Debian's python3, not a PATH one.
+PYTHON   ?= /usr/bin/python3
+PY_INFO  := $(shell $(PYTHON) -c 'import sysconfig, numpy; print(sysconfig.get_paths()["include"], \
+              numpy.get_include(), sysconfig.get_config_var("EXT_SUFFIX"), sysconfig.get_python_version())' 2>/dev/null)
+PY_CFLAGS := $(addprefix -I,$(wordlist 1,2,$(PY_INFO)))
+PY_EXT   := $(BUILD)/python/scicap/_scicap$(word 3,$(PY_INFO))
+PY_SITE  ?= $(PREFIX)/lib/python$(word 4,$(PY_INFO))/dist-packages
+PIC_DIRS := base io recon recon/nerf sim
+PIC_OBJ  := $(patsubst %.c,$(BUILD)/pic/%.o,$(foreach d,$(PIC_DIRS),$(wildcard $(d)/*.c))) \
+            $(patsubst %.cpp,$(BUILD)/pic/%.o,$(foreach d,$(PIC_DIRS),$(wildcard $(d)/*.cpp)))
+PIC_LIB  := $(BUILD)/pic/libscicap.a
+PY_OBJ   := $(patsubst %.c,$(BUILD)/pic/%.o,$(wildcard python/*.c))
+PY_PURE  := $(patsubst python/%,$(BUILD)/python/%,$(wildcard python/scicap/*.py))
+
+$(BUILD)/pic/%.o: %.c
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CFLAGS) -fPIC $(PIC_EXTRA) -MMD -MP -c $< -o $@
+
+$(BUILD)/pic/%.o: %.cpp
+	@mkdir -p $(dir $@)
+	$(CXX) $(ALL_CXXFLAGS) -fPIC -MMD -MP -c $< -o $@
+
+$(PY_OBJ): PIC_EXTRA = $(PY_CFLAGS) -fvisibility=hidden
+
+$(PIC_LIB): $(PIC_OBJ)
+	@rm -f $@
+	ar rcs $@ $^
+
+# --exclude-libs: the library's symbols stay inside the module (only PyInit__scicap is exported).
+$(PY_EXT): $(PY_OBJ) $(PIC_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CFLAGS) -shared -Wl,--exclude-libs,ALL -o $@ $(PY_OBJ) $(PIC_LIB) $(LDLIBS_ALL)
+
+$(BUILD)/python/scicap/%.py: python/scicap/%.py
+	@mkdir -p $(dir $@)
+	cp $< $@
+
+python: $(PY_EXT) $(PY_PURE)
 
 check: deps
 	@$(MAKE) --no-print-directory tests
@@ -206,4 +248,4 @@ fuzz: deps
 clean:
 	rm -rf $(BUILD)
 
--include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d) $(GV_TEST_BIN:=.d) $(FUZZ_OBJ:.o=.d)
+-include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(PIC_OBJ:.o=.d) $(PY_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d) $(GV_TEST_BIN:=.d) $(FUZZ_OBJ:.o=.d)
