@@ -1,6 +1,8 @@
 #include "recon/admmtv.h"
+#include "recon/gaptv.h"
 
 #include <errno.h>
+#include <stddef.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -125,3 +127,45 @@ out:
     sci_cube_free(r);
     return rc;
 }
+
+/* --- the method's row in the solver table (recon/solver.h) ------------------------------------------------ */
+
+#define ADMM_FIELD(k, t, f, lo, hi, help) {k, t, offsetof(sci_admmtv_params, f), lo, hi, NULL, 0, help}
+static const solver_field admm_fields[] = {
+    ADMM_FIELD("iters", SOLVER_FIELD_INT, iters, 1, 1e7, "iterations"),
+    ADMM_FIELD("lambda", SOLVER_FIELD_DOUBLE, lambda, 0, 1e6, "step size λ (> 0)"),
+    ADMM_FIELD("gamma", SOLVER_FIELD_DOUBLE, gamma, 0, 1e6, "added to the mask energy in the data step"),
+    ADMM_FIELD("tv_weight", SOLVER_FIELD_DOUBLE, tv_weight, 0, 1e6, "TV weight on the data's scale"),
+    ADMM_FIELD("tv_iters", SOLVER_FIELD_INT, tv_iters, 1, 1e5, "TV passes per iteration"),
+    ADMM_FIELD("metrics_every", SOLVER_FIELD_INT, metrics_every, 0, 1e9, "PSNR in the trace every k iterations"),
+    ADMM_FIELD("ssim_every", SOLVER_FIELD_INT, ssim_every, 0, 1e9, "SSIM in the trace every k iterations"),
+};
+
+static void admm_defaults(void *s) { sci_admmtv_params_default(s); }
+
+static void admm_preset(void *s, solver_preset p)
+{
+    sci_admmtv_params *q = s;
+    sci_tv_solver_preset(&q->iters, &q->tv_iters, p);
+}
+
+static int admm_check(const void *s, sci_error *err) { return sci_admmtv_params_check(s, err); }
+
+static int admm_run(const sci_problem *p, const void *s, const solver_io *io, sci_result *r)
+{
+    return sci_admmtv_solve(p, s, r, io->progress, io->user);
+}
+
+const solver_ops sci_admmtv_solver = {
+    .name = "admm-tv",
+    .summary = "ADMM with TV denoising (fast, no camera needed)",
+    .caps = 0,
+    .settings_size = sizeof(sci_admmtv_params),
+    .fields = {{admm_fields, sizeof admm_fields / sizeof admm_fields[0], 0}},
+    .defaults = admm_defaults,
+    .preset = admm_preset,
+    .check = admm_check,
+    .run = admm_run,
+    .bench_quick = sci_tv_solver_bench_quick,
+    .bench_full = sci_tv_solver_bench_full,
+};

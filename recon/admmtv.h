@@ -12,6 +12,7 @@
 #define SCICAP_RECON_ADMMTV_H
 
 #include "recon/problem.h"
+#include "recon/solver.h"
 
 typedef struct sci_admmtv_params {
     int iters;         /* >= 1 */
@@ -28,5 +29,8 @@ int sci_admmtv_params_check(const sci_admmtv_params *p, sci_error *err);
 
 int sci_admmtv_solve(const sci_problem *problem, const sci_admmtv_params *params, sci_result *result,
                      sci_progress_fn progress, void *user);
+
+/* The method's row in the solver table (settings: sci_admmtv_params; presets and bench grid as GAP-TV's). */
+extern const solver_ops sci_admmtv_solver;
 
 #endif

@@ -1,6 +1,7 @@
 #include "recon/gaptv.h"
 
 #include <errno.h>
+#include <stddef.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -115,3 +116,62 @@ out:
     sci_cube_free(r);
     return rc;
 }
+
+/* --- the method's row in the solver table (recon/solver.h) ------------------------------------------------ */
+
+#define GAP_FIELD(k, t, f, lo, hi, help) {k, t, offsetof(sci_gaptv_params, f), lo, hi, NULL, 0, help}
+static const solver_field gap_fields[] = {
+    GAP_FIELD("iters", SOLVER_FIELD_INT, iters, 1, 1e7, "outer iterations"),
+    GAP_FIELD("lambda", SOLVER_FIELD_DOUBLE, lambda, 0, 1e6, "step size λ (> 0)"),
+    GAP_FIELD("accelerate", SOLVER_FIELD_BOOL, accelerate, 0, 1, "accelerated GAP (ȳ accumulation)"),
+    GAP_FIELD("tv_weight", SOLVER_FIELD_DOUBLE, tv_weight, 0, 1e6, "TV weight on the data's scale"),
+    GAP_FIELD("tv_iters", SOLVER_FIELD_INT, tv_iters, 1, 1e5, "TV passes per iteration"),
+    GAP_FIELD("metrics_every", SOLVER_FIELD_INT, metrics_every, 0, 1e9, "PSNR in the trace every k iterations"),
+    GAP_FIELD("ssim_every", SOLVER_FIELD_INT, ssim_every, 0, 1e9, "SSIM in the trace every k iterations"),
+};
+
+static void gap_defaults(void *s) { sci_gaptv_params_default(s); }
+
+/* The presets scicapd has always used for the classical methods (fast 30, balanced = the defaults, best 200 × 8). */
+void sci_tv_solver_preset(int *iters, int *tv_iters, solver_preset p)
+{
+    static const int it[SOLVER_PRESET_COUNT] = {30, 100, 200}, tvi[SOLVER_PRESET_COUNT] = {5, 5, 8};
+    *iters = it[p], *tv_iters = tvi[p];
+}
+
+static void gap_preset(void *s, solver_preset p)
+{
+    sci_gaptv_params *q = s;
+    sci_tv_solver_preset(&q->iters, &q->tv_iters, p);
+}
+
+static int gap_check(const void *s, sci_error *err) { return sci_gaptv_params_check(s, err); }
+
+static int gap_run(const sci_problem *p, const void *s, const solver_io *io, sci_result *r)
+{
+    return sci_gaptv_solve(p, s, r, io->progress, io->user);
+}
+
+/* The bench grid: iterations × TV passes (the setting column of bench/results.csv). */
+const char *const sci_tv_solver_bench_quick[] = {"{\"iters\":10,\"tv_iters\":5}", "{\"iters\":50,\"tv_iters\":5}", NULL};
+const char *const sci_tv_solver_bench_full[] = {
+    "{\"iters\":5,\"tv_iters\":2}",   "{\"iters\":5,\"tv_iters\":5}",   "{\"iters\":10,\"tv_iters\":2}",
+    "{\"iters\":10,\"tv_iters\":5}",  "{\"iters\":20,\"tv_iters\":2}",  "{\"iters\":20,\"tv_iters\":5}",
+    "{\"iters\":50,\"tv_iters\":2}",  "{\"iters\":50,\"tv_iters\":5}",  "{\"iters\":100,\"tv_iters\":2}",
+    "{\"iters\":100,\"tv_iters\":5}", "{\"iters\":200,\"tv_iters\":2}", "{\"iters\":200,\"tv_iters\":5}",
+    NULL,
+};
+
+const solver_ops sci_gaptv_solver = {
+    .name = "gap-tv",
+    .summary = "generalized alternating projection with TV denoising (fast, no camera needed)",
+    .caps = 0,
+    .settings_size = sizeof(sci_gaptv_params),
+    .fields = {{gap_fields, sizeof gap_fields / sizeof gap_fields[0], 0}},
+    .defaults = gap_defaults,
+    .preset = gap_preset,
+    .check = gap_check,
+    .run = gap_run,
+    .bench_quick = sci_tv_solver_bench_quick,
+    .bench_full = sci_tv_solver_bench_full,
+};

@@ -18,6 +18,7 @@
 #define SCICAP_RECON_GAPTV_H
 
 #include "recon/problem.h"
+#include "recon/solver.h"
 
 typedef struct sci_gaptv_params {
     int iters;         /* outer iterations, >= 1 */
@@ -35,5 +36,13 @@ int sci_gaptv_params_check(const sci_gaptv_params *p, sci_error *err);
 
 int sci_gaptv_solve(const sci_problem *problem, const sci_gaptv_params *params, sci_result *result,
                     sci_progress_fn progress, void *user);
+
+/* The method's row in the solver table (settings: sci_gaptv_params). */
+extern const solver_ops sci_gaptv_solver;
+/* Shared with ADMM-TV (same knobs): the presets — fast 30 iterations, balanced 100 (the defaults), best 200 with
+ * 8 TV passes, as scicapd always ran them — and the bench grids (iterations × TV passes). */
+void sci_tv_solver_preset(int *iters, int *tv_iters, solver_preset p);
+extern const char *const sci_tv_solver_bench_quick[];
+extern const char *const sci_tv_solver_bench_full[];
 
 #endif

@@ -3,6 +3,7 @@
 #include "recon/nerf/rayformer_solve.h"
 
 #include <errno.h>
+#include <stddef.h>
 #include <math.h>
 #include <omp.h>
 #include <stdio.h>
@@ -85,50 +86,24 @@ int sci_rayformer_params_ablation(sci_rayformer_params *p, int step, double tv_w
     return 0;
 }
 
-static void train_config(const sci_rayformer_params *p, nerf_train_config *c)
+/* The model part of the trainer's configuration (nerf_solve.c fills the shared part). */
+static void rf_config(const void *params, nerf_train_config *c)
 {
-    *c = (nerf_train_config){.method = "rayformer",
-                             .iters = p->iters,
-                             .group_w = p->patch,
-                             .group_h = p->patch,
-                             .groups_per_step = p->patches_per_step,
-                             .patch_sampling = p->patch_sampling,
-                             .samples = p->samples,
-                             .fine_samples = 0,
-                             .lr = p->lr,
-                             .lr_final = p->lr_final,
-                             .net_lr_scale = p->net_lr_scale,
-                             .adam_beta2 = 0.99,
-                             .adam_eps = 1e-15,
-                             .tv_weight = p->tv_weight,
-                             .tv_eps = p->tv_eps,
-                             .spacing = p->recipe.spacing,
-                             .distortion_weight = p->recipe.distortion_weight,
-                             .depth_tv_weight = p->recipe.depth_tv_weight,
-                             .c2f_steps = p->recipe.c2f_steps,
-                             .prior_steps = p->recipe.prior_steps,
-                             .prior_weight = p->recipe.prior_weight,
-                             .pose_mode = p->pose_mode,
-                             .pose_init_identity = p->pose_init_identity,
-                             .pose_perturb_rot_rad = p->pose_perturb_rot_rad,
-                             .pose_perturb_trans = p->pose_perturb_trans,
-                             .pose_hold_first = p->pose_hold_first,
-                             .pose_lr = p->pose_lr,
-                             .pose_lr_final = p->pose_lr_final,
-                             .pose_delay = p->pose_delay,
-                             .pose_warmup = p->pose_warmup,
-                             .metrics_every = p->metrics_every,
-                             .ssim_every = p->ssim_every,
-                             .seed = p->seed,
-                             .checkpoint_every = p->checkpoint_every,
-                             .checkpoint_fn = p->checkpoint_fn,
-                             .checkpoint_user = p->checkpoint_user,
-                             .resume = p->resume,
-                             .resume_bytes = p->resume_bytes};
+    const sci_rayformer_params *p = params;
+    c->group_w = c->group_h = p->patch;
+    c->groups_per_step = p->patches_per_step;
+    c->patch_sampling = p->patch_sampling;
+    c->fine_samples = 0;
+    c->net_lr_scale = p->net_lr_scale;
+    c->adam_beta2 = 0.99;
+    c->adam_eps = 1e-15;
+    c->tv_weight = p->tv_weight;
+    c->tv_eps = p->tv_eps;
 }
 
-int sci_rayformer_params_check(const sci_rayformer_params *p, sci_error *err)
+static int rf_check(const void *params, sci_error *err)
 {
+    const sci_rayformer_params *p = params;
     if (p->patch != 2 && p->patch != 4 && p->patch != 8 && p->patch != 16)
         return sci_error_set(err, -EINVAL, "rayformer: patch must be 2, 4, 8 or 16 (got %d)", p->patch);
     if (p->log2_table < 10 || p->log2_table > 24)
@@ -139,14 +114,10 @@ int sci_rayformer_params_check(const sci_rayformer_params *p, sci_error *err)
         return sci_error_set(err, -EINVAL, "rayformer: sh-degree must be in [1, 4] (got %d)", p->sh_degree);
     if (p->blocks < 0 || p->blocks > 8)
         return sci_error_set(err, -EINVAL, "rayformer: blocks must be in [1, 8] (got %d)", p->blocks);
-    if (p->threads < 0 || p->threads > 1024)
-        return sci_error_set(err, -EINVAL, "rayformer: threads must be in [0, 1024] (got %d)", p->threads);
     if ((p->inter_ray != 0 && p->inter_ray != 1) || (p->intra_ray != 0 && p->intra_ray != 1) ||
         (p->patch_sampling != 0 && p->patch_sampling != 1))
         return sci_error_set(err, -EINVAL, "rayformer: patch-sampling, inter-ray and intra-ray are 0 or 1");
-    nerf_train_config c;
-    train_config(p, &c);
-    return nerf_train_config_check(&c, err);
+    return 0;
 }
 
 /* The network and its workspace behind the trainer's callbacks. */
@@ -191,53 +162,161 @@ static void rf_progress(void *self, int it, int iters, int c2f_steps)
 static const nerf_model_ops rf_ops = {
     .init = rf_init, .forward = rf_forward, .backward = rf_backward, .progress = rf_progress};
 
+static int rf_build(const void *params, const sci_problem *problem, const nerf_train_config *tc, int threads,
+                    void **state, nerf_model models[2], int *n_models, sci_error *err)
+{
+    const sci_rayformer_params *p = params;
+    nerf_rayformer_config cfg = nerf_rayformer_config_default();
+    cfg.grid.log2_table = p->log2_table;
+    cfg.grid.finest_res = p->finest_res;
+    cfg.patch_w = cfg.patch_h = p->patch;
+    cfg.samples = p->samples;
+    if (p->blocks > 0)
+        cfg.n_blocks = p->blocks;
+    cfg.sh_degree = p->sh_degree;
+    cfg.inter_ray = p->inter_ray;
+    cfg.intra_ray = p->intra_ray;
+    cfg.zero_gates = p->zero_gates;
+    cfg.density_bias = (float)p->recipe.density_bias;
+    memcpy(cfg.aabb_min, tc->box_lo, sizeof cfg.aabb_min);
+    memcpy(cfg.aabb_max, tc->box_hi, sizeof cfg.aabb_max);
+    rf_model *m = calloc(1, sizeof *m);
+    if (!(*state = m))
+        return sci_error_set(err, -ENOMEM, "rayformer: out of memory");
+    const int groups = p->patches_per_step * problem->mask->n;
+    int rc;
+    if ((rc = nerf_rayformer_new(&m->net, &cfg, err)) < 0 ||
+        (rc = nerf_rayformer_ws_new(&m->ws, m->net, groups, threads, err)) < 0)
+        return rc;
+    models[0] = (nerf_model){.ops = &rf_ops,
+                             .self = m,
+                             .n_params = nerf_rayformer_param_count(m->net),
+                             .n_hash = nerf_rayformer_hash_param_count(m->net),
+                             .n_scaled = p->heads_full_lr ? nerf_rayformer_layout_of(m->net).lnf_g : 0,
+                             .max_groups = groups};
+    *n_models = 1;
+    return 0;
+}
+
+static void rf_free(void *state)
+{
+    rf_model *m = state;
+    if (!m)
+        return;
+    nerf_rayformer_ws_free(m->ws);
+    nerf_rayformer_free(m->net);
+    free(m);
+}
+
+static const nerf_solve_method rf_method = {.name = "rayformer",
+                                            .params_size = sizeof(sci_rayformer_params),
+                                            .shared_offset = offsetof(sci_rayformer_params, shared),
+                                            .check = rf_check,
+                                            .config = rf_config,
+                                            .build = rf_build,
+                                            .free_models = rf_free};
+
+int sci_rayformer_params_check(const sci_rayformer_params *p, sci_error *err)
+{
+    return nerf_solve_check(&rf_method, p, err);
+}
+
 int sci_rayformer_solve(const sci_problem *problem, const sci_rayformer_params *params, sci_result *result,
                         sci_progress_fn progress, void *user)
 {
-    return sci_rayformer_solve_ex(problem, params, result, progress, user, NULL);
+    return nerf_solve_run(&rf_method, problem, params, result, progress, user, NULL);
 }
 
 int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_params *params, sci_result *result,
                            sci_progress_fn progress, void *user, double (*poses_out)[12])
 {
-    snprintf(result->method, sizeof result->method, "rayformer");
-    sci_error *err = &result->error;
-    int rc = sci_rayformer_params_check(params, err);
-    if (rc < 0)
-        return rc;
-    nerf_train_config tc;
-    train_config(params, &tc);
-    if ((rc = nerf_train_prepare(problem, &tc, err)) < 0)
-        return rc;
-    nerf_rayformer_config cfg = nerf_rayformer_config_default();
-    cfg.grid.log2_table = params->log2_table;
-    cfg.grid.finest_res = params->finest_res;
-    cfg.patch_w = cfg.patch_h = params->patch;
-    cfg.samples = params->samples;
-    if (params->blocks > 0)
-        cfg.n_blocks = params->blocks;
-    cfg.sh_degree = params->sh_degree;
-    cfg.inter_ray = params->inter_ray;
-    cfg.intra_ray = params->intra_ray;
-    cfg.zero_gates = params->zero_gates;
-    cfg.density_bias = (float)params->recipe.density_bias;
-    memcpy(cfg.aabb_min, tc.box_lo, sizeof cfg.aabb_min);
-    memcpy(cfg.aabb_max, tc.box_hi, sizeof cfg.aabb_max);
-    rf_model m = {0};
-    const int groups = params->patches_per_step * problem->mask->n;
-    const int threads = params->threads > 0 ? params->threads : omp_get_max_threads();
-    if ((rc = nerf_rayformer_new(&m.net, &cfg, err)) < 0 ||
-        (rc = nerf_rayformer_ws_new(&m.ws, m.net, groups, threads, err)) < 0)
-        goto out;
-    nerf_model model = {.ops = &rf_ops,
-                        .self = &m,
-                        .n_params = nerf_rayformer_param_count(m.net),
-                        .n_hash = nerf_rayformer_hash_param_count(m.net),
-                        .n_scaled = params->heads_full_lr ? nerf_rayformer_layout_of(m.net).lnf_g : 0,
-                        .max_groups = groups};
-    rc = nerf_train_run(problem, &tc, &model, NULL, result, progress, user, poses_out);
-out:
-    nerf_rayformer_ws_free(m.ws);
-    nerf_rayformer_free(m.net);
-    return rc;
+    return nerf_solve_run(&rf_method, problem, params, result, progress, user, poses_out);
 }
+
+/* --- the method's row in the solver table (recon/solver.h) ------------------------------------------------ */
+
+static const char *const ablation_steps[] = {"baseline", "patch", "inter", "intra", "tv", NULL};
+#define RF(k, t, f, lo, hi, help) {k, t, offsetof(sci_rayformer_params, f), lo, hi, NULL, 0, help}
+static const solver_field rf_fields[] = {
+    RF("patch", SOLVER_FIELD_INT, patch, 2, 16, "patch side: 2, 4, 8 or 16"),
+    RF("patches_per_step", SOLVER_FIELD_INT, patches_per_step, 1, 65536, "patch locations per step"),
+    RF("blocks", SOLVER_FIELD_INT, blocks, 0, 8, "I²R transformer blocks (0: 2)"),
+    RF("log2_table", SOLVER_FIELD_INT, log2_table, 10, 24, "hash table entries per level, log2"),
+    {"table", SOLVER_FIELD_INT, offsetof(sci_rayformer_params, log2_table), 10, 24, NULL, SOLVER_FIELD_ALIAS,
+     "log2_table (the bench's name)"},
+    RF("finest_res", SOLVER_FIELD_DOUBLE, finest_res, 16, 1e6, "finest hash-grid resolution"),
+    RF("sh_degree", SOLVER_FIELD_INT, sh_degree, 1, 4, "view-direction encoding degree"),
+    RF("net_lr_scale", SOLVER_FIELD_DOUBLE, net_lr_scale, 0, 1e3, "the transformer learns at lr × this (0: 1)"),
+    RF("heads_full_lr", SOLVER_FIELD_BOOL, heads_full_lr, 0, 1, "the heads learn at lr"),
+    RF("tv_weight", SOLVER_FIELD_DOUBLE, tv_weight, 0, 1e6, "TV weight over the rendered patches"),
+    RF("tv_eps", SOLVER_FIELD_DOUBLE, tv_eps, 0, 1e6, "Charbonnier ε of the TV term"),
+    RF("patch_sampling", SOLVER_FIELD_BOOL, patch_sampling, 0, 1, "patches (1) or scattered rays (0)"),
+    RF("inter_ray", SOLVER_FIELD_BOOL, inter_ray, 0, 1, "inter-ray attention"),
+    RF("intra_ray", SOLVER_FIELD_BOOL, intra_ray, 0, 1, "intra-ray attention"),
+    RF("zero_gates", SOLVER_FIELD_BOOL, zero_gates, 0, 1, "blocks start as the identity"),
+    {"ablation", SOLVER_FIELD_ACTION, 0, 0, 0, ablation_steps, 0,
+     "the paper's ladder: sets patch_sampling, inter_ray, intra_ray, tv_weight (tv: the full method)"},
+};
+
+static void rf_defaults(void *s) { sci_rayformer_params_default(s); }
+
+static void rf_preset(void *s, solver_preset p) { sci_rayformer_params_preset(s, solver_preset_name(p)); }
+
+static int rf_action(void *s, const char *key, int value, sci_error *err)
+{
+    sci_rayformer_params *p = s;
+    if (strcmp(key, "ablation") != 0)
+        return sci_error_set(err, -EINVAL, "rayformer: no action %s", key);
+    /* the full method's TV weight is the one set so far (the default or the preset's) */
+    return sci_rayformer_params_ablation(p, value, p->tv_weight);
+}
+
+/* A settings object that names "patch" without "patches_per_step" keeps the rays per step (patches × patch²): the
+ * bench's patch-size points, recorded so in bench/results.csv. */
+static void rf_rules(void *s, const void *before, const json_t *obj)
+{
+    sci_rayformer_params *p = s;
+    const sci_rayformer_params *b = before;
+    if (json_object_get(obj, "patch") && !json_object_get(obj, "patches_per_step")) {
+        const int rays = b->patches_per_step * b->patch * b->patch;
+        p->patches_per_step = rays / (p->patch * p->patch) > 0 ? rays / (p->patch * p->patch) : 1;
+    }
+}
+
+static int rf_solver_check(const void *s, sci_error *err) { return sci_rayformer_params_check(s, err); }
+
+static int rf_run(const sci_problem *p, const void *s, const solver_io *io, sci_result *r)
+{
+    return nerf_solve_run_io(&rf_method, p, s, io, r);
+}
+
+/* The bench grid on the fast preset: fewer steps, and at 300 steps one other knob at a time (samples per ray, the
+ * patch size at the same rays per step, the hash table: levels × features is the transformer width, so the table
+ * is rayformer's hash knob). */
+static const char *const rf_bench_quick[] = {"{\"preset\":\"fast\",\"iters\":20}", NULL};
+static const char *const rf_bench_full[] = {
+    "{\"preset\":\"fast\"}",
+    "{\"preset\":\"fast\",\"iters\":100}",
+    "{\"preset\":\"fast\",\"iters\":300}",
+    "{\"preset\":\"fast\",\"iters\":300,\"samples\":16}",
+    "{\"preset\":\"fast\",\"iters\":300,\"patch\":4}",
+    "{\"preset\":\"fast\",\"iters\":300,\"table\":14}",
+    NULL,
+};
+
+const solver_ops sci_rayformer_solver = {
+    .name = "rayformer",
+    .summary = "RayFormer radiance field trained on the snapshot (needs a camera; minutes to hours)",
+    .caps = SOLVER_NEEDS_CAMERA | SOLVER_CHECKPOINTS | SOLVER_POSES,
+    .settings_size = sizeof(sci_rayformer_params),
+    .fields = {{rf_fields, sizeof rf_fields / sizeof rf_fields[0], 0},
+               {nerf_solve_fields, NERF_SOLVE_FIELD_COUNT, offsetof(sci_rayformer_params, shared)}},
+    .defaults = rf_defaults,
+    .preset = rf_preset,
+    .action = rf_action,
+    .from_json_rules = rf_rules,
+    .check = rf_solver_check,
+    .run = rf_run,
+    .bench_quick = rf_bench_quick,
+    .bench_full = rf_bench_full,
+};

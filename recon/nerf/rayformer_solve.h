@@ -27,20 +27,18 @@
 #ifndef SCICAP_RECON_NERF_RAYFORMER_SOLVE_H
 #define SCICAP_RECON_NERF_RAYFORMER_SOLVE_H
 
+#include "recon/nerf/nerf_solve.h"
 #include "recon/nerf/poses.h"
 #include "recon/nerf/trainer.h"
 #include "recon/problem.h"
 
 typedef struct sci_rayformer_params {
-    int iters;                   /* training steps, >= 1 */
     int patch;                   /* patch side: 2, 4, 8 or 16 (paper: 8) */
     int patches_per_step;        /* B, patch locations per step, each rendered from all N poses */
-    int samples;                 /* L, samples per ray (paper: 32) */
     int blocks;                  /* I²R transformer blocks, 1 … 8 (0: 2, the default network) */
     int log2_table;              /* hash table entries per level, log2 (10 … 24) */
     double finest_res;           /* finest hash-grid resolution (the coarsest is 16) */
     int sh_degree;               /* direction encoding degree 1 … 4 (4: the paper's 16 SH outputs) */
-    double lr, lr_final;         /* network learning rate, decayed exponentially over the steps */
     double net_lr_scale;         /* the transformer learns at lr × this, the hash table at lr (0: 1) */
     int heads_full_lr;           /* 1: only the transformer blocks are scaled, the final LN and the density and colour
                                     heads learn at lr; 0: the heads are scaled too */
@@ -50,26 +48,14 @@ typedef struct sci_rayformer_params {
     int inter_ray, intra_ray;    /* 1: the attention path; 0: pass-through (ablation) */
     int zero_gates;              /* 1: each block's output projections start at zero (the block starts as the
                                     identity, ReZero/LayerScale-style); 0: Kaiming-uniform */
-    nerf_recipe recipe;          /* sampling, anti-fog losses, warm start, density init (trainer.h) */
-    nerf_poses_mode pose_mode;   /* KNOWN: problem->camera poses; LINEAR / PER_FRAME: optimised */
-    int pose_init_identity;      /* optimised poses start from the identity (SCINeRF) instead of the camera's */
-    double pose_perturb_rot_rad; /* perturbation added to the initial twists (U(±a) per component) */
-    double pose_perturb_trans;   /* scene units */
-    double pose_lr;              /* pose Adam learning rate, decayed exponentially to pose_lr_final */
-    double pose_lr_final;
-    int pose_delay;              /* poses stay put for this many steps (the scene forms first) */
-    int pose_warmup;             /* then the pose lr ramps up from 0 over this many steps (0: none) */
-    int pose_hold_first;         /* gauge: pose 1 stays where it starts */
-    int metrics_every;           /* full render for PSNR every k steps (0: only at the end) */
-    int ssim_every;              /* SSIM on those renders every k steps (0: only at the end) */
-    unsigned long long seed;
-    int threads;                 /* OpenMP threads for the network, 0: omp_get_max_threads() */
-    int checkpoint_every;        /* hand a checkpoint to checkpoint_fn every k steps and at the end (0: only on
-                                    cancel) */
-    nerf_checkpoint_fn checkpoint_fn; /* NULL: no checkpoints */
-    void *checkpoint_user;
-    const void *resume;          /* borrowed checkpoint blob to continue from (same problem and network), or NULL */
-    size_t resume_bytes;
+    /* iters, samples (L per ray, paper 32), lr, lr_final, recipe, pose_*, metrics_every, ssim_every, seed, threads,
+     * checkpoint_*, resume*: the settings every NeRF method shares (recon/nerf/nerf_solve.h) */
+    union {
+        nerf_solve_shared shared;
+        struct {
+            NERF_SOLVE_SHARED_FIELDS
+        };
+    };
 } sci_rayformer_params;
 
 /* The defaults: the "balanced" preset. */
@@ -91,5 +77,9 @@ int sci_rayformer_solve(const sci_problem *problem, const sci_rayformer_params *
  * (on success and on cancel). */
 int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_params *params, sci_result *result,
                            sci_progress_fn progress, void *user, double (*poses_out)[12]);
+
+/* The method's row in the solver table (recon/solver.h): settings sci_rayformer_params, presets as above, the
+ * ablation ladder as the "ablation" key (baseline, patch, inter, intra, tv). */
+extern const solver_ops sci_rayformer_solver;
 
 #endif

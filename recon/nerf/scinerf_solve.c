@@ -3,6 +3,7 @@
 #include "recon/nerf/scinerf_solve.h"
 
 #include <errno.h>
+#include <stddef.h>
 #include <math.h>
 #include <omp.h>
 #include <stdio.h>
@@ -70,44 +71,18 @@ void sci_scinerf_params_paper(sci_scinerf_params *p)
     p->dir_enc = NERF_MLP_DIR_FREQ, p->lr = 5e-4, p->lr_final = 5e-5;
 }
 
-static void train_config(const sci_scinerf_params *p, nerf_train_config *c)
+/* The model part of the trainer's configuration (nerf_solve.c fills the shared part): scattered rays batched in
+ * groups, Adam constants of the encoding (Instant-NGP's for the hash grid, NeRF's for the frequency one), no TV. */
+static void sn_config(const void *params, nerf_train_config *c)
 {
-    *c = (nerf_train_config){.method = "scinerf",
-                             .iters = p->iters,
-                             .group_w = GROUP,
-                             .group_h = GROUP,
-                             .groups_per_step = p->rays_per_step / (GROUP * GROUP),
-                             .patch_sampling = 0,
-                             .samples = p->samples,
-                             .fine_samples = p->fine_samples,
-                             .lr = p->lr,
-                             .lr_final = p->lr_final,
-                             .adam_beta2 = p->pos_enc == NERF_MLP_POS_HASH ? 0.99 : 0.999,
-                             .adam_eps = p->pos_enc == NERF_MLP_POS_HASH ? 1e-15 : 1e-8,
-                             .tv_weight = 0,
-                             .spacing = p->recipe.spacing,
-                             .distortion_weight = p->recipe.distortion_weight,
-                             .depth_tv_weight = p->recipe.depth_tv_weight,
-                             .c2f_steps = p->recipe.c2f_steps,
-                             .prior_steps = p->recipe.prior_steps,
-                             .prior_weight = p->recipe.prior_weight,
-                             .pose_mode = p->pose_mode,
-                             .pose_init_identity = p->pose_init_identity,
-                             .pose_perturb_rot_rad = p->pose_perturb_rot_rad,
-                             .pose_perturb_trans = p->pose_perturb_trans,
-                             .pose_hold_first = p->pose_hold_first,
-                             .pose_lr = p->pose_lr,
-                             .pose_lr_final = p->pose_lr_final,
-                             .pose_delay = p->pose_delay,
-                             .pose_warmup = p->pose_warmup,
-                             .metrics_every = p->metrics_every,
-                             .ssim_every = p->ssim_every,
-                             .seed = p->seed,
-                             .checkpoint_every = p->checkpoint_every,
-                             .checkpoint_fn = p->checkpoint_fn,
-                             .checkpoint_user = p->checkpoint_user,
-                             .resume = p->resume,
-                             .resume_bytes = p->resume_bytes};
+    const sci_scinerf_params *p = params;
+    c->group_w = c->group_h = GROUP;
+    c->groups_per_step = p->rays_per_step / (GROUP * GROUP);
+    c->patch_sampling = 0;
+    c->fine_samples = p->fine_samples;
+    c->adam_beta2 = p->pos_enc == NERF_MLP_POS_HASH ? 0.99 : 0.999;
+    c->adam_eps = p->pos_enc == NERF_MLP_POS_HASH ? 1e-15 : 1e-8;
+    c->tv_weight = 0;
 }
 
 static nerf_mlp_config mlp_config(const sci_scinerf_params *p)
@@ -130,8 +105,9 @@ static nerf_mlp_config mlp_config(const sci_scinerf_params *p)
     return c;
 }
 
-int sci_scinerf_params_check(const sci_scinerf_params *p, sci_error *err)
+static int sn_check(const void *params, sci_error *err)
 {
+    const sci_scinerf_params *p = params;
     if (p->rays_per_step < GROUP * GROUP || p->rays_per_step % (GROUP * GROUP) || p->rays_per_step > 262144)
         return sci_error_set(err, -EINVAL, "scinerf: rays-per-step must be a multiple of 64 in [64, 262144] (got %d)",
                              p->rays_per_step);
@@ -139,17 +115,13 @@ int sci_scinerf_params_check(const sci_scinerf_params *p, sci_error *err)
                                             !(p->finest_res <= 1e6)))
         return sci_error_set(err, -EINVAL, "scinerf: hash table 2^%d / finest resolution %g out of range",
                              p->log2_table, p->finest_res);
-    if (p->threads < 0 || p->threads > 1024)
-        return sci_error_set(err, -EINVAL, "scinerf: threads must be in [0, 1024] (got %d)", p->threads);
     nerf_mlp_config mc = mlp_config(p);
     nerf_mlp *net;
     int rc = nerf_mlp_new(&net, &mc, err);
     if (rc < 0)
         return sci_error_prefix(err, "scinerf: ");
     nerf_mlp_free(net);
-    nerf_train_config c;
-    train_config(p, &c);
-    return nerf_train_config_check(&c, err);
+    return 0;
 }
 
 typedef struct mlp_model {
@@ -180,57 +152,129 @@ static int m_backward(void *self, const float *params, const float *d_sigma, con
 
 static const nerf_model_ops mlp_ops = {.init = m_init, .forward = m_forward, .backward = m_backward};
 
+/* The coarse network, and the fine one when there are importance samples. */
+static int sn_build(const void *params, const sci_problem *problem, const nerf_train_config *tc, int threads,
+                    void **state, nerf_model models[2], int *n_models, sci_error *err)
+{
+    const sci_scinerf_params *p = params;
+    nerf_mlp_config mc = mlp_config(p);
+    memcpy(mc.aabb_min, tc->box_lo, sizeof mc.aabb_min);
+    memcpy(mc.aabb_max, tc->box_hi, sizeof mc.aabb_max);
+    const int groups = tc->groups_per_step * problem->mask->n, R = GROUP * GROUP;
+    mlp_model *m = calloc(2, sizeof *m);
+    if (!(*state = m))
+        return sci_error_set(err, -ENOMEM, "scinerf: out of memory");
+    *n_models = p->fine_samples > 0 ? 2 : 1;
+    for (int k = 0; k < *n_models; k++) {
+        const long pts = (long)groups * R * (p->samples + (k ? p->fine_samples : 0));
+        if (pts > (1L << 26))
+            return sci_error_set(err, -EINVAL, "scinerf: %ld points per call is too many (rays-per-step × frames × "
+                                 "samples must stay below 2^26)", pts);
+        m[k].R = R;
+        int rc;
+        if ((rc = nerf_mlp_new(&m[k].net, &mc, err)) < 0 ||
+            (rc = nerf_mlp_ws_new(&m[k].ws, m[k].net, (int)pts, threads, err)) < 0)
+            return sci_error_prefix(err, "scinerf: ");
+        models[k] = (nerf_model){.ops = &mlp_ops,
+                                 .self = &m[k],
+                                 .n_params = nerf_mlp_param_count(m[k].net),
+                                 .n_hash = nerf_mlp_hash_param_count(m[k].net),
+                                 .max_groups = groups};
+    }
+    return 0;
+}
+
+static void sn_free(void *state)
+{
+    mlp_model *m = state;
+    for (int k = 0; m && k < 2; k++) {
+        nerf_mlp_ws_free(m[k].ws);
+        nerf_mlp_free(m[k].net);
+    }
+    free(m);
+}
+
+static const nerf_solve_method sn_method = {.name = "scinerf",
+                                            .params_size = sizeof(sci_scinerf_params),
+                                            .shared_offset = offsetof(sci_scinerf_params, shared),
+                                            .check = sn_check,
+                                            .config = sn_config,
+                                            .build = sn_build,
+                                            .free_models = sn_free};
+
+int sci_scinerf_params_check(const sci_scinerf_params *p, sci_error *err)
+{
+    return nerf_solve_check(&sn_method, p, err);
+}
+
 int sci_scinerf_solve(const sci_problem *problem, const sci_scinerf_params *params, sci_result *result,
                       sci_progress_fn progress, void *user)
 {
-    return sci_scinerf_solve_ex(problem, params, result, progress, user, NULL);
+    return nerf_solve_run(&sn_method, problem, params, result, progress, user, NULL);
 }
 
 int sci_scinerf_solve_ex(const sci_problem *problem, const sci_scinerf_params *params, sci_result *result,
                          sci_progress_fn progress, void *user, double (*poses_out)[12])
 {
-    snprintf(result->method, sizeof result->method, "scinerf");
-    sci_error *err = &result->error;
-    int rc = sci_scinerf_params_check(params, err);
-    if (rc < 0)
-        return rc;
-    nerf_train_config tc;
-    train_config(params, &tc);
-    if ((rc = nerf_train_prepare(problem, &tc, err)) < 0)
-        return rc;
-    nerf_mlp_config mc = mlp_config(params);
-    memcpy(mc.aabb_min, tc.box_lo, sizeof mc.aabb_min);
-    memcpy(mc.aabb_max, tc.box_hi, sizeof mc.aabb_max);
-    const int groups = tc.groups_per_step * problem->mask->n, R = GROUP * GROUP;
-    const int threads = params->threads > 0 ? params->threads : omp_get_max_threads();
-    mlp_model m[2] = {{0}, {0}};
-    const int n_models = params->fine_samples > 0 ? 2 : 1;
-    nerf_model model[2];
-    for (int k = 0; k < n_models; k++) {
-        const long pts = (long)groups * R * (params->samples + (k ? params->fine_samples : 0));
-        if (pts > (1L << 26)) {
-            rc = sci_error_set(err, -EINVAL, "scinerf: %ld points per call is too many (rays-per-step × frames × "
-                               "samples must stay below 2^26)", pts);
-            goto out;
-        }
-        m[k].R = R;
-        if ((rc = nerf_mlp_new(&m[k].net, &mc, err)) < 0 ||
-            (rc = nerf_mlp_ws_new(&m[k].ws, m[k].net, (int)pts, threads, err)) < 0) {
-            sci_error_prefix(err, "scinerf: ");
-            goto out;
-        }
-        model[k] = (nerf_model){.ops = &mlp_ops,
-                                .self = &m[k],
-                                .n_params = nerf_mlp_param_count(m[k].net),
-                                .n_hash = nerf_mlp_hash_param_count(m[k].net),
-                                .max_groups = groups};
-    }
-    rc = nerf_train_run(problem, &tc, &model[0], n_models == 2 ? &model[1] : NULL, result, progress, user,
-                        poses_out);
-out:
-    for (int k = 0; k < 2; k++) {
-        nerf_mlp_ws_free(m[k].ws);
-        nerf_mlp_free(m[k].net);
-    }
-    return rc;
+    return nerf_solve_run(&sn_method, problem, params, result, progress, user, poses_out);
 }
+
+/* --- the method's row in the solver table (recon/solver.h) ------------------------------------------------ */
+
+static const char *const pos_enc_names[] = {"freq", "hash", NULL};
+static const char *const dir_enc_names[] = {"freq", "sh", NULL};
+#define SN(k, t, f, lo, hi, help) {k, t, offsetof(sci_scinerf_params, f), lo, hi, NULL, 0, help}
+#define SN_ENUM(k, f, names, help) {k, SOLVER_FIELD_ENUM, offsetof(sci_scinerf_params, f), 0, 0, names, 0, help}
+static const solver_field sn_fields[] = {
+    SN("rays_per_step", SOLVER_FIELD_INT, rays_per_step, 64, 262144, "random pixels per step (a multiple of 64)"),
+    {"rays", SOLVER_FIELD_INT, offsetof(sci_scinerf_params, rays_per_step), 64, 262144, NULL, SOLVER_FIELD_ALIAS,
+     "rays_per_step (the bench's name)"},
+    SN("fine_samples", SOLVER_FIELD_INT, fine_samples, 0, 1024, "importance samples of a fine network (0: none)"),
+    SN_ENUM("pos_enc", pos_enc, pos_enc_names, "position encoding: freq (SCINeRF) or hash"),
+    SN("pos_freqs", SOLVER_FIELD_INT, pos_freqs, 1, 32, "frequency encoding octaves"),
+    SN("log2_table", SOLVER_FIELD_INT, log2_table, 10, 24, "hash table entries per level, log2"),
+    SN("finest_res", SOLVER_FIELD_DOUBLE, finest_res, 16, 1e6, "finest hash-grid resolution"),
+    SN("depth", SOLVER_FIELD_INT, depth, 1, 64, "trunk layers"),
+    SN("width", SOLVER_FIELD_INT, width, 1, 4096, "trunk width"),
+    SN("skip", SOLVER_FIELD_INT, skip, -1, 64, "skip connection layer (-1: none)"),
+    SN("feature_dim", SOLVER_FIELD_INT, feature_dim, 1, 4096, "features before the colour head"),
+    SN("color_hidden", SOLVER_FIELD_INT, color_hidden, 0, 4096, "colour head hidden width (0: one layer)"),
+    SN_ENUM("dir_enc", dir_enc, dir_enc_names, "direction encoding: freq (SCINeRF) or sh"),
+    SN("sh_degree", SOLVER_FIELD_INT, sh_degree, 1, 4, "SH degree of the directions"),
+};
+
+static void sn_defaults(void *s) { sci_scinerf_params_default(s); }
+
+static void sn_preset(void *s, solver_preset p) { sci_scinerf_params_preset(s, solver_preset_name(p)); }
+
+static int sn_solver_check(const void *s, sci_error *err) { return sci_scinerf_params_check(s, err); }
+
+static int sn_run(const sci_problem *p, const void *s, const solver_io *io, sci_result *r)
+{
+    return nerf_solve_run_io(&sn_method, p, s, io, r);
+}
+
+/* The bench grid on the fast preset: fewer steps, and samples per ray at 300 steps. */
+static const char *const sn_bench_quick[] = {"{\"preset\":\"fast\",\"iters\":20}", NULL};
+static const char *const sn_bench_full[] = {
+    "{\"preset\":\"fast\"}",
+    "{\"preset\":\"fast\",\"iters\":100}",
+    "{\"preset\":\"fast\",\"iters\":300}",
+    "{\"preset\":\"fast\",\"iters\":300,\"samples\":16}",
+    NULL,
+};
+
+const solver_ops sci_scinerf_solver = {
+    .name = "scinerf",
+    .summary = "SCINeRF-style MLP radiance field trained on the snapshot (needs a camera; minutes)",
+    .caps = SOLVER_NEEDS_CAMERA | SOLVER_CHECKPOINTS | SOLVER_POSES,
+    .settings_size = sizeof(sci_scinerf_params),
+    .fields = {{sn_fields, sizeof sn_fields / sizeof sn_fields[0], 0},
+               {nerf_solve_fields, NERF_SOLVE_FIELD_COUNT, offsetof(sci_scinerf_params, shared)}},
+    .defaults = sn_defaults,
+    .preset = sn_preset,
+    .check = sn_solver_check,
+    .run = sn_run,
+    .bench_quick = sn_bench_quick,
+    .bench_full = sn_bench_full,
+};

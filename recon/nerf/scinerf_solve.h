@@ -18,14 +18,13 @@
 #define SCICAP_RECON_NERF_SCINERF_SOLVE_H
 
 #include "recon/nerf/mlp.h"
+#include "recon/nerf/nerf_solve.h"
 #include "recon/nerf/poses.h"
 #include "recon/nerf/trainer.h"
 #include "recon/problem.h"
 
 typedef struct sci_scinerf_params {
-    int iters;                   /* training steps, >= 1 */
     int rays_per_step;           /* random pixels per step (a multiple of 64), each rendered from all N poses */
-    int samples;                 /* coarse stratified samples per ray (SCINeRF 64) */
     int fine_samples;            /* importance samples of the fine network (SCINeRF 64; 0: one network) */
     nerf_mlp_pos_enc pos_enc;    /* NERF_MLP_POS_FREQ (SCINeRF) or NERF_MLP_POS_HASH */
     int pos_freqs;               /* frequency encoding: octaves (SCINeRF 10) */
@@ -36,21 +35,15 @@ typedef struct sci_scinerf_params {
     int color_hidden;            /* colour head hidden width (SCINeRF 128; 0: one layer) */
     nerf_mlp_dir_enc dir_enc;    /* NERF_MLP_DIR_FREQ (SCINeRF, 4 octaves) or NERF_MLP_DIR_SH */
     int sh_degree;               /* SH directions: 1 … 4 (1: a constant, i.e. view-independent colour) */
-    double lr, lr_final;         /* Adam, decayed exponentially over the steps */
-    nerf_recipe recipe;          /* sampling, anti-fog losses, warm start, density init (trainer.h) */
-    nerf_poses_mode pose_mode;   /* KNOWN, LINEAR (SCINeRF's default) or PER_FRAME */
-    int pose_init_identity;      /* start from the identity (SCINeRF) instead of the camera's poses */
-    double pose_perturb_rot_rad, pose_perturb_trans; /* U(±a) on each twist component of the start */
-    double pose_lr, pose_lr_final;
-    int pose_delay, pose_warmup, pose_hold_first; /* as in rayformer_solve.h */
-    int metrics_every, ssim_every;
-    unsigned long long seed;
-    int threads;                 /* OpenMP threads, 0: omp_get_max_threads() */
-    int checkpoint_every;
-    nerf_checkpoint_fn checkpoint_fn;
-    void *checkpoint_user;
-    const void *resume;
-    size_t resume_bytes;
+    /* iters, samples (coarse stratified samples per ray, SCINeRF 64), lr, lr_final, recipe, pose_* (pose_mode
+     * KNOWN, LINEAR — SCINeRF's default — or PER_FRAME), metrics_every, ssim_every, seed, threads, checkpoint_*,
+     * resume*: the settings every NeRF method shares (recon/nerf/nerf_solve.h) */
+    union {
+        nerf_solve_shared shared;
+        struct {
+            NERF_SOLVE_SHARED_FIELDS
+        };
+    };
 } sci_scinerf_params;
 
 /* The defaults: the "balanced" preset (hash encoding, 2 × 64 trunk, no fine network). */
@@ -69,5 +62,8 @@ int sci_scinerf_solve(const sci_problem *problem, const sci_scinerf_params *para
 /* The same, also writing the final N poses to poses_out when it is not NULL (on success and on cancel). */
 int sci_scinerf_solve_ex(const sci_problem *problem, const sci_scinerf_params *params, sci_result *result,
                          sci_progress_fn progress, void *user, double (*poses_out)[12]);
+
+/* The method's row in the solver table (recon/solver.h): settings sci_scinerf_params, presets as above. */
+extern const solver_ops sci_scinerf_solver;
 
 #endif
