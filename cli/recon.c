@@ -22,17 +22,36 @@
 #include "io/recon_store.h"
 #include "io/source.h"
 #include "io/staging.h"
-#include "recon/admmtv.h"
-#include "recon/gaptv.h"
 #include "recon/metrics.h"
-#include "recon/nerf/rayformer_solve.h"
-#include "recon/nerf/scinerf_solve.h"
+#include "recon/solver.h"
+
+/* "a, b and c": the methods with (want = 1) or without (want = 0) the capability bits `caps`. */
+static char *methods_with(char *buf, size_t n, unsigned caps, int want)
+{
+    const solver_ops *const *l = solver_list(NULL);
+    int k = 0, total = 0;
+    for (int i = 0; l[i]; i++)
+        total += ((l[i]->caps & caps) != 0) == want;
+    size_t off = 0;
+    buf[0] = 0;
+    for (int i = 0; l[i] && off < n; i++)
+        if (((l[i]->caps & caps) != 0) == want) {
+            k++;
+            off += (size_t)snprintf(buf + off, n - off, "%s%s", k == 1 ? "" : k == total ? " and " : ", ",
+                                    l[i]->name);
+        }
+    return buf;
+}
 
 static void usage(FILE *f)
 {
+    const solver_ops *const *l = solver_list(NULL);
+    fprintf(f, "usage: scicap recon [OPTIONS] INPUT -o OUTDIR\n"
+               "       scicap recon --capture ID [--method M] [--wait]   (ask scicapd; see scicap status)\n\n"
+               "Methods (-m, --method NAME; default %s):\n", l[0]->name);
+    for (int i = 0; l[i]; i++)
+        fprintf(f, "  %-12s %s\n", l[i]->name, l[i]->summary);
     fprintf(f,
-            "usage: scicap recon [OPTIONS] INPUT -o OUTDIR\n"
-            "       scicap recon --capture ID [--method M] [--wait]   (ask scicapd; see scicap status)\n"
             "\n"
             "Reconstruct the N frames of each SCI snapshot in INPUT: a .mat file (MATLAB v5 or v7.3; by default the\n"
             "benchmark's variables mask, meas, orig with values divided by 255) or a problem folder written by\n"
@@ -41,8 +60,10 @@ static void usage(FILE *f)
             "previews, trace.csv (time against accuracy per iteration) and result.json. When the truth is known\n"
             "it prints per-frame and mean PSNR in both peak conventions, and SSIM.\n"
             "\n"
-            "  -m, --method NAME      gap-tv (default), admm-tv, rayformer or scinerf (the last two need a static\n"
-            "                         scene with a camera, e.g. from a static3d scene; see docs/nerf-methods.md)\n"
+            "  -m, --method NAME      one of the methods above (those that need a camera want a static scene\n"
+            "                         seen by a moving camera, e.g. from a static3d scene; see docs/nerf-methods.md)\n"
+            "      --preset P         fast, balanced or best for every method (balanced = the defaults; the\n"
+            "                         options below override it)\n"
             "  -o, --output DIR       output folder (required); replaced only with --force\n"
             "  -f, --force            replace an existing output folder\n"
             "      --allow-large      lift the size limits checked before any work: %.0f GB of input in memory,\n"
@@ -54,7 +75,7 @@ static void usage(FILE *f)
             "  -t, --tv-iters N       TV denoiser passes per iteration (default 5)\n"
             "      --plain            gap-tv: plain GAP instead of accelerated\n"
             "  -g, --gamma X          admm-tv: gamma added to the mask energy (default 1e-3)\n"
-            "  rayformer, scinerf:  --preset fast|balanced|best (default balanced; the options below override it)\n"
+            "  rayformer, scinerf:\n"
             "              --samples L (per ray)  --lr X  --pose-mode known|linear|per-frame  --seed S\n"
             "              (--iters applies too; rayformer also --patch P (2,4,8,16) --patches-per-step B --tv-weight)\n"
             "              --net-lr-scale X  rayformer: the transformer learns at lr × X, the hash table at lr\n"
@@ -98,11 +119,8 @@ static void usage(FILE *f)
 }
 
 typedef struct recon_opts {
-    int method; /* 0 gap-tv, 1 admm-tv, 2 rayformer, 3 scinerf */
-    sci_gaptv_params gap;
-    sci_admmtv_params admm;
-    sci_rayformer_params rf;
-    sci_scinerf_params sn;
+    const solver_ops *method; /* recon/solver.h */
+    void *settings;           /* the method's, owned */
     int quiet;
 } recon_opts;
 
@@ -168,27 +186,49 @@ static int parse_double(const char *s, const char *opt, double *out)
     return 0;
 }
 
-static json_t *params_json(const recon_opts *o)
+/* result.json's "params": the method's settings, and for a resumable method whether this run was resumed. */
+static json_t *params_json(const recon_opts *o, int resumed)
 {
-    if (o->method == 0)
-        return json_pack("{s:s, s:i, s:f, s:b, s:f, s:i}", "method", "gap-tv", "iters", o->gap.iters, "lambda",
-                         o->gap.lambda, "accelerate", o->gap.accelerate, "tv_weight", o->gap.tv_weight, "tv_iters",
-                         o->gap.tv_iters);
-    if (o->method == 3)
-        return json_pack("{s:s, s:i, s:i, s:i, s:i, s:f, s:i, s:I, s:b}", "method", "scinerf", "iters", o->sn.iters,
-                         "rays_per_step", o->sn.rays_per_step, "samples", o->sn.samples, "fine_samples",
-                         o->sn.fine_samples, "lr", o->sn.lr, "pose_mode", (int)o->sn.pose_mode, "seed",
-                         (json_int_t)o->sn.seed, "resumed", o->sn.resume != NULL);
-    if (o->method == 2)
-        return json_pack("{s:s, s:i, s:i, s:i, s:i, s:i, s:f, s:f, s:f, s:b, s:b, s:b, s:i, s:I, s:b}", "method",
-                         "rayformer", "iters", o->rf.iters, "patch", o->rf.patch, "patches_per_step",
-                         o->rf.patches_per_step, "samples", o->rf.samples, "log2_table", o->rf.log2_table, "lr",
-                         o->rf.lr, "net_lr_scale", o->rf.net_lr_scale > 0 ? o->rf.net_lr_scale : 1, "tv_weight", o->rf.tv_weight, "patch_sampling", o->rf.patch_sampling, "inter_ray",
-                         o->rf.inter_ray, "intra_ray", o->rf.intra_ray, "pose_mode", (int)o->rf.pose_mode, "seed",
-                         (json_int_t)o->rf.seed, "resumed", o->rf.resume != NULL);
-    return json_pack("{s:s, s:i, s:f, s:f, s:f, s:i}", "method", "admm-tv", "iters", o->admm.iters, "lambda",
-                     o->admm.lambda, "gamma", o->admm.gamma, "tv_weight", o->admm.tv_weight, "tv_iters",
-                     o->admm.tv_iters);
+    json_t *j = solver_settings_to_json(o->method, o->settings);
+    if (j && (o->method->caps & SOLVER_CHECKPOINTS))
+        json_object_set_new(j, "resumed", json_boolean(resumed));
+    return j;
+}
+
+/* One option given on the command line, as a settings key and a JSON value (stolen). */
+typedef struct opt_value {
+    const char *key, *option;
+    json_t *value;
+} opt_value;
+
+/* Apply the options in their fixed order to the method's settings. An option the method has no setting for is
+ * ignored (common options map onto whichever method runs), except those in `strict` (NULL-terminated keys),
+ * which are refused naming the methods that have them. 0, or 2 (usage) after a message. */
+static int apply_options(const recon_opts *o, opt_value *v, int n, const char *const *strict)
+{
+    for (int i = 0; i < n; i++) {
+        sci_error err = {0};
+        int rc = solver_settings_set(o->method, o->settings, v[i].key, v[i].value, NULL, v[i].option, &err);
+        if (rc == 1) {
+            for (int k = 0; strict[k]; k++)
+                if (strcmp(strict[k], v[i].key) == 0) {
+                    const solver_ops *const *l = solver_list(NULL);
+                    char who[256] = "";
+                    size_t off = 0;
+                    for (int m = 0; l[m] && off < sizeof who; m++)
+                        if (solver_field_find(l[m], v[i].key, NULL))
+                            off += (size_t)snprintf(who + off, sizeof who - off, "%s%s", off ? ", " : "", l[m]->name);
+                    fprintf(stderr, "scicap recon: %s is for %s\n", v[i].option, who);
+                    return 2;
+                }
+            continue;
+        }
+        if (rc < 0) {
+            fprintf(stderr, "scicap recon: %s\n", err.msg);
+            return 2;
+        }
+    }
+    return 0;
 }
 
 static void print_metrics(const sci_problem *p, const sci_result *r)
@@ -213,16 +253,14 @@ int cli_recon_main(int argc, char **argv)
     for (int i = 1; i < argc; i++)
         if (strcmp(argv[i], "--capture") == 0 || strncmp(argv[i], "--capture=", 10) == 0)
             return cli_client_recon(argc, argv);
-    recon_opts o = {0};
-    sci_gaptv_params_default(&o.gap);
-    sci_admmtv_params_default(&o.admm);
-    sci_rayformer_params_default(&o.rf);
-    sci_scinerf_params_default(&o.sn);
+    recon_opts o = {.method = solver_list(NULL)[0]};
     const char *preset = NULL;
     int nf_patch = 0, nf_pps = 0, nf_samples = 0, nf_pose = -1, nf_seed = -1, nf_ablation = -1, ckpt_every = 100;
     const char *ckpt_path = NULL, *resume_path = NULL;
     double nf_lr = NAN, nf_net_lr = NAN, nf_dist = NAN, nf_prior_w = NAN, nf_dbias = NAN;
-    int nf_spacing = -1, nf_prior_steps = -1, nf_zero_gates = -1, nf_sh = 0;
+    const char *nf_spacing = NULL, *nf_pose_name = NULL;
+    int nf_prior_steps = -1, nf_zero_gates = -1, nf_sh = 0, plain = 0;
+    double gamma = NAN;
     const char *out = NULL;
     int force = 0, snapshot = 0, threads = 0, iters = -1, tv_iters = -1, metrics_every = -1, ssim_every = -1;
     double lambda = NAN, tv_weight = NAN;
@@ -266,20 +304,14 @@ int cli_recon_main(int argc, char **argv)
     while ((c = getopt_long(argc, argv, "m:o:fs:i:l:w:t:g:j:qh", longopts, NULL)) != -1) {
         int bad = 0;
         switch (c) {
-        case 'm':
-            if (strcmp(optarg, "gap-tv") == 0)
-                o.method = 0;
-            else if (strcmp(optarg, "admm-tv") == 0)
-                o.method = 1;
-            else if (strcmp(optarg, "rayformer") == 0)
-                o.method = 2;
-            else if (strcmp(optarg, "scinerf") == 0)
-                o.method = 3;
-            else {
-                fprintf(stderr, "scicap recon: unknown method '%s' (gap-tv, admm-tv, rayformer, scinerf)\n", optarg);
+        case 'm': {
+            sci_error merr = {0};
+            if (!(o.method = solver_find_err(optarg, &merr))) {
+                fprintf(stderr, "scicap recon: %s\n", merr.msg);
                 return 2;
             }
             break;
+        }
         case 'o': out = optarg; break;
         case 'f': force = 1; break;
         case OPT_ALLOW_LARGE: sci_io_limits_none(&limits); break;
@@ -288,8 +320,8 @@ int cli_recon_main(int argc, char **argv)
         case 'l': bad = parse_double(optarg, "--lambda", &lambda); break;
         case 'w': bad = parse_double(optarg, "--tv-weight", &tv_weight); break;
         case 't': bad = parse_int(optarg, "--tv-iters", 1, 100000, &tv_iters); break;
-        case OPT_PLAIN: o.gap.accelerate = 0; break;
-        case 'g': bad = parse_double(optarg, "--gamma", &o.admm.gamma); break;
+        case OPT_PLAIN: plain = 1; break;
+        case 'g': bad = parse_double(optarg, "--gamma", &gamma); break;
         case OPT_METRICS: bad = parse_int(optarg, "--metrics-every", 0, 1 << 30, &metrics_every); break;
         case OPT_SSIM: bad = parse_int(optarg, "--ssim-every", 0, 1 << 30, &ssim_every); break;
         case 'j': bad = parse_int(optarg, "--threads", 1, 1024, &threads); break;
@@ -299,21 +331,19 @@ int cli_recon_main(int argc, char **argv)
         case OPT_SAMPLES: bad = parse_int(optarg, "--samples", 2, 1024, &nf_samples); break;
         case OPT_LR: bad = parse_double(optarg, "--lr", &nf_lr); break;
         case OPT_POSE:
-            if (strcmp(optarg, "known") == 0)
-                nf_pose = NERF_POSES_KNOWN;
-            else if (strcmp(optarg, "linear") == 0)
-                nf_pose = NERF_POSES_LINEAR;
-            else if (strcmp(optarg, "per-frame") == 0)
-                nf_pose = NERF_POSES_PER_FRAME;
+            if (strcmp(optarg, "known") == 0 || strcmp(optarg, "linear") == 0 || strcmp(optarg, "per-frame") == 0)
+                nf_pose_name = optarg, nf_pose = 1;
             else {
                 fprintf(stderr, "scicap recon: --pose-mode wants known, linear or per-frame, got '%s'\n", optarg);
                 bad = -1;
             }
             break;
         case OPT_ABLATION: {
+            /* the paper's steps; "+patch" … "+tv" (the ladder's labels) name the same */
             static const char *const steps[] = {"baseline", "patch", "inter", "intra", "tv"};
+            const char *a = optarg[0] == '+' ? optarg + 1 : optarg;
             for (int k = 0; k < 5; k++)
-                if (strcmp(optarg, steps[k]) == 0 || strcmp(optarg, sci_rayformer_ablation_names[k]) == 0)
+                if (strcmp(a, steps[k]) == 0 && (k > 0 || a == optarg))
                     nf_ablation = k;
             if (nf_ablation < 0) {
                 fprintf(stderr, "scicap recon: --ablation wants baseline, patch, inter, intra or tv, got '%s'\n",
@@ -327,12 +357,8 @@ int cli_recon_main(int argc, char **argv)
         case OPT_RESUME: resume_path = optarg; break;
         case OPT_NET_LR: bad = parse_double(optarg, "--net-lr-scale", &nf_net_lr); break;
         case OPT_SPACING:
-            if (strcmp(optarg, "linear") == 0)
-                nf_spacing = NERF_SPACING_LINEAR;
-            else if (strcmp(optarg, "disparity") == 0)
-                nf_spacing = NERF_SPACING_DISPARITY;
-            else if (strcmp(optarg, "log") == 0)
-                nf_spacing = NERF_SPACING_LOG;
+            if (strcmp(optarg, "linear") == 0 || strcmp(optarg, "disparity") == 0 || strcmp(optarg, "log") == 0)
+                nf_spacing = optarg;
             else {
                 fprintf(stderr, "scicap recon: --spacing wants linear, disparity or log, got '%s'\n", optarg);
                 bad = -1;
@@ -393,72 +419,76 @@ int cli_recon_main(int argc, char **argv)
         return 2;
     }
     const char *input = argv[optind];
-    /* NeRF methods: the preset first, then the options given explicitly. */
-    if (preset && (sci_rayformer_params_preset(&o.rf, preset) < 0 || sci_scinerf_params_preset(&o.sn, preset) < 0)) {
-        fprintf(stderr, "scicap recon: unknown preset '%s' (fast, balanced, best)\n", preset);
-        return 2;
+    /* The method's settings: its defaults, the preset, then the options given explicitly, in this order (the
+     * ablation step sets tv_weight, which --tv-weight then overrides). */
+    if (!(o.settings = solver_settings_new(o.method))) {
+        fprintf(stderr, "scicap recon: out of memory\n");
+        return 1;
     }
-    if (nf_ablation >= 0)
-        sci_rayformer_params_ablation(&o.rf, nf_ablation, o.rf.tv_weight);
-    if (nf_patch)
-        o.rf.patch = nf_patch;
-    if (nf_pps)
-        o.rf.patches_per_step = nf_pps;
-    if (nf_samples)
-        o.rf.samples = o.sn.samples = nf_samples;
-    if (!isnan(nf_lr))
-        o.rf.lr = o.sn.lr = nf_lr;
-    if (!isnan(nf_net_lr))
-        o.rf.net_lr_scale = nf_net_lr;
-    if (nf_spacing >= 0)
-        o.rf.recipe.spacing = o.sn.recipe.spacing = (nerf_spacing)nf_spacing;
-    if (!isnan(nf_dist))
-        o.rf.recipe.distortion_weight = o.sn.recipe.distortion_weight = nf_dist;
-    if (nf_prior_steps >= 0)
-        o.rf.recipe.prior_steps = o.sn.recipe.prior_steps = nf_prior_steps;
-    if (!isnan(nf_prior_w))
-        o.rf.recipe.prior_weight = o.sn.recipe.prior_weight = nf_prior_w;
-    if (!isnan(nf_dbias))
-        o.rf.recipe.density_bias = o.sn.recipe.density_bias = nf_dbias;
-    if (nf_zero_gates >= 0)
-        o.rf.zero_gates = nf_zero_gates;
-    if (nf_sh)
-        o.rf.sh_degree = o.sn.sh_degree = nf_sh;
-    if (nf_pose >= 0)
-        o.rf.pose_mode = o.sn.pose_mode = (nerf_poses_mode)nf_pose;
-    if (nf_seed >= 0)
-        o.rf.seed = o.sn.seed = (unsigned long long)nf_seed;
+    if (preset) {
+        solver_preset pr;
+        int deprecated;
+        sci_error perr = {0};
+        if (solver_preset_parse(preset, &pr, &deprecated, &perr) < 0) {
+            fprintf(stderr, "scicap recon: %s\n", perr.msg);
+            solver_settings_free(o.settings);
+            return 2;
+        }
+        if (deprecated)
+            fprintf(stderr, "scicap recon: preset '%s' is deprecated: it is %s\n", preset, solver_preset_name(pr));
+        solver_settings_preset(o.method, o.settings, pr);
+    }
+    opt_value ov[32];
+    int nov = 0;
+#define OPT_SET(k, opt, cond, val)                                                                                     \
+    do {                                                                                                               \
+        if (cond)                                                                                                      \
+            ov[nov++] = (opt_value){k, opt, val};                                                                      \
+    } while (0)
+    OPT_SET("accelerate", "--plain", plain, json_false());
+    OPT_SET("gamma", "--gamma", !isnan(gamma), json_real(gamma));
+    OPT_SET("ablation", "--ablation", nf_ablation >= 0, json_integer(nf_ablation));
+    OPT_SET("patch", "--patch", nf_patch, json_integer(nf_patch));
+    OPT_SET("patches_per_step", "--patches-per-step", nf_pps, json_integer(nf_pps));
+    OPT_SET("samples", "--samples", nf_samples, json_integer(nf_samples));
+    OPT_SET("lr", "--lr", !isnan(nf_lr), json_real(nf_lr));
+    OPT_SET("net_lr_scale", "--net-lr-scale", !isnan(nf_net_lr), json_real(nf_net_lr));
+    OPT_SET("spacing", "--spacing", nf_spacing, json_string(nf_spacing));
+    OPT_SET("distortion_weight", "--distortion", !isnan(nf_dist), json_real(nf_dist));
+    OPT_SET("prior_steps", "--prior-steps", nf_prior_steps >= 0, json_integer(nf_prior_steps));
+    OPT_SET("prior_weight", "--prior-weight", !isnan(nf_prior_w), json_real(nf_prior_w));
+    OPT_SET("density_bias", "--density-bias", !isnan(nf_dbias), json_real(nf_dbias));
+    OPT_SET("zero_gates", "--zero-gates", nf_zero_gates >= 0, json_integer(nf_zero_gates));
+    OPT_SET("sh_degree", "--sh-degree", nf_sh, json_integer(nf_sh));
+    OPT_SET("pose_mode", "--pose-mode", nf_pose >= 0, json_string(nf_pose_name));
+    OPT_SET("seed", "--seed", nf_seed >= 0, json_integer(nf_seed));
+    OPT_SET("iters", "--iters", iters > 0, json_integer(iters));
+    OPT_SET("lambda", "--lambda", !isnan(lambda), json_real(lambda));
+    OPT_SET("tv_weight", "--tv-weight", !isnan(tv_weight), json_real(tv_weight));
+    OPT_SET("tv_iters", "--tv-iters", tv_iters > 0, json_integer(tv_iters));
+    OPT_SET("metrics_every", "--metrics-every", metrics_every >= 0, json_integer(metrics_every));
+    OPT_SET("ssim_every", "--ssim-every", ssim_every >= 0, json_integer(ssim_every));
+#undef OPT_SET
+    static const char *const strict[] = {"ablation", NULL};
+    int arc = apply_options(&o, ov, nov, strict);
+    for (int i = 0; i < nov; i++)
+        json_decref(ov[i].value);
     if (threads)
         omp_set_num_threads(threads);
-    /* Common options map onto whichever method runs. */
-    if (iters > 0)
-        o.gap.iters = o.admm.iters = o.rf.iters = o.sn.iters = iters;
-    if (!isnan(lambda))
-        o.gap.lambda = o.admm.lambda = lambda;
-    if (!isnan(tv_weight))
-        o.gap.tv_weight = o.admm.tv_weight = o.rf.tv_weight = tv_weight;
-    if (tv_iters > 0)
-        o.gap.tv_iters = o.admm.tv_iters = tv_iters;
-    if (metrics_every >= 0)
-        o.gap.metrics_every = o.admm.metrics_every = o.rf.metrics_every = o.sn.metrics_every = metrics_every;
-    if (ssim_every >= 0)
-        o.gap.ssim_every = o.admm.ssim_every = o.rf.ssim_every = o.sn.ssim_every = ssim_every;
     sci_error err = {0};
-    int chk = o.method == 0   ? sci_gaptv_params_check(&o.gap, &err)
-              : o.method == 1 ? sci_admmtv_params_check(&o.admm, &err)
-              : o.method == 2 ? sci_rayformer_params_check(&o.rf, &err)
-                              : sci_scinerf_params_check(&o.sn, &err);
-    if (chk < 0) {
+    if (arc == 0 && solver_settings_check(o.method, o.settings, &err) < 0) {
         fprintf(stderr, "scicap recon: %s\n", err.msg);
-        return 2;
+        arc = 2;
     }
-    if ((ckpt_path || resume_path) && o.method < 2) {
-        fprintf(stderr, "scicap recon: --checkpoint and --resume are for rayformer and scinerf\n");
-        return 2;
+    char names[256];
+    if (arc == 0 && (ckpt_path || resume_path) && !(o.method->caps & SOLVER_CHECKPOINTS)) {
+        fprintf(stderr, "scicap recon: --checkpoint and --resume are for %s\n",
+                methods_with(names, sizeof names, SOLVER_CHECKPOINTS, 1));
+        arc = 2;
     }
-    if (nf_ablation >= 0 && o.method != 2) {
-        fprintf(stderr, "scicap recon: --ablation is for rayformer\n");
-        return 2;
+    if (arc) {
+        solver_settings_free(o.settings);
+        return arc;
     }
     if (access(out, F_OK) == 0 && !force) {
         fprintf(stderr, "scicap recon: %s already exists (use --force to replace it)\n", out);
@@ -518,9 +548,11 @@ int cli_recon_main(int argc, char **argv)
     sci_cfa cfa = (sci_cfa)cfa_i;
     if (cfa_opt)
         sci_cfa_parse(cfa_opt, &cfa);
-    if (cfa != SCI_CFA_NONE && o.method > 1) {
-        fprintf(stderr, "scicap recon: %s is a Bayer mosaic; colour reconstruction runs gap-tv or admm-tv per CFA "
-                        "plane (--cfa none reconstructs it as grey)\n", input);
+    if (cfa != SCI_CFA_NONE && (o.method->caps & SOLVER_NEEDS_CAMERA)) {
+        char plain_methods[256];
+        fprintf(stderr, "scicap recon: %s is a Bayer mosaic; colour reconstruction runs %s per CFA plane (--cfa none "
+                        "reconstructs it as grey)\n", input,
+                methods_with(plain_methods, sizeof plain_methods, SOLVER_NEEDS_CAMERA, 0));
         for (int j = 0; truth_rgb && j < kc; j++)
             sci_cube_free(truth_rgb[j]);
         free(truth_rgb);
@@ -540,6 +572,7 @@ int cli_recon_main(int argc, char **argv)
         return 2;
     }
     ckpt_file ck = {.path = ckpt_path};
+    solver_io io = {.progress = cli_progress_update};
     void *resume_blob = NULL;
     size_t resume_bytes = 0;
     if (resume_path) {
@@ -548,19 +581,19 @@ int cli_recon_main(int argc, char **argv)
             sci_problem_array_free(probs, k);
             return 1;
         }
-        o.rf.resume = o.sn.resume = resume_blob;
-        o.rf.resume_bytes = o.sn.resume_bytes = resume_bytes;
+        io.resume = resume_blob;
+        io.resume_bytes = resume_bytes;
     }
     if (ckpt_path) {
-        o.rf.checkpoint_fn = o.sn.checkpoint_fn = write_checkpoint;
-        o.rf.checkpoint_user = o.sn.checkpoint_user = &ck;
-        o.rf.checkpoint_every = o.sn.checkpoint_every = ckpt_every;
+        io.checkpoint_fn = write_checkpoint;
+        io.checkpoint_user = &ck;
+        io.checkpoint_every = ckpt_every;
     }
     struct sigaction sa = {.sa_handler = on_stop_signal, .sa_flags = SA_RESETHAND}, old_int, old_term;
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, &old_int);
     sigaction(SIGTERM, &sa, &old_term);
-    json_t *params = params_json(&o);
+    json_t *params = params_json(&o, resume_blob != NULL);
     /* Several snapshots: all of them go into OUTDIR.tmp-PID, renamed to OUTDIR once the last is written (one alone
      * is staged by the store itself). Nothing is published on failure or on a signal. */
     char stage[4096] = "";
@@ -572,12 +605,11 @@ int cli_recon_main(int argc, char **argv)
     }
     for (int j = first; j <= last && status == 0; j++) {
         const sci_problem *p = probs[j];
-        static const char *const names[] = {"gap-tv", "admm-tv", "rayformer", "scinerf"};
-        printf("%s: %s, %dx%d, %d frames per snapshot%s\n", p->name, names[o.method],
+        printf("%s: %s, %dx%d, %d frames per snapshot%s\n", p->name, o.method->name,
                p->mask->w, p->mask->h, p->mask->n, p->truth ? ", truth known" : "");
         fflush(stdout);
         cli_progress prog;
-        const int total = o.method == 0 ? o.gap.iters : o.method == 1 ? o.admm.iters : o.method == 2 ? o.rf.iters : o.sn.iters;
+        const int total = solver_settings_iters(o.method, o.settings);
         cli_progress_init(&prog, o.quiet ? -1 : 2, total);
         prog.stop = &stop_requested;
         char dir[4096], shown[4096];
@@ -587,8 +619,8 @@ int cli_recon_main(int argc, char **argv)
         else
             snprintf(dir, sizeof dir, "%s/snap_%03d", stage, j + 1);
         if (cfa != SCI_CFA_NONE) {
-            const cli_color_job job = {.cfa = cfa, .demosaic = demosaic, .method = o.method, .gap = &o.gap,
-                                       .admm = &o.admm, .params = params, .quiet = o.quiet, .stop = &stop_requested};
+            const cli_color_job job = {.cfa = cfa, .demosaic = demosaic, .method = o.method, .settings = o.settings,
+                                       .params = params, .quiet = o.quiet, .stop = &stop_requested};
             int crc = cli_recon_color(&job, p, truth_rgb && j < kc ? truth_rgb[j] : NULL, dir, force, &err);
             if (crc == SCI_ECANCELED || stop_requested) {
                 fprintf(stderr, "scicap recon: interrupted; %s not written\n", out);
@@ -603,10 +635,8 @@ int cli_recon_main(int argc, char **argv)
         }
         sci_result r = {0};
         int64_t t0 = sci_clock_mono_ns();
-        int rc = o.method == 0   ? sci_gaptv_solve(p, &o.gap, &r, cli_progress_update, &prog)
-                 : o.method == 1 ? sci_admmtv_solve(p, &o.admm, &r, cli_progress_update, &prog)
-                 : o.method == 2 ? sci_rayformer_solve(p, &o.rf, &r, cli_progress_update, &prog)
-                                 : sci_scinerf_solve(p, &o.sn, &r, cli_progress_update, &prog);
+        io.user = &prog;
+        int rc = solver_run(o.method, p, o.settings, &io, &r);
         double secs = sci_clock_s(t0, sci_clock_mono_ns());
         cli_progress_done(&prog);
         if (rc == SCI_ECANCELED || (rc == 0 && stop_requested)) {
@@ -663,6 +693,7 @@ int cli_recon_main(int argc, char **argv)
         sci_cube_free(truth_rgb[j]);
     free(truth_rgb);
     free(resume_blob);
+    solver_settings_free(o.settings);
     sci_problem_array_free(probs, k);
     if (sig) {
         fflush(NULL);

@@ -23,12 +23,12 @@ static int solve_plane(const sci_problem *plane, sci_result *r, void *user)
     plane_ctx *c = user;
     const cli_color_job *job = c->job;
     cli_progress prog;
-    cli_progress_init(&prog, job->quiet ? -1 : 2, job->method == 0 ? job->gap->iters : job->admm->iters);
+    cli_progress_init(&prog, job->quiet ? -1 : 2, solver_settings_iters(job->method, job->settings));
     prog.stop = job->stop;
     if (!job->quiet)
         fprintf(stderr, "scicap recon: plane %d/4 (%s)\n", c->plane + 1, plane->name);
-    int rc = job->method == 0 ? sci_gaptv_solve(plane, job->gap, r, cli_progress_update, &prog)
-                              : sci_admmtv_solve(plane, job->admm, r, cli_progress_update, &prog);
+    const solver_io io = {.progress = cli_progress_update, .user = &prog};
+    int rc = solver_run(job->method, plane, job->settings, &io, r);
     cli_progress_done(&prog);
     c->plane++;
     return rc;

@@ -1,5 +1,5 @@
 /* cli/recon_color.h — `scicap recon` on a colour (Bayer) problem: the four CFA planes solved one after another
- * with GAP-TV or ADMM-TV (recon/bayer.h), demosaiced, RGB PSNR printed (mean over R, G, B), and the outputs of a
+ * with a method that needs no camera (recon/solver.h; gap-tv, admm-tv) (recon/bayer.h), demosaiced, RGB PSNR printed (mean over R, G, B), and the outputs of a
  * grey reconstruction (frames = the raw mosaic, trace = the four planes in turn, result.json) plus RGB ones:
  * rgb_NNN.exr (float, 3 channels), preview_rgb_NNN.png (colour, 8-bit), and a "color" record in result.json. */
 #ifndef SCICAP_CLI_RECON_COLOR_H
@@ -8,16 +8,14 @@
 #include <jansson.h>
 #include <signal.h>
 
-#include "recon/admmtv.h"
 #include "recon/bayer.h"
-#include "recon/gaptv.h"
+#include "recon/solver.h"
 
 typedef struct cli_color_job {
     sci_cfa cfa;
     sci_demosaic_method demosaic;
-    int method;                         /* 0 gap-tv, 1 admm-tv */
-    const sci_gaptv_params *gap;
-    const sci_admmtv_params *admm;
+    const solver_ops *method;           /* without SOLVER_NEEDS_CAMERA */
+    const void *settings;               /* the method's settings (borrowed) */
     const json_t *params;               /* the run's parameters for result.json (borrowed) */
     int quiet;
     const volatile sig_atomic_t *stop;  /* set by a signal: stop (SCI_ECANCELED) */
