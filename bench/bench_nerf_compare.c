@@ -63,8 +63,9 @@ static const char *row_part(const char *method)
         return "classic";
     if (strstr(method, "poses optimised"))
         return "poses";
-    if (strncmp(method, "scinerf", 7) == 0)
-        return "scinerf";
+    /* the SCINeRF rows are labelled by the method's name (its row in recon/solver.h) */
+    if (strncmp(method, sci_scinerf_solver.name, strlen(sci_scinerf_solver.name)) == 0)
+        return sci_scinerf_solver.name;
     if (strncmp(method, "rayformer full, patch", 21) == 0)
         return "patch";
     return "ladder";
@@ -74,7 +75,7 @@ static const char *row_part(const char *method)
  * then as measured. */
 static int part_rank(const char *method)
 {
-    static const char *const order[] = {"classic", "scinerf", "ladder", "patch", "poses"};
+    const char *const order[] = {"classic", sci_scinerf_solver.name, "ladder", "patch", "poses"};
     for (int i = 0; i < 5; i++)
         if (strcmp(row_part(method), order[i]) == 0)
             return i;
@@ -340,7 +341,7 @@ static void one_scene(const char *name, const char *parts)
     sci_scinerf_params_default(&sn);
     sci_scinerf_params_preset(&sn, preset);
     sn.metrics_every = 0;
-    if (strstr(parts, "scinerf"))
+    if (strstr(parts, sci_scinerf_solver.name))
         scinerf_row(name, p, "scinerf, known poses", &sn);
 
     sci_rayformer_params q;

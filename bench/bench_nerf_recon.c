@@ -21,8 +21,7 @@
 #include <unistd.h>
 
 #include "bench/bench_load.h"
-#include "recon/nerf/rayformer_solve.h"
-#include "recon/nerf/scinerf_solve.h"
+#include "recon/solver.h"
 #include "sim/simulate.h"
 
 #define STEPS 12
@@ -70,29 +69,23 @@ static void run_child(const char *method, const char *preset, const char *scene,
         snprintf(m->err, sizeof m->err, "%s", err.msg);
         return;
     }
+    /* the method's defaults and preset (recon/solver.h); the short run stops after STEPS steps without evaluation
+     * renders, the full one evaluates every 1/8 of the run */
     sci_result r = {0};
-    int rc, iters;
-    if (strcmp(method, "rayformer") == 0) {
-        sci_rayformer_params q;
-        sci_rayformer_params_default(&q);
-        sci_rayformer_params_preset(&q, preset);
-        if (!full)
-            q.iters = STEPS;
-        q.metrics_every = full ? (q.iters + 7) / 8 : 0;
-        q.ssim_every = q.metrics_every;
-        iters = q.iters;
-        rc = sci_rayformer_solve(p, &q, &r, NULL, NULL);
-    } else {
-        sci_scinerf_params q;
-        sci_scinerf_params_default(&q);
-        sci_scinerf_params_preset(&q, preset);
-        if (!full)
-            q.iters = STEPS;
-        q.metrics_every = full ? (q.iters + 7) / 8 : 0;
-        q.ssim_every = q.metrics_every;
-        iters = q.iters;
-        rc = sci_scinerf_solve(p, &q, &r, NULL, NULL);
+    int rc = -EINVAL, iters = 0;
+    const solver_ops *op = solver_find_err(method, &r.error);
+    solver_preset pr;
+    void *q = op ? solver_settings_new(op) : NULL;
+    if (q && solver_preset_parse(preset, &pr, NULL, &r.error) == 0) {
+        solver_settings_preset(op, q, pr);
+        iters = full ? solver_settings_iters(op, q) : STEPS;
+        const int every = full ? (iters + 7) / 8 : 0;
+        json_t *set = json_pack("{s:i, s:i, s:i}", "iters", iters, "metrics_every", every, "ssim_every", every);
+        if ((rc = solver_settings_from_json(op, q, set, NULL, "settings", &r.error)) == 0)
+            rc = solver_run(op, p, q, NULL, &r);
+        json_decref(set);
     }
+    solver_settings_free(q);
     if (rc < 0 || (int)r.trace.len != iters) {
         snprintf(m->err, sizeof m->err, "%s", r.error.msg);
     } else {
@@ -178,7 +171,7 @@ static FILE *open_tmp(const char *path)
 }
 
 /* Part 1: cost per step, render and memory of every preset at both sizes. */
-static int part_costs(const char *const *methods, const char *const *presets)
+static int part_costs(const char *const *methods, int n_methods, const char *const *presets)
 {
     const char *scenes[] = {"etc/scenes/static3d_corridor.json", "etc/scenes/static3d_tabletop.json"};
     const int sizes[] = {128, 256};
@@ -195,7 +188,7 @@ static int part_costs(const char *const *methods, const char *const *presets)
     fprintf(md, "| method | preset | size | s per step | render s per frame | peak RSS MiB |\n");
     fprintf(md, "|---|---|---:|---:|---:|---:|\n");
     int status = 0;
-    for (int mi = 0; mi < 2; mi++)
+    for (int mi = 0; mi < n_methods; mi++)
         for (int pi = 0; pi < 3; pi++)
             for (int si = 0; si < 2; si++) {
                 measure m;
@@ -218,7 +211,7 @@ static int part_costs(const char *const *methods, const char *const *presets)
 }
 
 /* Part 2: PSNR and SSIM against wall time of the presets in `which` (comma-separated), each run to its end. */
-static int part_curves(const char *const *methods, const char *const *presets, const char *which)
+static int part_curves(const char *const *methods, int n_methods, const char *const *presets, const char *which)
 {
     char load0[64], load1[64];
     bench_loadavg(load0, sizeof load0);
@@ -238,7 +231,7 @@ static int part_curves(const char *const *methods, const char *const *presets, c
         snprintf(list, sizeof list, ",%s,", which);
         if (!strstr(list, key))
             continue;
-        for (int mi = 0; mi < 2; mi++) {
+        for (int mi = 0; mi < n_methods; mi++) {
             measure m;
             long rss = 0;
             int rc = measure_in_child(methods[mi], presets[pi], "etc/scenes/static3d_corridor.json", 1, &m, &rss);
@@ -278,12 +271,17 @@ int main(int argc, char **argv)
             return 2;
         }
     }
-    const char *methods[] = {"rayformer", "scinerf"}, *presets[] = {"fast", "balanced", "best"};
+    /* the methods that train on a camera's views, every preset */
+    const char *methods[8], *const *presets = solver_preset_names;
+    int n_methods = 0;
+    for (const solver_ops *const *m = solver_list(NULL); *m && n_methods < 8; m++)
+        if ((*m)->caps & SOLVER_NEEDS_CAMERA)
+            methods[n_methods++] = (*m)->name;
     int status = 0;
     if (costs)
-        status |= part_costs(methods, presets);
+        status |= part_costs(methods, n_methods, presets);
     if (curves)
-        status |= part_curves(methods, presets, which);
+        status |= part_curves(methods, n_methods, presets, which);
     printf("wrote%s%s\n", costs ? " bench/results/nerf_recon.md" : "", curves ? " bench/results/nerf_recon_curves.md" : "");
     return status;
 }

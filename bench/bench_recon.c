@@ -8,6 +8,7 @@
  *      iterations for both methods.
  * A benchmark, not a test: it measures and reports, it does not pass or fail on speed.
  */
+#include <errno.h>
 #include <math.h>
 #include <omp.h>
 #include <stdio.h>
@@ -17,9 +18,9 @@
 #include "base/clock.h"
 #include "base/omp_env.h"
 #include "io/matfile.h"
-#include "recon/admmtv.h"
 #include "recon/gaptv.h"
 #include "recon/metrics.h"
+#include "recon/solver.h"
 
 static double memcpy_gbs(void)
 {
@@ -109,23 +110,18 @@ int main(int argc, char **argv)
         fprintf(md, "|---|---:|---:|---:|---:|---:|\n");
     }
     printf("\n%-8s %6s %10s %12s %12s %8s\n", "method", "iters", "wall s", "PSNR fmax", "PSNR pk1", "SSIM");
-    for (int m = 0; m < 2; m++)
-        for (size_t i = 0; i < sizeof iters / sizeof iters[0]; i++) {
+    /* every method that needs no camera (recon/solver.h), at its defaults but the iterations, no trace metrics but
+     * the last row's */
+    for (const solver_ops *const *m = solver_list(NULL); *m; m++)
+        for (size_t i = 0; i < sizeof iters / sizeof iters[0] && !((*m)->caps & SOLVER_NEEDS_CAMERA); i++) {
             sci_result r = {0};
-            int rc;
-            if (m == 0) {
-                sci_gaptv_params q;
-                sci_gaptv_params_default(&q);
-                q.iters = iters[i];
-                q.metrics_every = q.ssim_every = 0;
-                rc = sci_gaptv_solve(prob, &q, &r, NULL, NULL);
-            } else {
-                sci_admmtv_params q;
-                sci_admmtv_params_default(&q);
-                q.iters = iters[i];
-                q.metrics_every = q.ssim_every = 0;
-                rc = sci_admmtv_solve(prob, &q, &r, NULL, NULL);
-            }
+            void *q = solver_settings_new(*m);
+            json_t *set = json_pack("{s:i, s:i, s:i}", "iters", iters[i], "metrics_every", 0, "ssim_every", 0);
+            int rc = q && set ? solver_settings_from_json(*m, q, set, NULL, "settings", &r.error) : -ENOMEM;
+            if (rc == 0)
+                rc = solver_run(*m, prob, q, NULL, &r);
+            json_decref(set);
+            solver_settings_free(q);
             if (rc < 0) {
                 fprintf(stderr, "bench_recon: %s\n", r.error.msg);
                 return 1;

@@ -28,10 +28,7 @@
 #include "cli/commands.h"
 #include "io/problem_dir.h"
 #include "io/source.h"
-#include "recon/admmtv.h"
-#include "recon/gaptv.h"
-#include "recon/nerf/rayformer_solve.h"
-#include "recon/nerf/scinerf_solve.h"
+#include "recon/solver.h"
 #include "sim/simulate.h"
 
 extern char **environ;
@@ -74,7 +71,7 @@ static void usage(FILE *f)
             "  --data DIR        where drop40_cacti.mat is (default $SCICAP_DATA, else ../shared/data)\n"
             "  --scenes DIR      example scenes (default: ./etc/scenes in a checkout, else the build tree's, else the\n"
             "                    installed ones in $SCICAP_DATADIR/scenes, default " SCICAP_DATADIR "/scenes)\n"
-            "  --methods LIST    comma-separated subset of gap-tv,admm-tv,rayformer,scinerf\n"
+            "  --methods LIST    comma-separated subset of the methods (scicap recon --help lists them)\n"
             "  -j, --threads N   OpenMP threads per point (default: all cores)\n"
             "  --point SPEC      internal: run one grid point in this process (the runner starts one per point)\n"
             "  -h, --help        this text\n");
@@ -129,74 +126,21 @@ static int run_point(const char *spec)
         json_decref(j);
         return 1;
     }
+    /* the method's defaults, then the point's settings ("preset" first; recon/solver.h), no trace metrics but the
+     * last row's: the point measures the method, not its trace */
     sci_result r = {0};
-    int rc;
-    int iters = (int)json_integer_value(json_object_get(params, "iters"));
-    json_t *tvi = json_object_get(params, "tv_iters");
-    if (strcmp(method, "gap-tv") == 0) {
-        sci_gaptv_params q;
-        sci_gaptv_params_default(&q);
-        q.iters = iters;
-        if (tvi)
-            q.tv_iters = (int)json_integer_value(tvi);
-        q.metrics_every = q.ssim_every = 0;
-        rc = sci_gaptv_solve(p[0], &q, &r, NULL, NULL);
-    } else if (strcmp(method, "admm-tv") == 0) {
-        sci_admmtv_params q;
-        sci_admmtv_params_default(&q);
-        q.iters = iters;
-        if (tvi)
-            q.tv_iters = (int)json_integer_value(tvi);
-        q.metrics_every = q.ssim_every = 0;
-        rc = sci_admmtv_solve(p[0], &q, &r, NULL, NULL);
-    } else if (strcmp(method, "rayformer") == 0) {
-        /* a preset, then the knobs the point names; a patch size keeps the rays per step */
-        sci_rayformer_params q;
-        sci_rayformer_params_default(&q);
-        json_t *v;
-        const char *preset = json_string_value(json_object_get(params, "preset"));
-        if (preset && sci_rayformer_params_preset(&q, preset) < 0) {
-            fprintf(stderr, "scicap bench --point: unknown preset '%s'\n", preset);
-            return 2;
-        }
-        if (iters > 0)
-            q.iters = iters;
-        if ((v = json_object_get(params, "patch"))) {
-            int rays = q.patches_per_step * q.patch * q.patch, pt = (int)json_integer_value(v);
-            if (pt < 1 || pt > 64) {
-                fprintf(stderr, "scicap bench --point: bad patch %d\n", pt);
-                return 2;
-            }
-            q.patch = pt;
-            q.patches_per_step = rays / (pt * pt) > 0 ? rays / (pt * pt) : 1;
-        }
-        if ((v = json_object_get(params, "samples")))
-            q.samples = (int)json_integer_value(v);
-        if ((v = json_object_get(params, "table")))
-            q.log2_table = (int)json_integer_value(v);
-        q.metrics_every = q.ssim_every = 0;
-        rc = sci_rayformer_solve(p[0], &q, &r, NULL, NULL);
-    } else if (strcmp(method, "scinerf") == 0) {
-        sci_scinerf_params q;
-        sci_scinerf_params_default(&q);
-        json_t *v;
-        const char *preset = json_string_value(json_object_get(params, "preset"));
-        if (preset && sci_scinerf_params_preset(&q, preset) < 0) {
-            fprintf(stderr, "scicap bench --point: unknown preset '%s'\n", preset);
-            return 2;
-        }
-        if (iters > 0)
-            q.iters = iters;
-        if ((v = json_object_get(params, "samples")))
-            q.samples = (int)json_integer_value(v);
-        if ((v = json_object_get(params, "rays")))
-            q.rays_per_step = (int)json_integer_value(v);
-        q.metrics_every = 0;
-        rc = sci_scinerf_solve(p[0], &q, &r, NULL, NULL);
-    } else {
-        fprintf(stderr, "scicap bench --point: unknown method '%s'\n", method);
-        return 2;
-    }
+    int rc = -EINVAL;
+    const solver_ops *m = solver_find_err(method, &err);
+    void *q = m ? solver_settings_new(m) : NULL;
+    json_t *zero = json_integer(0);
+    if (q && (rc = solver_settings_from_json(m, q, params, NULL, "params", &err)) == 0 &&
+        solver_settings_set(m, q, "metrics_every", zero, NULL, "metrics_every", &err) >= 0 &&
+        solver_settings_set(m, q, "ssim_every", zero, NULL, "ssim_every", &err) >= 0)
+        rc = solver_run(m, p[0], q, NULL, &r);
+    json_decref(zero);
+    solver_settings_free(q);
+    if (rc < 0 && !r.error.msg[0])
+        snprintf(r.error.msg, sizeof r.error.msg, "%s", err.msg[0] ? err.msg : sci_strerror(rc));
     json_t *out;
     if (rc < 0 || r.trace.len == 0) {
         out = json_pack("{s:b, s:s}", "ok", 0, "error", r.error.msg[0] ? r.error.msg : sci_strerror(rc));
@@ -557,55 +501,31 @@ int cli_bench_main(int argc, char **argv)
     /* The grids. */
     bench_point *pts = NULL;
     int np = 0, cap = 0;
-    static const int it_full[] = {5, 10, 20, 50, 100, 200}, it_quick[] = {10, 50};
-    static const int tvi_full[] = {2, 5}, tvi_quick[] = {5};
-    const int *its = quick ? it_quick : it_full, *tvis = quick ? tvi_quick : tvi_full;
-    int nit = quick ? 2 : 6, ntvi = quick ? 1 : 2;
-    const char *const methods[] = {"gap-tv", "admm-tv", "rayformer", "scinerf"};
-    enum { N_METHODS = 4 };
-    for (int s = 0; s < ns; s++) {
-        for (int m = 0; m < 2; m++) {
-            if (!method_enabled(methods_arg, methods[m]))
+    size_t n_methods;
+    const solver_ops *const *table = solver_list(&n_methods);
+    const char *methods[8];
+    const int N_METHODS = n_methods < 8 ? (int)n_methods : 8;
+    for (int m = 0; m < N_METHODS; m++)
+        methods[m] = table[m]->name;
+    /* Each method's grid is its own (solver_ops.bench_quick / bench_full): the classical methods over iterations ×
+     * TV passes; the NeRF methods on the fast preset (rayformer 1500 steps, scinerf 1000 ≈ 3.5 min each here) with
+     * fewer steps, and at 300 steps one other knob at a time — about 10 minutes per scene on 2 cores; the presets
+     * balanced/best (9–30 min each) are measured by bench_nerf_recon instead, to keep this report under 30
+     * minutes. A method that needs a camera runs on the scenes that have one. */
+    for (int s = 0; s < ns; s++)
+        for (int m = 0; m < N_METHODS; m++) {
+            const solver_ops *op = table[m];
+            if (!method_enabled(methods_arg, op->name) || ((op->caps & SOLVER_NEEDS_CAMERA) && !sc[s].has_camera))
                 continue;
-            for (int a = 0; a < nit; a++)
-                for (int b = 0; b < ntvi; b++)
-                    add_point(&pts, &np, &cap, s, methods[m],
-                              json_pack("{s:i, s:i}", "iters", its[a], "tv_iters", tvis[b]));
-        }
-        if (!sc[s].has_camera)
-            continue;
-        /* The NeRF methods on the fast preset (rayformer 1500 steps, scinerf 1000 ≈ 3.5 min each here): fewer
-         * steps, and at 300 steps one other knob at a time: samples per ray, patch size (same rays per step),
-         * hash table size (levels × features is the transformer width, so the table is rayformer's hash knob).
-         * About 10 minutes per scene on 2 cores; the presets balanced/best (9–30 min each) are measured by
-         * bench_nerf_recon instead, to keep this report under 30 minutes. */
-        if (method_enabled(methods_arg, "rayformer")) {
-            if (quick)
-                add_point(&pts, &np, &cap, s, "rayformer", json_pack("{s:s, s:i}", "preset", "fast", "iters", 20));
-            else {
-                add_point(&pts, &np, &cap, s, "rayformer", json_pack("{s:s}", "preset", "fast"));
-                add_point(&pts, &np, &cap, s, "rayformer", json_pack("{s:s, s:i}", "preset", "fast", "iters", 100));
-                add_point(&pts, &np, &cap, s, "rayformer", json_pack("{s:s, s:i}", "preset", "fast", "iters", 300));
-                add_point(&pts, &np, &cap, s, "rayformer",
-                          json_pack("{s:s, s:i, s:i}", "preset", "fast", "iters", 300, "samples", 16));
-                add_point(&pts, &np, &cap, s, "rayformer",
-                          json_pack("{s:s, s:i, s:i}", "preset", "fast", "iters", 300, "patch", 4));
-                add_point(&pts, &np, &cap, s, "rayformer",
-                          json_pack("{s:s, s:i, s:i}", "preset", "fast", "iters", 300, "table", 14));
+            for (const char *const *g = quick ? op->bench_quick : op->bench_full; g && *g; g++) {
+                json_t *params = json_loads(*g, 0, NULL);
+                if (!params) {
+                    fprintf(stderr, "scicap bench: %s: bad grid point %s\n", op->name, *g);
+                    return 1;
+                }
+                add_point(&pts, &np, &cap, s, op->name, params);
             }
         }
-        if (method_enabled(methods_arg, "scinerf")) {
-            if (quick)
-                add_point(&pts, &np, &cap, s, "scinerf", json_pack("{s:s, s:i}", "preset", "fast", "iters", 20));
-            else {
-                add_point(&pts, &np, &cap, s, "scinerf", json_pack("{s:s}", "preset", "fast"));
-                add_point(&pts, &np, &cap, s, "scinerf", json_pack("{s:s, s:i}", "preset", "fast", "iters", 100));
-                add_point(&pts, &np, &cap, s, "scinerf", json_pack("{s:s, s:i}", "preset", "fast", "iters", 300));
-                add_point(&pts, &np, &cap, s, "scinerf",
-                          json_pack("{s:s, s:i, s:i}", "preset", "fast", "iters", 300, "samples", 16));
-            }
-        }
-    }
 
     fprintf(stderr, "scicap bench: %d points on %d scenes, %d threads each\n", np, ns, threads);
     int64_t t0 = sci_clock_mono_ns();
