@@ -57,13 +57,14 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools systemd zlib1g-dev \
             python3-dev python3-numpy python3-pytest slurm-wlm munge
 
-.PHONY: python all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
+.PHONY: python check-python all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
 all: $(BINS)
 
 help:
 	@echo "make deps      install missing Debian packages (apt-get)"
 	@echo "make demo      build and run the main job on its embedded default"
-	@echo "make check     build and run every test"
+	@echo "make check     build and run every test (C tests, then the Python module's pytest tests)"
+	@echo "make python    the Python module in BUILD/python (PYTHONPATH=BUILD/python python3 -c 'import scicap')"
 	@echo "make check-asan  every test again under ASan + UBSan at -O1 (build-asan/)"
 	@echo "make check-gv  the GenICam (Aravis) backend against a fake GigE Vision camera on loopback"
 	@echo "make check-vm  run the device tests against real kernel drivers under qemu"
@@ -150,9 +151,16 @@ $(BUILD)/python/scicap/%.py: python/scicap/%.py
 
 python: $(PY_EXT) $(PY_PURE)
 
+# The C tests, then the Python module's (tests/python, pytest): both always run; either failing fails the check.
 check: deps
-	@$(MAKE) --no-print-directory tests
-	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" tests/run $(TEST_BIN)
+	@$(MAKE) --no-print-directory tests python
+	@rc=0; BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" tests/run $(TEST_BIN) || rc=1; \
+	  $(MAKE) --no-print-directory check-python || rc=1; exit $$rc
+
+check-python: python $(BINS)
+	@echo "tests/python (pytest, module from $(BUILD)/python):"
+	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" PYTHONPATH=$(abspath $(BUILD)/python) \
+	  $(PYTHON) -m pytest -q -p no:cacheprovider --durations=5 tests/python
 
 # Every test again with ASan + UBSan at -O1, in its own build folder (build-asan), programs the tests start
 # (scicap, scicapd) included. Leak checking is off: the goal is memory errors and undefined behaviour.
@@ -192,9 +200,11 @@ bench-report: deps
 	$(BUILD)/scicap bench --full --data "$(SCICAP_DATA)"
 	@bench/update-readme
 
-install: all
+install: all python
 	install -d $(DESTDIR)$(PREFIX)/bin
 	install -m 755 $(BINS) $(DESTDIR)$(PREFIX)/bin/
+	install -d $(DESTDIR)$(PY_SITE)/scicap
+	install -m 644 $(PY_EXT) $(PY_PURE) $(DESTDIR)$(PY_SITE)/scicap/
 	install -d $(DESTDIR)$(PREFIX)/share/scicap/scenes
 	install -m 644 bench/results.csv $(DESTDIR)$(PREFIX)/share/scicap/results.csv
 	install -m 644 etc/scenes/*.json etc/scenes/*.pgm $(DESTDIR)$(PREFIX)/share/scicap/scenes/

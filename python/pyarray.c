@@ -324,6 +324,11 @@ fail:
     return NULL;
 }
 
+PyObject *py_trace_dtype(void)
+{
+    return (PyObject *)trace_dtype();
+}
+
 PyObject *py_trace_to_array(const sci_trace *t)
 {
     PyArray_Descr *d = trace_dtype();

@@ -58,7 +58,9 @@ PyObject *py_problem_list(sci_problem *const *problems, int k);
  * 0 or -1 (exception set). */
 int py_problem_array_from_sequence(PyObject *seq, sci_problem ***out, int *k);
 
-/* The trace as a numpy structured array (dtype py_trace_dtype()): one record per sci_trace_entry. */
+/* The dtype of a trace row: the fields of sci_trace_entry at their C offsets (a new reference; scicap.TRACE_DTYPE). */
+PyObject *py_trace_dtype(void);
+/* The trace as a numpy structured array of that dtype: one record per sci_trace_entry. */
 PyObject *py_trace_to_array(const sci_trace *t);
 /* The trace back from such an array (for writing a result folder). 0 or -1 (exception set). */
 int py_trace_from_array(PyObject *obj, sci_trace *t);

@@ -48,8 +48,13 @@ PyMODINIT_FUNC PyInit__scicap(void)
     PyObject *mod = PyModule_Create(&module_def);
     if (!mod)
         return NULL;
+    PyObject *dtype = py_trace_dtype();
+    if (!dtype || PyModule_AddObject(mod, "TRACE_DTYPE", dtype) < 0) {
+        Py_XDECREF(dtype);
+        Py_DECREF(mod);
+        return NULL;
+    }
     if (add_functions(mod) < 0 || add_exceptions(mod) < 0 ||
-        PyModule_AddIntConstant(mod, "TRACE_ROW_BYTES", (long)sizeof(sci_trace_entry)) < 0 ||
         PyModule_AddStringConstant(mod, "VERSION", SCICAP_VERSION) < 0) {
         Py_DECREF(mod);
         return NULL;

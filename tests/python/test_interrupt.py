@@ -1,0 +1,40 @@
+"""Ctrl-C stops a solve: a child python runs a long GAP-TV (the GIL released inside the C solver); SIGINT must
+raise KeyboardInterrupt in it promptly, and the interpreter must go on running Python afterwards."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+CHILD = r"""
+import sys, time, scicap
+p = scicap.read(sys.argv[1], snapshot=1)
+print("solving", flush=True)
+t0 = time.monotonic()
+try:
+    scicap.solve(p, "gap-tv", iters=1000000, metrics_every=0, ssim_every=0)
+except KeyboardInterrupt:
+    print("KeyboardInterrupt after %.2f s" % (time.monotonic() - t0), flush=True)
+    print("still alive:", sum(range(10)), flush=True)
+    sys.exit(7)
+print("finished without interruption", flush=True)
+"""
+
+
+def test_ctrl_c_raises_keyboard_interrupt(drop40):
+    child = subprocess.Popen([sys.executable, "-c", CHILD, str(drop40)], stdout=subprocess.PIPE, text=True,
+                             env=dict(os.environ))
+    try:
+        assert child.stdout.readline().strip() == "solving"
+        time.sleep(1.0)  # well inside the solve: a million iterations take hours
+        t0 = time.monotonic()
+        child.send_signal(signal.SIGINT)
+        out, _ = child.communicate(timeout=20)
+        latency = time.monotonic() - t0
+    finally:
+        if child.poll() is None:
+            child.kill()
+    print(f"SIGINT to exit: {latency:.3f} s")
+    assert child.returncode == 7, out
+    assert "KeyboardInterrupt after" in out and "still alive: 45" in out
+    assert latency < 2.0

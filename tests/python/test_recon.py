@@ -1,0 +1,92 @@
+"""Reconstruction through Python: every method of the CLI's table by name, GAP-TV on drop40 snapshot 1 at the
+benchmark's 34.63 dB (the figure tests/integration/test_cli_recon_mat.c gets from the CLI: 34.6289), the same
+trace as `scicap recon` row for row, the trace as a structured array, and a result folder like the CLI's."""
+import csv
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+import scicap
+
+
+def test_methods_are_the_cli_table(scicap_bin):
+    names = [m["name"] for m in scicap.methods()]
+    assert names == ["gap-tv", "admm-tv", "rayformer", "scinerf"]
+    usage = subprocess.run([str(scicap_bin), "--help"], capture_output=True, text=True).stdout
+    for n in names:
+        assert n in usage
+    for m in scicap.methods():
+        assert set(m["presets"]) == set(scicap.PRESETS)
+        assert m["presets"]["balanced"] == m["defaults"]
+        assert any(k["key"] == "iters" for k in m["keys"])
+    gap = scicap.method("gap-tv")
+    assert gap["presets"]["fast"]["iters"] < gap["defaults"]["iters"] < gap["presets"]["best"]["iters"]
+    assert scicap.settings("gap-tv", preset="fast", tv_weight=0.05)["tv_weight"] == 0.05
+
+
+def test_gaptv_drop40_snapshot1_psnr(drop40):
+    p = scicap.read(drop40, snapshot=1)
+    r = scicap.solve(p, "gap-tv")
+    assert r.frames.shape == (8, 256, 256) and r.frames.dtype == np.float32
+    assert r.iters_done == 100 and r.stopped == ""
+    assert r.trace.dtype == scicap.TRACE_DTYPE and len(r.trace) == 100
+    assert list(r.trace["iter"]) == list(range(1, 101))
+    psnr = r.psnr(p.truth)
+    print(f"GAP-TV drop40 snapshot 1 through Python: {psnr:.4f} dB, {r.trace['wall_s'][-1]:.2f} s solver time")
+    assert round(psnr, 2) == 34.63
+    assert abs(r.trace["psnr"][-1] - psnr) < 1e-9  # the trace's last row measures the result itself
+    assert np.all(np.diff(r.trace["wall_s"]) >= 0)
+
+
+def test_trace_equals_cli(drop40, scicap_bin, tmp_path):
+    out = tmp_path / "cli"
+    subprocess.run([str(scicap_bin), "recon", str(drop40), "-s", "2", "-i", "12", "-j", "1", "-q", "-o", str(out)],
+                   check=True, capture_output=True)
+    with open(out / "trace.csv") as f:
+        rows = list(csv.DictReader(f))
+    r = scicap.solve(scicap.read(drop40, snapshot=2), "gap-tv", iters=12)
+    assert len(rows) == len(r.trace) == 12
+    for row, t in zip(rows, r.trace):
+        assert int(row["iter"]) == t["iter"]
+        assert float(row["residual"]) == pytest.approx(t["residual"], rel=1e-6)
+        assert float(row["psnr_db"]) == pytest.approx(t["psnr"], abs=1e-4)
+    # the result folder from Python has the CLI's layout and figures
+    p = scicap.read(drop40, snapshot=2)
+    r.write(tmp_path / "py", p)
+    cli = json.loads((out / "result.json").read_text())
+    py = json.loads((tmp_path / "py" / "result.json").read_text())
+    assert sorted(p.name for p in (tmp_path / "py").iterdir()) == sorted(p.name for p in out.iterdir())
+    assert py["params"]["iters"] == cli["params"]["iters"] == 12
+
+
+def test_admmtv_and_progress_can_stop(drop40):
+    p = scicap.read(drop40, snapshot=1)
+    seen = []
+
+    def progress(row):
+        seen.append(row["iter"])
+        return row["iter"] >= 5  # True stops the run
+
+    r = scicap.solve(p, "admm-tv", progress=progress, iters=50)
+    assert r.stopped == "canceled" and r.iters_done == 5 and seen == [1, 2, 3, 4, 5]
+    assert r.frames is not None and np.all(np.isfinite(r.frames))
+
+
+def test_nerf_tiny():
+    from conftest import TINY_STATIC3D
+    (p,) = scicap.simulate(TINY_STATIC3D)
+    assert p.camera is not None and p.camera["poses"].shape == (4, 3, 4)
+    # tiny: 10 steps, 8 samples, a 2^12 hash table, one thread (seconds, not minutes)
+    tiny = dict(iters=10, samples=8, log2_table=12, metrics_every=0, threads=1)
+    r = scicap.solve(p, "rayformer", preset="fast", patch=8, patches_per_step=2, **tiny)
+    assert r.frames.shape == (4, 24, 24) and np.all(np.isfinite(r.frames))
+    assert len(r.trace) == 10 and np.all(np.isfinite(r.trace["loss"]))
+    assert np.isfinite(r.psnr(p.truth, peak=1.0)) and np.isfinite(r.trace["psnr"][-1])
+    assert r.settings["patches_per_step"] == 2 and r.settings["log2_table"] == 12
+    s = scicap.solve(p, "scinerf", preset="fast", rays_per_step=128, **tiny)
+    assert s.frames.shape == (4, 24, 24) and np.all(np.isfinite(s.frames)) and len(s.trace) == 10
+    # the same seed gives the same run
+    again = scicap.solve(p, "rayformer", preset="fast", patch=8, patches_per_step=2, **tiny)
+    assert np.array_equal(again.frames, r.frames)
