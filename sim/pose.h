@@ -4,10 +4,9 @@
  * recon/problem.h. A twist ξ = (ρ, ω) has ρ the translational part (scene units) and ω the rotation vector
  * (axis × angle, radians); exp(ξ) = [exp([ω]×) | V ρ] (sci-reconstruction.md §11).
  *
- * Numerics: the coefficients A, B, C of exp and D of log use their Taylor forms for θ < 0.05, where the closed
- * forms cancel; the rotation log goes through a quaternion and atan2, so it stays accurate near θ = π.
- * sim/ keeps its own copy on purpose (recon/nerf has another): the simulator must not depend on recon/nerf.
- * Pure functions; thread-safe; outputs may not alias inputs unless stated.
+ * The arithmetic is base/se3.h's (the one SE(3) implementation, shared with the NeRF solvers' pose optimisation:
+ * Taylor branches near 0, a quaternion log exact near π); these are the simulator's names for it, with the twist in
+ * sim's order (ρ, ω). Pure functions; thread-safe.
  */
 #ifndef SCICAP_SIM_POSE_H
 #define SCICAP_SIM_POSE_H
@@ -16,7 +15,7 @@
 void sim_pose_exp(const double xi[6], double T[12]);
 /* xi = log(T); R must be a rotation (orthonormal, det +1) to about 1e-9. Angle in [0, π]. */
 void sim_pose_log(const double T[12], double xi[6]);
-/* C = A·B (C may alias neither). */
+/* C = A·B. */
 void sim_pose_mul(const double A[12], const double B[12], double C[12]);
 /* Ti = T⁻¹ = [Rᵀ | −Rᵀt]. */
 void sim_pose_inv(const double T[12], double Ti[12]);

@@ -48,14 +48,14 @@ int nerf_poses_new(nerf_poses **out, nerf_poses_mode mode, int n, const double (
         if (init)
             memcpy(p->fixed[j], init[j], sizeof p->fixed[j]);
         else
-            nerf_se3_identity(p->fixed[j]);
+            sci_se3_identity(p->fixed[j]);
     }
     if (mode == NERF_POSES_LINEAR) {
-        nerf_se3_log(p->fixed[0], p->xi);
-        nerf_se3_log(p->fixed[n - 1], p->xi + 6);
+        sci_se3_log(p->fixed[0], p->xi);
+        sci_se3_log(p->fixed[n - 1], p->xi + 6);
     } else if (mode == NERF_POSES_PER_FRAME) {
         for (int j = 0; j < n; j++)
-            nerf_se3_log(p->fixed[j], p->xi + 6 * j);
+            sci_se3_log(p->fixed[j], p->xi + 6 * j);
     }
     sci_rng rng;
     sci_rng_seed(&rng, seed, 0x905e5);
@@ -93,7 +93,7 @@ void nerf_poses_get(const nerf_poses *p, int j, double T[12])
     switch (p->mode) {
     case NERF_POSES_KNOWN: memcpy(T, p->fixed[j], 12 * sizeof *T); break;
     case NERF_POSES_LINEAR: nerf_se3_interp(p->xi, p->xi + 6, p->n, j, T, NULL); break;
-    case NERF_POSES_PER_FRAME: nerf_se3_exp(p->xi + 6 * j, T, NULL); break;
+    case NERF_POSES_PER_FRAME: sci_se3_exp(p->xi + 6 * j, T, NULL); break;
     }
 }
 
@@ -108,7 +108,7 @@ void nerf_poses_add_grad(nerf_poses *p, int j, const double g_T[12])
         nerf_se3_vjp(J, 12, g_T, g);
         break;
     case NERF_POSES_PER_FRAME:
-        nerf_se3_exp(p->xi + 6 * j, T, J);
+        sci_se3_exp(p->xi + 6 * j, T, J);
         nerf_se3_vjp(J, 6, g_T, g + 6 * j);
         break;
     }
@@ -141,9 +141,9 @@ void nerf_poses_distance(const nerf_poses *p, const double (*ref)[12], double *r
     for (int j = 0; j < p->n; j++) {
         double T[12], Ti[12], D[12], xi[6];
         nerf_poses_get(p, j, T);
-        nerf_se3_inv(ref[j], Ti);
-        nerf_se3_mul(Ti, T, D);
-        nerf_se3_log(D, xi);
+        sci_se3_inv(ref[j], Ti);
+        sci_se3_mul(Ti, T, D);
+        sci_se3_log(D, xi);
         sr += sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
         st += sqrt(D[3] * D[3] + D[7] * D[7] + D[11] * D[11]);
     }
@@ -160,8 +160,8 @@ nerf_pose_error nerf_poses_relative_error(const nerf_poses *p, const double (*re
         return e;
     double P0[12], P0i[12], R0i[12], num = 0, den = 0;
     nerf_poses_get(p, 0, P0);
-    nerf_se3_inv(P0, P0i);
-    nerf_se3_inv(ref[0], R0i);
+    sci_se3_inv(P0, P0i);
+    sci_se3_inv(ref[0], R0i);
     double(*qp)[3] = malloc((size_t)p->n * sizeof *qp), (*qr)[3] = malloc((size_t)p->n * sizeof *qr);
     if (!qp || !qr) {
         free(qp), free(qr);
@@ -170,11 +170,11 @@ nerf_pose_error nerf_poses_relative_error(const nerf_poses *p, const double (*re
     for (int j = 1; j < p->n; j++) {
         double Pj[12], Qp[12], Qr[12], Qri[12], D[12], xi[6];
         nerf_poses_get(p, j, Pj);
-        nerf_se3_mul(P0i, Pj, Qp);
-        nerf_se3_mul(R0i, ref[j], Qr);
-        nerf_se3_inv(Qr, Qri);
-        nerf_se3_mul(Qri, Qp, D);
-        nerf_se3_log(D, xi);
+        sci_se3_mul(P0i, Pj, Qp);
+        sci_se3_mul(R0i, ref[j], Qr);
+        sci_se3_inv(Qr, Qri);
+        sci_se3_mul(Qri, Qp, D);
+        sci_se3_log(D, xi);
         e.rot_rad += sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
         for (int k = 0; k < 3; k++) {
             qp[j][k] = Qp[4 * k + 3], qr[j][k] = Qr[4 * k + 3];

@@ -26,11 +26,11 @@ static void test_relative_error_gauge(void **state)
     enum { N = 5 };
     double ref[N][12], moved[N][12], G[12];
     const double g_xi[6] = {0.3, -0.2, 0.1, 1.0, 2.0, -0.5};
-    nerf_se3_exp(g_xi, G, NULL);
+    sci_se3_exp(g_xi, G, NULL);
     for (int j = 0; j < N; j++) {
         double xi[6] = {0.01 * j, 0.02 * j, 0, 0.1 * j, 0, -0.05 * j};
-        nerf_se3_exp(xi, ref[j], NULL);
-        nerf_se3_mul(G, ref[j], moved[j]);
+        sci_se3_exp(xi, ref[j], NULL);
+        sci_se3_mul(G, ref[j], moved[j]);
     }
     nerf_poses *p;
     assert_int_equal(nerf_poses_new(&p, NERF_POSES_PER_FRAME, N, (const double(*)[12])moved, 0, 0, 0, NULL), 0);
@@ -43,7 +43,7 @@ static void test_relative_error_gauge(void **state)
     /* the same motion at half the scale: scale 2 brings it back */
     for (int j = 0; j < N; j++) {
         double xi[6] = {0.01 * j, 0.02 * j, 0, 0.05 * j, 0, -0.025 * j}, T[12];
-        nerf_se3_exp(xi, T, NULL);
+        sci_se3_exp(xi, T, NULL);
         /* same rotation, translation halved: V(ω)u is linear in u */
         memcpy(moved[j], T, sizeof T);
     }

@@ -54,7 +54,7 @@ static void test_exp_log_roundtrip(void **s)
     for (int k = 0; k < NTH; k++) {
         double xi[6], T[12], back[12], xl[6];
         twist(THETAS[k], xi);
-        nerf_se3_exp(xi, T, NULL);
+        sci_se3_exp(xi, T, NULL);
         /* R orthonormal */
         double orth = 0;
         for (int i = 0; i < 3; i++)
@@ -63,8 +63,8 @@ static void test_exp_log_roundtrip(void **s)
                 for (int q = 0; q < 3; q++) d += T[4 * i + q] * T[4 * j + q];
                 orth = fmax(orth, fabs(d - (i == j)));
             }
-        nerf_se3_log(T, xl);
-        nerf_se3_exp(xl, back, NULL);
+        sci_se3_log(T, xl);
+        sci_se3_exp(xl, back, NULL);
         double e_pose = maxdiff(T, back, 12);
         double e_xi = THETAS[k] < M_PI ? maxdiff(xi, xl, 6) : 0; /* at π exactly, ω and −ω are both logs */
         printf("theta %-18.17g orthonormality %.1e, exp(log T) − T %.1e, log(exp ξ) − ξ %.1e\n", THETAS[k], orth,
@@ -78,7 +78,7 @@ static void test_exp_log_roundtrip(void **s)
     }
     /* the Taylor branch agrees with the closed form where they meet */
     double a[6] = {0.0999999, 0, 0, 1, 2, 3}, b[6] = {0.1000001, 0, 0, 1, 2, 3}, Ta[12], Tb[12];
-    nerf_se3_exp(a, Ta, NULL), nerf_se3_exp(b, Tb, NULL);
+    sci_se3_exp(a, Ta, NULL), sci_se3_exp(b, Tb, NULL);
     assert_true(maxdiff(Ta, Tb, 12) < 1e-6);
 }
 
@@ -88,13 +88,13 @@ static void test_exp_jacobian(void **s)
     for (int k = 0; k < NTH; k++) {
         double xi[6], T[12], J[72];
         twist(THETAS[k], xi);
-        nerf_se3_exp(xi, T, J);
+        sci_se3_exp(xi, T, J);
         double num = 0, den = 0;
         for (int c = 0; c < 6; c++) {
             double xp[6], xm[6], Tp[12], Tm[12];
             memcpy(xp, xi, sizeof xp), memcpy(xm, xi, sizeof xm);
             xp[c] += 1e-7, xm[c] -= 1e-7;
-            nerf_se3_exp(xp, Tp, NULL), nerf_se3_exp(xm, Tm, NULL);
+            sci_se3_exp(xp, Tp, NULL), sci_se3_exp(xm, Tm, NULL);
             for (int r = 0; r < 12; r++) {
                 double g = (Tp[r] - Tm[r]) / 2e-7;
                 num += (J[r * 6 + c] - g) * (J[r * 6 + c] - g), den += g * g;
@@ -110,7 +110,7 @@ static void interp_check(const double x1[6], const double xN[6], const char *wha
 {
     const int N = 8;
     double T1[12], TN[12];
-    nerf_se3_exp(x1, T1, NULL), nerf_se3_exp(xN, TN, NULL);
+    sci_se3_exp(x1, T1, NULL), sci_se3_exp(xN, TN, NULL);
     double worst = 0;
     for (int j = 0; j < N; j++) {
         double T[12], J[144];
@@ -157,7 +157,7 @@ static void test_interp_identical_ends(void **s)
     double x[6];
     twist(0.4, x);
     double T1[12];
-    nerf_se3_exp(x, T1, NULL);
+    sci_se3_exp(x, T1, NULL);
     for (int j = 0; j < 8; j++) {
         double T[12];
         nerf_se3_interp(x, x, 8, j, T, NULL);
