@@ -94,7 +94,7 @@ static void test_taylor_switch_is_continuous(void **state)
 {
     (void)state;
     const double th = SCI_SE3_TAYLOR_THETA;
-    double lo[6] = {th * (1 - 1e-13), 0, 0, 0.3, -0.2, 0.1}, hi[6] = {th, 0, 0, 0.3, -0.2, 0.1}, Tl[12], Th[12];
+    double lo[6] = {nextafter(th, 0), 0, 0, 0.3, -0.2, 0.1}, hi[6] = {th, 0, 0, 0.3, -0.2, 0.1}, Tl[12], Th[12];
     double Jl[72], Jh[72];
     sci_se3_exp(lo, Tl, Jl);
     sci_se3_exp(hi, Th, Jh);

@@ -1,0 +1,103 @@
+/* tests/unit/test_layering.c — the include direction of docs/architecture.md: the tree passes, and the checker
+ * (tests/helpers/layering.c) fails on a synthetic tree with a deliberately upward include, naming file and line. */
+#include <errno.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "tests/helpers/layering.h"
+
+/* The source tree: the folder this file was compiled from (the Makefile compiles from the root, so __FILE__ is
+ * "tests/unit/test_layering.c" there and the tests run from the root too). */
+static const char *tree_root(char *buf, size_t n)
+{
+    const char *me = __FILE__, *tail = strstr(me, "tests/unit/test_layering.c");
+    if (tail && tail > me)
+        snprintf(buf, n, "%.*s", (int)(tail - me - 1), me);
+    else
+        snprintf(buf, n, ".");
+    return buf;
+}
+
+static void test_tree_is_layered(void **state)
+{
+    (void)state;
+    char root[4096], probe[4200], report[16384];
+    tree_root(root, sizeof root);
+    snprintf(probe, sizeof probe, "%s/base/cube.h", root);
+    if (access(probe, R_OK) != 0)
+        fail_msg("%s is not the source tree (run from the root, as make check does)", root);
+    int files = 0;
+    int bad = layering_check(root, layering_tree, layering_tree_count, report, sizeof report, &files);
+    printf("layering: %d files read under %s, %d upward or unknown includes\n%s", files, root, bad, report);
+    assert_true(files > 100);
+    assert_int_equal(bad, 0);
+}
+
+static char tmp[] = "/tmp/scicap-layering-XXXXXX";
+
+static void put(const char *rel, const char *text)
+{
+    char path[4096], dir[4096];
+    snprintf(path, sizeof path, "%s/%s", tmp, rel);
+    snprintf(dir, sizeof dir, "%s", path);
+    for (char *p = dir + strlen(tmp) + 1; (p = strchr(p, '/')); p++) {
+        *p = 0;
+        mkdir(dir, 0755);
+        *p = '/';
+    }
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+}
+
+/* One violation of each kind, and the includes that must pass, in a tree of its own. */
+static void test_upward_include_fails(void **state)
+{
+    (void)state;
+    assert_non_null(mkdtemp(tmp));
+    put("base/cube.h", "#include <stdio.h>\n#include \"base/error.h\"\n");
+    put("base/bad.c", "/* base may not see recon */\n#include \"recon/gaptv.h\"\n");
+    put("recon/gaptv.h", "#include \"base/cube.h\"\n#include \"local.h\"\n");
+    put("io/x.c", "#include \"recon/gaptv.h\"\n  #  include \"drivers/dmd.h\"\n");
+    put("cli/y.c", "#include \"nowhere/z.h\"\n#include \"sim/a.h\"\n#include \"daemon/d.h\"\n");
+    put("stray/s.c", "int s;\n");
+    put("build-x/ignored.c", "#include \"cli/y.h\"\n");
+    put("docs/notes.md", "#include \"cli/y.h\"\n");
+    char report[4096];
+    int files = 0;
+    int bad = layering_check(tmp, layering_tree, layering_tree_count, report, sizeof report, &files);
+    printf("synthetic tree: %d files, %d violations:\n%s", files, bad, report);
+    assert_int_equal(files, 5);
+    assert_int_equal(bad, 5);
+    assert_non_null(strstr(report, "base/bad.c:2: includes \"recon/gaptv.h\": recon/ (layer 1) is above base/ (layer 0)"));
+    assert_non_null(strstr(report, "io/x.c:2: includes \"drivers/dmd.h\": drivers/ (layer 2) is beside io/"));
+    assert_non_null(strstr(report, "cli/y.c:1: includes \"nowhere/z.h\": nowhere/ is not a layer"));
+    assert_non_null(strstr(report, "cli/y.c:3: includes \"daemon/d.h\": daemon/ (layer 4) is beside cli/"));
+    assert_non_null(strstr(report, "stray/s.c:1: stray/ is not a layer"));
+    assert_null(strstr(report, "io/x.c:1"));   /* io above recon: fine */
+    assert_null(strstr(report, "ignored.c"));  /* build output */
+    /* a missing root is an error, not a pass */
+    assert_true(layering_check("/nonexistent-scicap-root", layering_tree, layering_tree_count, report, sizeof report,
+                               NULL) < 0);
+    char cmd[256];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);
+    assert_int_equal(system(cmd), 0);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_tree_is_layered),
+        cmocka_unit_test(test_upward_include_fails),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
