@@ -1,0 +1,237 @@
+/* tests/unit/test_solver.c — the method table (recon/solver.h): lookup by name, presets (one vocabulary, the
+ * deprecated aliases, the values each method had before the table), settings to/from JSON with clear errors, the
+ * bench grids, and a run through the table that matches the method's own solve bit for bit and can be canceled. */
+#include <errno.h>
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "recon/admmtv.h"
+#include "recon/gaptv.h"
+#include "recon/nerf/rayformer_solve.h"
+#include "recon/nerf/scinerf_solve.h"
+#include "recon/solver.h"
+#include "sim/default_scene.h"
+#include "sim/simulate.h"
+
+static void test_lookup(void **state)
+{
+    (void)state;
+    size_t n = 0;
+    const solver_ops *const *l = solver_list(&n);
+    assert_int_equal(n, 4);
+    assert_null(l[n]);
+    for (size_t i = 0; i < n; i++) {
+        assert_ptr_equal(solver_find(l[i]->name), l[i]);
+        assert_non_null(l[i]->summary);
+        assert_non_null(l[i]->run);
+    }
+    assert_ptr_equal(solver_find("gap-tv"), &sci_gaptv_solver);
+    assert_ptr_equal(solver_find("rayformer"), &sci_rayformer_solver);
+    assert_null(solver_find("GAP-TV"));
+    assert_null(solver_find(NULL));
+    sci_error err = {0};
+    assert_null(solver_find_err("nope", &err));
+    printf("%s\n", err.msg);
+    assert_non_null(strstr(err.msg, "unknown method 'nope' (gap-tv, admm-tv, rayformer, scinerf)"));
+    /* only the NeRF methods need a camera and checkpoint */
+    assert_false(sci_gaptv_solver.caps & SOLVER_NEEDS_CAMERA);
+    assert_true(sci_scinerf_solver.caps & SOLVER_NEEDS_CAMERA);
+    assert_true(sci_rayformer_solver.caps & SOLVER_CHECKPOINTS);
+}
+
+/* The presets' values are the ones each interface used before the table: the daemon's for the classical methods
+ * (fast 30, default 100 × 5, quality 200 × 8) and the NeRF preset functions' for rayformer and scinerf. */
+static void test_presets(void **state)
+{
+    (void)state;
+    solver_preset p;
+    int dep = -1;
+    sci_error err = {0};
+    assert_int_equal(solver_preset_parse("balanced", &p, &dep, &err), 0);
+    assert_int_equal(p, SOLVER_PRESET_BALANCED);
+    assert_int_equal(dep, 0);
+    assert_int_equal(solver_preset_parse("default", &p, &dep, &err), 0);
+    assert_int_equal(p, SOLVER_PRESET_BALANCED);
+    assert_int_equal(dep, 1);
+    assert_int_equal(solver_preset_parse("quality", &p, &dep, &err), 0);
+    assert_int_equal(p, SOLVER_PRESET_BEST);
+    assert_int_equal(solver_preset_parse("turbo", &p, NULL, &err), -EINVAL);
+    assert_non_null(strstr(err.msg, "fast, balanced, best"));
+
+    const int gap_it[3] = {30, 100, 200}, gap_tvi[3] = {5, 5, 8};
+    for (int k = 0; k < SOLVER_PRESET_COUNT; k++) {
+        sci_gaptv_params g;
+        sci_admmtv_params a;
+        sci_gaptv_params_default(&g);
+        sci_admmtv_params_default(&a);
+        solver_settings_preset(&sci_gaptv_solver, &g, (solver_preset)k);
+        solver_settings_preset(&sci_admmtv_solver, &a, (solver_preset)k);
+        assert_int_equal(g.iters, gap_it[k]);
+        assert_int_equal(g.tv_iters, gap_tvi[k]);
+        assert_int_equal(a.iters, gap_it[k]);
+        assert_int_equal(a.tv_iters, gap_tvi[k]);
+        sci_rayformer_params r1, r2;
+        sci_rayformer_params_default(&r1);
+        sci_rayformer_params_default(&r2);
+        solver_settings_preset(&sci_rayformer_solver, &r1, (solver_preset)k);
+        assert_int_equal(sci_rayformer_params_preset(&r2, solver_preset_names[k]), 0);
+        assert_memory_equal(&r1, &r2, sizeof r1);
+        sci_scinerf_params s1, s2;
+        sci_scinerf_params_default(&s1);
+        sci_scinerf_params_default(&s2);
+        solver_settings_preset(&sci_scinerf_solver, &s1, (solver_preset)k);
+        assert_int_equal(sci_scinerf_params_preset(&s2, solver_preset_names[k]), 0);
+        assert_memory_equal(&s1, &s2, sizeof s1);
+    }
+    /* balanced is the defaults, for every method */
+    for (const solver_ops *const *m = solver_list(NULL); *m; m++) {
+        void *d = solver_settings_new(*m), *b = solver_settings_new(*m);
+        solver_settings_preset(*m, b, SOLVER_PRESET_BALANCED);
+        json_t *jd = solver_settings_to_json(*m, d), *jb = solver_settings_to_json(*m, b);
+        assert_true(json_equal(jd, jb));
+        json_decref(jd), json_decref(jb);
+        solver_settings_free(d), solver_settings_free(b);
+    }
+    /* the rayformer presets as the code had them (1500 / 3000 / 4000 × 16 windows) */
+    sci_rayformer_params r;
+    sci_rayformer_params_default(&r);
+    solver_settings_preset(&sci_rayformer_solver, &r, SOLVER_PRESET_BEST);
+    assert_int_equal(r.iters, 4000);
+    assert_int_equal(r.patches_per_step, 16);
+}
+
+static void test_json(void **state)
+{
+    (void)state;
+    sci_error err = {0};
+    for (const solver_ops *const *m = solver_list(NULL); *m; m++) {
+        /* to_json reads back to the same settings */
+        void *a = solver_settings_new(*m), *b = solver_settings_new(*m);
+        solver_settings_preset(*m, a, SOLVER_PRESET_FAST);
+        json_t *j = solver_settings_to_json(*m, a);
+        assert_non_null(j);
+        if (solver_settings_from_json(*m, b, j, NULL, "settings", &err) != 0)
+            fail_msg("%s: %s", (*m)->name, err.msg);
+        assert_memory_equal(a, b, (*m)->settings_size);
+        json_decref(j);
+        /* every bench grid point is valid settings */
+        for (int q = 0; q < 2; q++)
+            for (const char *const *g = q ? (*m)->bench_full : (*m)->bench_quick; g && *g; g++) {
+                json_t *pt = json_loads(*g, 0, NULL);
+                assert_non_null(pt);
+                void *s = solver_settings_new(*m);
+                if (solver_settings_from_json(*m, s, pt, NULL, "point", &err) != 0)
+                    fail_msg("%s %s: %s", (*m)->name, *g, err.msg);
+                solver_settings_free(s);
+                json_decref(pt);
+            }
+        solver_settings_free(a), solver_settings_free(b);
+    }
+    /* errors name the method, the key and the value */
+    sci_gaptv_params g;
+    sci_gaptv_params_default(&g);
+    json_t *bad = json_pack("{s:i, s:f}", "iters", 50, "gamma", 0.1);
+    assert_int_equal(solver_settings_from_json(&sci_gaptv_solver, &g, bad, NULL, "params", &err), -EINVAL);
+    printf("%s\n", err.msg);
+    assert_non_null(strstr(err.msg, "gap-tv: params.gamma: no such setting"));
+    json_decref(bad);
+    bad = json_pack("{s:f}", "iters", 2.5);
+    assert_int_equal(solver_settings_from_json(&sci_gaptv_solver, &g, bad, NULL, "params", &err), -EINVAL);
+    assert_non_null(strstr(err.msg, "params.iters: must be an integer in [1, 10000000] (got 2.5)"));
+    json_decref(bad);
+    bad = json_pack("{s:s}", "preset", "quality");
+    assert_int_equal(solver_settings_from_json(&sci_gaptv_solver, &g, bad, NULL, "params", &err), 0);
+    assert_int_equal(g.iters, 200);
+    json_decref(bad);
+    bad = json_pack("{s:s}", "method", "admm-tv");
+    assert_true(solver_settings_from_json(&sci_gaptv_solver, &g, bad, NULL, "params", &err) < 0);
+    json_decref(bad);
+    /* enums by name; the ablation action; the bench's patch rule keeps the rays per step */
+    sci_rayformer_params r;
+    sci_rayformer_params_default(&r);
+    json_t *rj = json_pack("{s:s, s:s, s:s, s:i, s:i}", "preset", "fast", "pose_mode", "per-frame", "ablation",
+                           "inter", "patch", 4, "table", 14);
+    assert_int_equal(solver_settings_from_json(&sci_rayformer_solver, &r, rj, NULL, "s", &err), 0);
+    assert_int_equal(r.pose_mode, NERF_POSES_PER_FRAME);
+    assert_true(r.patch_sampling && r.inter_ray && !r.intra_ray && r.tv_weight == 0);
+    assert_int_equal(r.patch, 4);
+    assert_int_equal(r.patches_per_step, 8 * 64 / 16);
+    assert_int_equal(r.log2_table, 14);
+    json_decref(rj);
+    rj = json_pack("{s:s}", "pose_mode", "sideways");
+    assert_true(solver_settings_from_json(&sci_rayformer_solver, &r, rj, NULL, "s", &err) < 0);
+    assert_non_null(strstr(err.msg, "must be one of known, linear, per-frame (got 'sideways')"));
+    json_decref(rj);
+}
+
+static int count_rows(const sci_trace_entry *e, void *user)
+{
+    (void)e;
+    ++*(int *)user;
+    return 0;
+}
+
+/* A run through the table equals the method's own solve bit for bit; the cancel flag stops it. */
+static void test_run_and_cancel(void **state)
+{
+    (void)state;
+    sim_scene *sc = NULL;
+    sci_error err = {0};
+    if (sim_default_scene_load(&sc, &err) < 0 || sim_scene_set_snapshots(sc, 1, &err) < 0)
+        fail_msg("%s", err.msg);
+    sci_problem **p = NULL;
+    int k = 0;
+    assert_int_equal(sim_run(sc, &p, &k, NULL, NULL, NULL, &err), 0);
+    sim_scene_free(sc);
+    sci_gaptv_params g;
+    sci_gaptv_params_default(&g);
+    g.iters = 12;
+    sci_result a = {0}, b = {0};
+    assert_int_equal(sci_gaptv_solve(p[0], &g, &a, NULL, NULL), 0);
+    int rows = 0;
+    solver_io io = {.progress = count_rows, .user = &rows};
+    assert_int_equal(solver_run(&sci_gaptv_solver, p[0], &g, &io, &b), 0);
+    assert_int_equal(rows, 12);
+    assert_string_equal(b.method, "gap-tv");
+    assert_memory_equal(a.frames->data, b.frames->data, sci_cube_count(a.frames) * sizeof(float));
+    sci_result_free_contents(&a);
+    sci_result_free_contents(&b);
+    /* cancel: the flag set before the run stops it after its first iteration */
+    atomic_int cancel = 1;
+    sci_result c = {0};
+    io.cancel = &cancel;
+    rows = 0;
+    assert_int_equal(solver_run(&sci_admmtv_solver, p[0], &(sci_admmtv_params){.iters = 50, .lambda = 1,
+                                                                             .tv_weight = 0.07, .tv_iters = 2},
+                                &io, &c),
+                     SCI_ECANCELED);
+    assert_int_equal(c.iters_done, 1);
+    assert_int_equal(rows, 1);
+    sci_result_free_contents(&c);
+    /* invalid settings are refused with the method's message */
+    g.iters = 0;
+    sci_result d = {0};
+    assert_int_equal(solver_run(&sci_gaptv_solver, p[0], &g, NULL, &d), -EINVAL);
+    assert_non_null(strstr(d.error.msg, "gap-tv: iters must be in"));
+    sci_result_free_contents(&d);
+    sci_problem_array_free(p, k);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_lookup),
+        cmocka_unit_test(test_presets),
+        cmocka_unit_test(test_json),
+        cmocka_unit_test(test_run_and_cancel),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
