@@ -8,5 +8,9 @@ int cli_recon_main(int argc, char **argv);
 int cli_sim_main(int argc, char **argv);
 int cli_dmd_main(int argc, char **argv);
 int cli_bench_main(int argc, char **argv);
+int cli_batch_main(int argc, char **argv);
+/* `scicap recon` given several inputs: the same batch as `scicap batch` (cli/batch.c). opts are recon's options
+ * (with -o OUTDIR, the batch's folder; the others go to every job's scicap recon), inputs the INPUT arguments. */
+int cli_batch_recon(int nopts, char **opts, int ninputs, char **inputs);
 
 #endif

@@ -15,6 +15,7 @@ typedef struct command {
 static const command commands[] = {
     {"sim", cli_sim_main, "simulate coded snapshots of a scene (video2d, static3d, colour) with its effects"},
     {"recon", cli_recon_main, "reconstruct SCI snapshots: gap-tv, admm-tv, rayformer, scinerf; any .mat, colour"},
+    {"batch", cli_batch_main, "many reconstructions: files, folders, globs, captures; resumable; --slurm array jobs"},
     {"status", cli_client_main, "daemon: state, devices, queues"},
     {"devices", cli_client_main, "daemon: the devices it drives and their identities"},
     {"capture", cli_client_main, "daemon: capture snapshots (--recon METHOD, --wait)"},
