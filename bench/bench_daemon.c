@@ -1,12 +1,15 @@
 /* bench_daemon — scicapd on the simulated bench (256×256×8, embedded default scene), through its socket, for
- * three storage settings (storage.writers 1 and 2 with previews, 2 without previews):
+ * three storage settings (storage.writers 1 and 2 with previews, 2 without previews; reconstruction workers and
+ * threads at their defaults):
  *   1. sustained snapshots per second for a 40-snapshot capture job, without and with a GAP-TV reconstruction
- *      (fast preset, 1 worker) requested for every snapshot (captures never wait for reconstructions: the ones
- *      refused by the full reconstruction queue are counted, not waited for);
- *   2. daemon CPU time per snapshot over each run (/proc/<pid>/stat utime + stime);
+ *      (fast preset) requested for every snapshot; with reconstructions, the rate at which they were done too,
+ *      and how many were refused (none since the reconstruction queue applies back-pressure: the bench fails
+ *      if any is);
+ *   2. daemon CPU time per snapshot over each run (/proc/<pid>/stat utime + stime), and where it went: the
+ *      daemon's per-stage counters (status "timing": acquire, store, recon read/solve/write, thread CPU);
  *   3. latency from the capture request to the "capture.stored" event, one snapshot at a time (median, p90).
  * Storage is a temporary folder with fsync on (the service default). Writes bench/results/daemon.md with the
- * load average (2 shared cores: figures are noisy). */
+ * 1-minute load average beside every figure (2 shared cores: figures are noisy). */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -104,9 +107,37 @@ static int cmp_double(const void *a, const void *b)
 }
 
 typedef struct run_result {
-    double per_s, cpu_per_snap_ms, recon_psnr;
+    double per_s, recon_per_s, cpu_per_snap_ms, recon_psnr, load;
     int snapshots, recons, rejected;
+    double stage_cpu_ms[5], stage_wall_ms[5]; /* per stage run during this measurement */
 } run_result;
+
+static const char *const stages[5] = {"acquire", "store", "recon_read", "recon_solve", "recon_write"};
+
+/* The daemon's stage counters (status "timing"): totals per stage into cpu_s/wall_s/count. */
+static int timing_read(double cpu_s[5], double wall_s[5], long long count[5])
+{
+    if (send_req("{\"v\":1,\"id\":9,\"cmd\":\"status\"}\n") < 0)
+        return -1;
+    for (;;) {
+        json_t *m = read_msg(30000);
+        if (!m)
+            return -1;
+        json_t *id = json_object_get(m, "id");
+        if (json_is_integer(id) && json_integer_value(id) == 9) {
+            json_t *t = json_object_get(json_object_get(m, "result"), "timing");
+            for (int i = 0; i < 5; i++) {
+                json_t *o = json_object_get(t, stages[i]);
+                cpu_s[i] = json_number_value(json_object_get(o, "cpu_s_total"));
+                wall_s[i] = json_number_value(json_object_get(o, "wall_s_total"));
+                count[i] = json_integer_value(json_object_get(o, "count"));
+            }
+            json_decref(m);
+            return t ? 0 : -1;
+        }
+        json_decref(m);
+    }
+}
 
 static int sustained(pid_t pid, int count, int recon, run_result *out)
 {
@@ -114,8 +145,12 @@ static int sustained(pid_t pid, int count, int recon, run_result *out)
     snprintf(line, sizeof line,
              "{\"v\":1,\"id\":1,\"cmd\":\"capture\",\"args\":{\"count\":%d,\"reconstruct\":%s,\"preset\":\"fast\"}}\n",
              count, recon ? "true" : "false");
+    double tc0[5], tw0[5], tc1[5], tw1[5];
+    long long n0[5], n1[5];
+    if (timing_read(tc0, tw0, n0) < 0)
+        return -1;
     double cpu0 = proc_cpu_s(pid);
-    int64_t t0 = sci_clock_mono_ns(), t_first = 0, t_last = 0;
+    int64_t t0 = sci_clock_mono_ns(), t_first = 0, t_last = 0, r_first = 0, r_last = 0;
     if (send_req(line) < 0)
         return -1;
     int stored = 0, recons = 0, rejected = 0;
@@ -132,6 +167,9 @@ static int sustained(pid_t pid, int count, int recon, run_result *out)
                 t_first = t_last;
         } else if (ev && !strcmp(ev, "recon.done")) {
             recons++;
+            r_last = sci_clock_mono_ns();
+            if (!r_first)
+                r_first = r_last;
             psnr = json_number_value(json_object_get(json_object_get(m, "data"), "psnr"));
         } else if (ev && !strcmp(ev, "recon.rejected")) {
             rejected++; /* reconstruction queue full: reported, the capture went on */
@@ -146,6 +184,17 @@ static int sustained(pid_t pid, int count, int recon, run_result *out)
     }
     double cpu1 = proc_cpu_s(pid);
     (void)t0;
+    if (timing_read(tc1, tw1, n1) < 0)
+        return -1;
+    for (int i = 0; i < 5; i++) {
+        long long n = n1[i] - n0[i];
+        out->stage_cpu_ms[i] = n > 0 ? (tc1[i] - tc0[i]) * 1e3 / (double)n : 0;
+        out->stage_wall_ms[i] = n > 0 ? (tw1[i] - tw0[i]) * 1e3 / (double)n : 0;
+    }
+    double la[1] = {NAN};
+    getloadavg(la, 1);
+    out->load = la[0];
+    out->recon_per_s = recons > 1 ? (recons - 1) / sci_clock_s(r_first, r_last) : NAN;
     out->snapshots = stored;
     out->recons = recons;
     out->rejected = rejected;
@@ -158,7 +207,7 @@ static int sustained(pid_t pid, int count, int recon, run_result *out)
 typedef struct setting {
     const char *name, *config;
     run_result plain, with_recon;
-    double lat_median, lat_p90;
+    double lat_median, lat_p90, lat_load;
     int ok;
 } setting;
 
@@ -225,12 +274,18 @@ static int measure(setting *st, const char *bin, const char *dir)
     qsort(lat, LAT, sizeof lat[0], cmp_double);
     st->lat_median = lat[LAT / 2];
     st->lat_p90 = lat[(LAT * 9) / 10];
+    getloadavg(&st->lat_load, 1);
     st->ok = 1;
     status = 0;
     printf("[%s]\n", st->name);
     printf("  snapshots/s (capture + store only):      %.1f  (%d snapshots)\n", st->plain.per_s, st->plain.snapshots);
-    printf("  snapshots/s (+ GAP-TV fast per snapshot): %.1f  (%d reconstructed, %d refused: queue full)\n",
-           st->with_recon.per_s, st->with_recon.recons, st->with_recon.rejected);
+    printf("  snapshots/s (+ GAP-TV fast per snapshot): %.1f captured, %.1f reconstructed  (%d reconstructed, "
+           "%d refused)\n", st->with_recon.per_s, st->with_recon.recon_per_s, st->with_recon.recons,
+           st->with_recon.rejected);
+    printf("  per snapshot, thread CPU / wall ms:");
+    for (int i = 0; i < 5; i++)
+        printf(" %s %.0f/%.0f", stages[i], st->with_recon.stage_cpu_ms[i], st->with_recon.stage_wall_ms[i]);
+    printf("\n");
     printf("  daemon CPU per snapshot: %.0f ms (capture + store), %.0f ms (with reconstructions)\n",
            st->plain.cpu_per_snap_ms, st->with_recon.cpu_per_snap_ms);
     printf("  request -> stored latency: median %.0f ms, p90 %.0f ms\n", st->lat_median, st->lat_p90);
@@ -268,30 +323,44 @@ int main(void)
             status = 1;
     getloadavg(load1, 3);
     printf("load average before %.2f, after %.2f (1 min)\n", load0[0], load1[0]);
+    for (int i = 0; i < NS; i++)
+        if (s[i].ok && s[i].with_recon.rejected > 0) {
+            fprintf(stderr, "bench_daemon: %s: %d reconstructions refused\n", s[i].name, s[i].with_recon.rejected);
+            status = 1;
+        }
     if (status == 0) {
         mkdir("bench/results", 0755);
         FILE *f = fopen("bench/results/daemon.md", "w");
         if (f) {
-            fprintf(f, "| scicapd, simulated bench 256×256×8, fsync on (2 shared cores, load %.1f → %.1f) | writers 1 | "
-                       "writers 2 (default) | writers 2, no previews |\n|---|---|---|---|\n", load0[0], load1[0]);
+            fprintf(f, "| scicapd, simulated bench 256×256×8, fsync on, 2 shared cores (load: 1-min average at the "
+                       "end of each run; %.1f before, %.1f after) | writers 1 | writers 2 (default) | writers 2, no "
+                       "previews |\n|---|---|---|---|\n", load0[0], load1[0]);
             fprintf(f, "| sustained snapshots/s, capture + store |");
             for (int i = 0; i < NS; i++)
-                fprintf(f, " %.1f |", s[i].plain.per_s);
-            fprintf(f, "\n| sustained snapshots/s, with a GAP-TV (fast, 30 it.) reconstruction requested per snapshot |");
+                fprintf(f, " %.1f (load %.1f) |", s[i].plain.per_s, s[i].plain.load);
+            fprintf(f, "\n| with a GAP-TV (fast, 30 it.) reconstruction requested per snapshot: snapshots/s "
+                       "captured / reconstructed |");
             for (int i = 0; i < NS; i++)
-                fprintf(f, " %.1f |", s[i].with_recon.per_s);
-            fprintf(f, "\n| of those 40: reconstructed / refused (queue of 16 full) |");
+                fprintf(f, " %.1f / %.1f (load %.1f) |", s[i].with_recon.per_s, s[i].with_recon.recon_per_s,
+                        s[i].with_recon.load);
+            fprintf(f, "\n| of those 40: reconstructed / refused |");
             for (int i = 0; i < NS; i++)
                 fprintf(f, " %d / %d |", s[i].with_recon.recons, s[i].with_recon.rejected);
+            fprintf(f, "\n| per snapshot with reconstruction, thread CPU ms: acquire / store / recon read / "
+                       "solve / write |");
+            for (int i = 0; i < NS; i++) {
+                const double *c = s[i].with_recon.stage_cpu_ms;
+                fprintf(f, " %.0f / %.0f / %.0f / %.0f / %.0f |", c[0], c[1], c[2], c[3], c[4]);
+            }
             fprintf(f, "\n| daemon CPU per snapshot, capture + store |");
             for (int i = 0; i < NS; i++)
-                fprintf(f, " %.0f ms |", s[i].plain.cpu_per_snap_ms);
+                fprintf(f, " %.0f ms (load %.1f) |", s[i].plain.cpu_per_snap_ms, s[i].plain.load);
             fprintf(f, "\n| daemon CPU per snapshot, including reconstructions |");
             for (int i = 0; i < NS; i++)
-                fprintf(f, " %.0f ms |", s[i].with_recon.cpu_per_snap_ms);
+                fprintf(f, " %.0f ms (load %.1f) |", s[i].with_recon.cpu_per_snap_ms, s[i].with_recon.load);
             fprintf(f, "\n| capture request → stored snapshot, median / p90 |");
             for (int i = 0; i < NS; i++)
-                fprintf(f, " %.0f / %.0f ms |", s[i].lat_median, s[i].lat_p90);
+                fprintf(f, " %.0f / %.0f ms (load %.1f) |", s[i].lat_median, s[i].lat_p90, s[i].lat_load);
             fprintf(f, "\n");
             fclose(f);
         }

@@ -2,7 +2,9 @@
  * daemon's client. One request per run; --wait follows the job's events until it ends. */
 #include "cli/client.h"
 
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <getopt.h>
 #include <jansson.h>
 #include <math.h>
@@ -11,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
@@ -63,6 +66,41 @@ static int conn_send(conn *c, const char *cmd, json_t *args /* stolen, may be NU
     ssize_t w = send(c->fd, s, n + 1, MSG_NOSIGNAL);
     free(s);
     if (w != (ssize_t)(n + 1)) {
+        fprintf(stderr, "scicap: %s: write failed: %s\n", c->path, strerror(errno));
+        return -1;
+    }
+    return 0;
+}
+
+/* The request line with open descriptors attached (SCM_RIGHTS, with its first byte): the daemon reads those
+ * files through them, with our rights, never by path. `args` stolen. */
+static int conn_send_fds(conn *c, const char *cmd, json_t *args, const int *fds, int nfds)
+{
+    json_t *req = json_pack("{s:i, s:i, s:s, s:o}", "v", 1, "id", 1, "cmd", cmd, "args", args);
+    char *s = json_dumps(req, JSON_COMPACT);
+    json_decref(req);
+    size_t n = strlen(s);
+    s[n++] = '\n';
+    union {
+        char b[CMSG_SPACE(sizeof(int) * 253)];
+        struct cmsghdr align;
+    } ctl;
+    struct iovec iov = {.iov_base = s, .iov_len = n};
+    struct msghdr m = {.msg_iov = &iov, .msg_iovlen = 1, .msg_control = ctl.b,
+                       .msg_controllen = CMSG_SPACE(sizeof(int) * (size_t)nfds)};
+    struct cmsghdr *h = CMSG_FIRSTHDR(&m);
+    h->cmsg_level = SOL_SOCKET;
+    h->cmsg_type = SCM_RIGHTS;
+    h->cmsg_len = CMSG_LEN(sizeof(int) * (size_t)nfds);
+    memcpy(CMSG_DATA(h), fds, sizeof(int) * (size_t)nfds);
+    ssize_t w = sendmsg(c->fd, &m, MSG_NOSIGNAL);
+    size_t off = w > 0 ? (size_t)w : 0;
+    while (w >= 0 && off < n) { /* the rest of a long line: the descriptors went with its first byte */
+        w = send(c->fd, s + off, n - off, MSG_NOSIGNAL);
+        off += w > 0 ? (size_t)w : 0;
+    }
+    free(s);
+    if (w < 0) {
         fprintf(stderr, "scicap: %s: write failed: %s\n", c->path, strerror(errno));
         return -1;
     }
@@ -125,6 +163,121 @@ static const char *str(const json_t *o, const char *k)
     return s ? s : "";
 }
 
+/* ---- status and devices for people (--json prints the reply as it came) ---- */
+
+/* A scalar as text into buf ("" for objects and arrays). */
+static const char *scalar(const json_t *v, char *buf, size_t n)
+{
+    if (json_is_string(v))
+        snprintf(buf, n, "%s", json_string_value(v));
+    else if (json_is_integer(v))
+        snprintf(buf, n, "%lld", (long long)json_integer_value(v));
+    else if (json_is_real(v))
+        snprintf(buf, n, "%g", json_real_value(v));
+    else if (json_is_boolean(v))
+        snprintf(buf, n, "%s", json_is_true(v) ? "yes" : "no");
+    else if (json_is_null(v))
+        snprintf(buf, n, "-");
+    else
+        buf[0] = '\0';
+    return buf;
+}
+
+/* Every field of a device but the ones its heading shows, one "key  value" line each; nested objects
+ * (identity, settings) flattened as "identity.card". */
+static void print_fields(FILE *f, const json_t *o, const char *prefix, int indent)
+{
+    const char *k;
+    const json_t *v;
+    json_object_foreach((json_t *)o, k, v) {
+        if (!prefix[0] && (!strcmp(k, "backend") || !strcmp(k, "connected")))
+            continue;
+        char key[128], val[512];
+        snprintf(key, sizeof key, "%s%s%s", prefix, prefix[0] ? "." : "", k);
+        if (json_is_object(v)) {
+            print_fields(f, v, key, indent);
+        } else if (json_is_array(v)) {
+            char *a = json_dumps(v, JSON_COMPACT);
+            fprintf(f, "%*s%-26s %s\n", indent, "", key, a ? a : "");
+            free(a);
+        } else if (strcmp(key, "identity.backend") != 0) {
+            fprintf(f, "%*s%-26s %s\n", indent, "", key, scalar(v, val, sizeof val));
+        }
+    }
+}
+
+/* "dmd      dlpc900  connected" and the device's fields below. */
+static void print_devices(FILE *f, const json_t *devs)
+{
+    const char *name;
+    const json_t *d;
+    json_object_foreach((json_t *)devs, name, d) {
+        const json_t *up = json_object_get(d, "connected");
+        fprintf(f, "%-8s %-8s %s\n", name, str(d, "backend")[0] ? str(d, "backend") : "?",
+                !up ? "" : json_is_true(up) ? "connected" : "NOT CONNECTED");
+        print_fields(f, d, "", 2);
+    }
+}
+
+static void print_queue(FILE *f, const json_t *queues, const char *name, int last)
+{
+    const json_t *q = json_object_get(queues, name);
+    fprintf(f, "%s %lld/%lld%s", name, (long long)json_integer_value(json_array_get(q, 0)),
+            (long long)json_integer_value(json_array_get(q, 1)), last ? "\n" : ", ");
+}
+
+static void print_status(FILE *f, const json_t *r)
+{
+    const json_t *jobs = json_object_get(r, "jobs"), *rec = json_object_get(r, "recovered");
+    const json_t *queues = json_object_get(r, "queues"), *timing = json_object_get(r, "timing");
+    long long up = (long long)json_number_value(json_object_get(r, "uptime_s"));
+    int stopping = json_is_true(json_object_get(r, "stopping"));
+    int dmd = json_is_true(json_object_get(r, "dmd_connected"));
+    fprintf(f, "scicapd %s (protocol %lld), pid %lld, up %lldh %02lldm %02llds\n", str(r, "version"),
+            (long long)json_integer_value(json_object_get(r, "protocol")),
+            (long long)json_integer_value(json_object_get(r, "pid")), up / 3600, up / 60 % 60, up % 60);
+    fprintf(f, "%-10s %s\n", "state", stopping ? "stopping" : dmd ? "ready" : "ready, but the DMD is not connected");
+    fprintf(f, "%-10s %s\n", "config", str(r, "config"));
+    fprintf(f, "%-10s %s\n", "socket", str(r, "socket"));
+    fprintf(f, "%-10s %s (%lld captures stored since start)\n", "storage", str(r, "storage"),
+            (long long)json_integer_value(json_object_get(r, "captures_stored")));
+    fprintf(f, "%-10s ", "queues");
+    print_queue(f, queues, "capture", 0);
+    print_queue(f, queues, "reconstruction", 0);
+    print_queue(f, queues, "storage", 1);
+    fprintf(f, "%-10s %lld queued, %lld running, %lld finished; %lld reconstruction workers busy\n", "jobs",
+            (long long)json_integer_value(json_object_get(jobs, "queued")),
+            (long long)json_integer_value(json_object_get(jobs, "running")),
+            (long long)json_integer_value(json_object_get(jobs, "finished")),
+            (long long)json_integer_value(json_object_get(r, "workers_busy")));
+    fprintf(f, "%-10s %lld connected\n", "clients", (long long)json_integer_value(json_object_get(r, "clients")));
+    fprintf(f, "%-10s %lld captures found, %lld partial folders removed, %lld reconstructions resumed\n",
+            "at start", (long long)json_integer_value(json_object_get(rec, "captures")),
+            (long long)json_integer_value(json_object_get(rec, "removed_partial")),
+            (long long)json_integer_value(json_object_get(rec, "reconstructions_resumed")));
+    if (json_object_size(timing)) {
+        fprintf(f, "\ntime per run of each stage since start (mean; CPU of the thread that ran it):\n");
+        const char *k;
+        const json_t *t;
+        json_object_foreach((json_t *)timing, k, t) {
+            long long n = (long long)json_integer_value(json_object_get(t, "count"));
+            if (n > 0)
+                fprintf(f, "  %-12s %6lld runs  %8.1f ms wall  %8.1f ms CPU\n", k, n,
+                        json_number_value(json_object_get(t, "wall_ms")),
+                        json_number_value(json_object_get(t, "cpu_ms")));
+        }
+    }
+    fprintf(f, "\ndevices:\n");
+    const char *name;
+    const json_t *d;
+    json_object_foreach(json_object_get(r, "devices"), name, d) {
+        const json_t *on = json_object_get(d, "connected");
+        fprintf(f, "  %-8s %-8s %s\n", name, str(d, "backend"),
+                !on ? "" : json_is_true(on) ? "connected" : "NOT CONNECTED");
+    }
+    fprintf(f, "(scicap devices for their identities and settings)\n");
+}
+
 static void progress_bar(conn *c, const json_t *d, long long job)
 {
     int it = (int)json_integer_value(json_object_get(d, "iter")), n = (int)json_integer_value(json_object_get(d, "iters"));
@@ -158,7 +311,18 @@ static void print_event(conn *c, const json_t *m)
         printf("job %lld: stored %s (%s)%s, %.0f ms after the request\n", job, str(d, "capture"), str(d, "dir"),
                json_is_true(json_object_get(d, "broken")) ? " BROKEN SYNC" : "",
                json_number_value(json_object_get(d, "latency_ms")));
-    else if (strcmp(ev, "recon.done") == 0)
+    else if (strcmp(ev, "import.stored") == 0)
+        printf("job %lld: stored %s (%s), snapshot %lld of %lld\n", job, str(d, "capture"), str(d, "dir"),
+               (long long)json_integer_value(json_object_get(d, "index")) + 1,
+               (long long)json_integer_value(json_object_get(d, "count")));
+    else if (strcmp(ev, "import.done") == 0) {
+        printf("job %lld: imported %lld snapshots", job,
+               (long long)json_integer_value(json_object_get(d, "snapshots")));
+        if (json_object_get(d, "white"))
+            printf(", values divided by %g%s%s", json_number_value(json_object_get(d, "white")),
+                   json_object_get(d, "scale_auto") ? ": " : "", str(d, "scale_auto"));
+        printf("\n");
+    } else if (strcmp(ev, "recon.done") == 0)
         printf("job %lld: %s of %s: PSNR %.2f dB in %.2f s -> %s\n", job, str(d, "method"), str(d, "capture"),
                json_number_value(json_object_get(d, "psnr")), json_number_value(json_object_get(d, "solve_s")),
                str(d, "dir"));
@@ -187,7 +351,7 @@ static int follow(conn *c, int recon, int recon_only)
             pending_recon += recon;
         else if (!strcmp(ev, "recon.rejected"))
             failed = 1;
-        else if (!strcmp(ev, "capture.done") || !strcmp(ev, "calibrate.done"))
+        else if (!strcmp(ev, "capture.done") || !strcmp(ev, "calibrate.done") || !strcmp(ev, "import.done"))
             pending_capture = 0;
         else if (strstr(ev, ".failed") || strstr(ev, ".canceled")) {
             failed = 1;
@@ -208,20 +372,25 @@ static const char *default_socket(void)
     return s && s[0] ? s : CLI_CLIENT_DEFAULT_SOCKET;
 }
 
-enum { O_SOCKET = 1000, O_MASK_SET, O_COUNT, O_EXPOSURE, O_PATTERN, O_DARK_US, O_SYNC, O_RECON, O_METHOD, O_PRESET,
-       O_WAIT, O_DARK, O_MASKS, O_AVERAGE, O_CAPTURE, O_ITERS, O_BUDGET, O_HELP };
+enum { O_SOCKET = 1000, O_JSON, O_FROM, O_MASK, O_MASK_VAR, O_MEAS_VAR, O_TRUTH_VAR, O_SCALE, O_MASK_SET, O_COUNT,
+       O_EXPOSURE, O_PATTERN, O_DARK_US, O_SYNC_MODE, O_RECON, O_METHOD, O_PRESET, O_WAIT, O_DARK, O_MASKS, O_AVERAGE,
+       O_CAPTURE, O_ITERS, O_BUDGET, O_HELP };
 
 /* One getopt table per command, so each accepts exactly its own options and its --help lists exactly those
  * (tests/integration/test_cli_help.c reads these tables). */
 static const struct option plain_opts[] = {
-    {"socket", required_argument, 0, O_SOCKET}, {"help", no_argument, 0, O_HELP}, {0, 0, 0, 0}};
+    {"socket", required_argument, 0, O_SOCKET}, {"json", no_argument, 0, O_JSON}, {"help", no_argument, 0, O_HELP},
+    {0, 0, 0, 0}};
 static const struct option capture_opts[] = {
     {"socket", required_argument, 0, O_SOCKET}, {"mask-set", required_argument, 0, O_MASK_SET},
     {"count", required_argument, 0, O_COUNT}, {"exposure-us", required_argument, 0, O_EXPOSURE},
     {"pattern-us", required_argument, 0, O_PATTERN}, {"dark-us", required_argument, 0, O_DARK_US},
-    {"sync", required_argument, 0, O_SYNC}, {"recon", optional_argument, 0, O_RECON},
+    {"sync", required_argument, 0, O_SYNC_MODE}, {"recon", optional_argument, 0, O_RECON},
     {"method", required_argument, 0, O_METHOD}, {"preset", required_argument, 0, O_PRESET},
-    {"wait", no_argument, 0, O_WAIT}, {"help", no_argument, 0, O_HELP}, {0, 0, 0, 0}};
+    {"wait", no_argument, 0, O_WAIT}, {"from", required_argument, 0, O_FROM}, {"mask", required_argument, 0, O_MASK},
+    {"mask-var", required_argument, 0, O_MASK_VAR}, {"meas-var", required_argument, 0, O_MEAS_VAR},
+    {"truth-var", required_argument, 0, O_TRUTH_VAR}, {"scale", required_argument, 0, O_SCALE},
+    {"help", no_argument, 0, O_HELP}, {0, 0, 0, 0}};
 static const struct option calibrate_opts[] = {
     {"socket", required_argument, 0, O_SOCKET}, {"dark", no_argument, 0, O_DARK}, {"masks", no_argument, 0, O_MASKS},
     {"mask-set", required_argument, 0, O_MASK_SET}, {"average", required_argument, 0, O_AVERAGE},
@@ -235,6 +404,7 @@ static const struct option reconstruct_opts[] = {
 /* What each option means, for every command's help. */
 static const struct { const char *name, *arg, *text; } opt_help[] = {
     {"socket", "PATH", "the daemon's control socket (default $SCICAP_SOCKET, else " CLI_CLIENT_DEFAULT_SOCKET ")"},
+    {"json", NULL, "print the daemon's reply (watch: each event) as JSON, unformatted for people"},
     {"mask-set", "S", "the mask set the DMD shows (a name from the daemon's configuration)"},
     {"count", "N", "snapshots to capture (default 1)"},
     {"exposure-us", "U", "camera exposure per snapshot, microseconds"},
@@ -246,6 +416,13 @@ static const struct { const char *name, *arg, *text; } opt_help[] = {
     {"method", "M", "gap-tv or admm-tv"},
     {"preset", "P", "fast, default or quality"},
     {"wait", NULL, "wait for the job (and its reconstructions) to finish, with progress"},
+    {"from", "FILE|DIR", "no bench: captures from a .mat or a problem folder, read by the daemon through\n"
+                         "                     descriptors this command opens (your rights, not the daemon's)"},
+    {"mask", "FILE", "with --from FILE.mat: the .mat that holds the masks"},
+    {"mask-var", "V", "with --from: the masks' variable (default mask)"},
+    {"meas-var", "V", "with --from: the measurements' variable (default meas)"},
+    {"truth-var", "V", "with --from: the ground truth's variable (default orig, optional)"},
+    {"scale", "auto|N", "with --from: the data's white level (default 255); auto reads it from the data"},
     {"dark", NULL, "measure the dark frame"},
     {"masks", NULL, "measure the masks as the camera sees them"},
     {"average", "N", "frames averaged per measurement"},
@@ -261,21 +438,25 @@ typedef struct client_cmd {
 } client_cmd;
 
 static const client_cmd client_cmds[] = {
-    {"status", "scicap status [--socket PATH]", "The daemon's state, queues and counters.", plain_opts},
-    {"devices", "scicap devices [--socket PATH]", "The devices the daemon drives, their identities and state.",
+    {"status", "scicap status [--socket PATH] [--json]", "The daemon's state, queues and counters.", plain_opts},
+    {"devices", "scicap devices [--socket PATH] [--json]", "The devices the daemon drives, their identities and state.",
      plain_opts},
     {"capture",
      "scicap capture [--mask-set S] [--count N] [--exposure-us U] [--pattern-us U] [--dark-us U]\n"
-     "                      [--sync host-master|dmd-master] [--recon [METHOD]] [--method M] [--preset P] [--wait]",
-     "Capture coded snapshots on the bench (and reconstruct them with --recon).", capture_opts},
+     "                      [--sync host-master|dmd-master] [--recon [METHOD]] [--method M] [--preset P] [--wait]\n"
+     "       scicap capture --from FILE.mat|DIR [--mask FILE.mat] [--mask-var V] [--meas-var V] [--truth-var V]\n"
+     "                      [--scale auto|N] [--recon [METHOD]] [--method M] [--preset P] [--wait]",
+     "Capture coded snapshots on the bench (and reconstruct them with --recon); with --from, store the snapshots\n"
+     "of a file or problem folder as captures instead (each snapshot one capture, as from the bench).",
+     capture_opts},
     {"calibrate", "scicap calibrate --dark|--masks [--mask-set S] [--average N]",
      "Measure the dark frame or the masks as the camera sees them; waits for the result.", calibrate_opts},
-    {"jobs", "scicap jobs [--socket PATH]", "Queued, running and recent jobs.", plain_opts},
-    {"cancel", "scicap cancel [--socket PATH] JOB", "Cancel a queued or running job.", plain_opts},
-    {"watch", "scicap watch [--socket PATH]", "Follow the daemon's event stream with a progress bar (Ctrl-C ends).",
-     plain_opts},
-    {"reload", "scicap reload [--socket PATH]", "Reload the daemon's configuration (admin).", plain_opts},
-    {"shutdown", "scicap shutdown [--socket PATH]", "Stop the daemon (admin).", plain_opts},
+    {"jobs", "scicap jobs [--socket PATH] [--json]", "Queued, running and recent jobs.", plain_opts},
+    {"cancel", "scicap cancel [--socket PATH] [--json] JOB", "Cancel a queued or running job.", plain_opts},
+    {"watch", "scicap watch [--socket PATH] [--json]",
+     "Follow the daemon's event stream with a progress bar (Ctrl-C ends).", plain_opts},
+    {"reload", "scicap reload [--socket PATH] [--json]", "Reload the daemon's configuration (admin).", plain_opts},
+    {"shutdown", "scicap shutdown [--socket PATH] [--json]", "Stop the daemon (admin).", plain_opts},
     {"reconstruct",
      "scicap recon --capture ID [--method gap-tv|admm-tv] [--preset fast|default|quality] [--iters N] [--wait]\n"
      "       scicap recon --capture ID --budget SECONDS [--method M] [--wait]",
@@ -324,6 +505,106 @@ static int parse_count(const char *s, const char *opt, long long *out)
     return 0;
 }
 
+/* ---- capture --from: the files opened here, with the user's rights, and passed to the daemon ---- */
+
+#define CLI_IMPORT_MAX_FILES 250 /* the daemon's SCICAPD_IMPORT_MAX_FILES */
+
+static void close_all(int *fds, int n)
+{
+    for (int i = 0; i < n; i++)
+        close(fds[i]);
+}
+
+static int by_name(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+/* A problem folder's files the daemon reads (problem.json, the *.json sidecars, the *.exr stacks; not the
+ * previews), opened, their names appended to `files`. Count, or -1 after printing why. */
+static int open_folder(const char *dir, json_t *files, int *fds)
+{
+    DIR *d = opendir(dir);
+    if (!d) {
+        fprintf(stderr, "scicap capture: %s: %s\n", dir, strerror(errno));
+        return -1;
+    }
+    char *names[CLI_IMPORT_MAX_FILES + 1];
+    int n = 0, too_many = 0;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        size_t l = strlen(e->d_name);
+        if (e->d_name[0] == '.' || l < 5 || (strcmp(e->d_name + l - 5, ".json") && strcmp(e->d_name + l - 4, ".exr")))
+            continue;
+        if (n == CLI_IMPORT_MAX_FILES) {
+            too_many = 1;
+            break;
+        }
+        names[n++] = strdup(e->d_name);
+    }
+    int dfd = dirfd(d), rc = n;
+    if (too_many) {
+        fprintf(stderr, "scicap capture: %s holds more than %d files to pass; pass a .mat instead\n", dir,
+                CLI_IMPORT_MAX_FILES);
+        rc = -1;
+    }
+    qsort(names, (size_t)n, sizeof *names, by_name);
+    for (int i = 0; i < n && rc >= 0; i++) {
+        fds[i] = openat(dfd, names[i], O_RDONLY | O_CLOEXEC);
+        if (fds[i] < 0) {
+            fprintf(stderr, "scicap capture: %s/%s: %s\n", dir, names[i], strerror(errno));
+            close_all(fds, i);
+            rc = -1;
+        } else {
+            json_array_append_new(files, json_string(names[i]));
+        }
+    }
+    for (int i = 0; i < n; i++)
+        free(names[i]);
+    closedir(d);
+    return rc;
+}
+
+/* Open --from (and --mask) and complete the import request's args. Count of descriptors, -1 (runtime error)
+ * or -2 (usage) after printing why. */
+static int open_import(const char *from, const char *mask_file, json_t *args, int *fds)
+{
+    struct stat sb;
+    if (stat(from, &sb) != 0) {
+        fprintf(stderr, "scicap capture: %s: %s\n", from, strerror(errno));
+        return -1;
+    }
+    json_t *files = json_array();
+    json_object_set_new(args, "files", files);
+    if (S_ISDIR(sb.st_mode)) {
+        if (mask_file || json_object_get(args, "mask_var") || json_object_get(args, "meas_var") ||
+            json_object_get(args, "truth_var") || json_object_get(args, "scale")) {
+            fprintf(stderr, "scicap capture: %s is a problem folder: it names its parts and its scale itself "
+                            "(--mask, --mask-var, --meas-var, --truth-var and --scale are for a .mat)\n", from);
+            return -2;
+        }
+        json_object_set_new(args, "kind", json_string("folder"));
+        return open_folder(from, files, fds);
+    }
+    json_object_set_new(args, "kind", json_string("mat"));
+    const char *paths[2] = {from, mask_file};
+    int n = 0;
+    for (int i = 0; i < 2 && paths[i]; i++) {
+        fds[n] = open(paths[i], O_RDONLY | O_CLOEXEC);
+        if (fds[n] < 0) {
+            fprintf(stderr, "scicap capture: %s: %s\n", paths[i], strerror(errno));
+            close_all(fds, n);
+            return -1;
+        }
+        const char *slash = strrchr(paths[i], '/');
+        char name[80];
+        snprintf(name, sizeof name, "%s%.60s", i && !strcmp(slash ? slash + 1 : paths[i], json_string_value(
+                 json_array_get(files, 0))) ? "mask-" : "", slash ? slash + 1 : paths[i]);
+        json_array_append_new(files, json_string(name));
+        if (i == 1)
+            json_object_set_new(args, "mask", json_string(name));
+        n++;
+    }
+    return n;
+}
+
 static volatile sig_atomic_t interrupted;
 static void on_sigint(int s) { (void)s; interrupted = 1; }
 
@@ -333,15 +614,34 @@ static int run(int argc, char **argv, int recon_mode)
     const client_cmd *cc = find_cmd(cmd);
     const char *sock = default_socket();
     json_t *args = json_object(), *params = NULL;
-    int wait = 0, kind = -1, c;
+    int wait = 0, kind = -1, raw = 0, c, fds[CLI_IMPORT_MAX_FILES], nfds = 0;
+    const char *from = NULL, *mask_file = NULL;
     long long v;
     optind = 1;
     opterr = 1;
     while ((c = getopt_long(argc, argv, "", cc->opts, NULL)) != -1) {
         switch (c) {
         case O_SOCKET: sock = optarg; break;
+        case O_JSON: raw = 1; break;
+        case O_FROM: from = optarg; break;
+        case O_MASK: mask_file = optarg; break;
+        case O_MASK_VAR: json_object_set_new(args, "mask_var", json_string(optarg)); break;
+        case O_MEAS_VAR: json_object_set_new(args, "meas_var", json_string(optarg)); break;
+        case O_TRUTH_VAR: json_object_set_new(args, "truth_var", json_string(optarg)); break;
+        case O_SCALE: {
+            char *end;
+            double sc = strtod(optarg, &end);
+            if (!strcmp(optarg, "auto"))
+                json_object_set_new(args, "scale", json_string("auto"));
+            else if (*end || end == optarg || !(sc > 0)) {
+                fprintf(stderr, "scicap: --scale wants auto or a white level > 0, got '%s'\n", optarg);
+                goto usage_err;
+            } else
+                json_object_set_new(args, "scale", json_real(sc));
+            break;
+        }
         case O_MASK_SET: json_object_set_new(args, "mask_set", json_string(optarg)); break;
-        case O_SYNC: json_object_set_new(args, "sync_mode", json_string(optarg)); break;
+        case O_SYNC_MODE: json_object_set_new(args, "sync_mode", json_string(optarg)); break;
         case O_METHOD: json_object_set_new(args, "method", json_string(optarg)); break;
         case O_PRESET: json_object_set_new(args, "preset", json_string(optarg)); break;
         case O_CAPTURE: json_object_set_new(args, "capture", json_string(optarg)); break;
@@ -419,9 +719,31 @@ static int run(int argc, char **argv, int recon_mode)
         fprintf(stderr, "scicap recon: --capture ID is required to reconstruct through the daemon\n");
         goto usage_err;
     }
+    static const char *const import_keys[] = {"mask_var", "meas_var", "truth_var", "scale", NULL};
+    static const char *const bench_keys[] = {"mask_set", "pattern_us", "dark_us", "exposure_us", "sync_mode",
+                                             "count", NULL};
+    for (int i = 0; !from && import_keys[i]; i++)
+        if (json_object_get(args, import_keys[i]) || mask_file) {
+            fprintf(stderr, "scicap capture: --mask, --mask-var, --meas-var, --truth-var and --scale go with --from\n");
+            goto usage_err;
+        }
+    for (int i = 0; from && bench_keys[i]; i++)
+        if (json_object_get(args, bench_keys[i])) {
+            fprintf(stderr, "scicap capture: --from takes the snapshots from the file, not the bench: no --%s\n",
+                    bench_keys[i]);
+            goto usage_err;
+        }
+    if (from) {
+        if ((nfds = open_import(from, mask_file, args, fds)) < 0) {
+            json_decref(args);
+            return nfds == -2 ? 2 : 1;
+        }
+        cmd = "import";
+    }
     conn cn = {.fd = -1};
     if (conn_open(&cn, sock) < 0) {
         json_decref(args);
+        close_all(fds, nfds);
         return 1;
     }
     /* conn_send steals non-empty args (freed with the request): decide before, never look at args after */
@@ -429,7 +751,9 @@ static int run(int argc, char **argv, int recon_mode)
     if (!send_args)
         json_decref(args);
     args = NULL;
-    if (conn_send(&cn, cmd, send_args) < 0) {
+    int sent = from ? conn_send_fds(&cn, cmd, send_args, fds, nfds) : conn_send(&cn, cmd, send_args);
+    close_all(fds, nfds); /* the daemon has its own copies of the descriptors now */
+    if (sent < 0) {
         conn_close(&cn);
         return 1;
     }
@@ -444,8 +768,16 @@ static int run(int argc, char **argv, int recon_mode)
         signal(SIGINT, on_sigint);
         json_t *m;
         while (!interrupted && (m = conn_read(&cn))) {
-            if (json_object_get(m, "event"))
-                print_event(&cn, m);
+            if (json_object_get(m, "event")) {
+                if (raw) {
+                    char *line = json_dumps(m, JSON_COMPACT | JSON_PRESERVE_ORDER);
+                    printf("%s\n", line);
+                    free(line);
+                    fflush(stdout);
+                } else {
+                    print_event(&cn, m);
+                }
+            }
             json_decref(m);
         }
         conn_close(&cn);
@@ -456,7 +788,24 @@ static int run(int argc, char **argv, int recon_mode)
         conn_close(&cn);
         return 1;
     }
-    if (json_object_get(r, "job") && json_object_size(r) == 2 && json_object_get(r, "state")) {
+    if (raw) {
+        print_json(r);
+    } else if (!strcmp(cmd, "status")) {
+        print_status(stdout, r);
+    } else if (!strcmp(cmd, "devices")) {
+        print_devices(stdout, r);
+    } else if (!strcmp(cmd, "reload")) {
+        json_t *rk = json_object_get(r, "restart_needed"), *k;
+        size_t i;
+        printf("configuration reloaded from %s\n", str(r, "config")[0] ? str(r, "config") : "(built-in defaults)");
+        json_array_foreach(rk, i, k)
+            printf("  %s changed: takes effect at the next restart\n", json_string_value(k));
+    } else if (!strcmp(cmd, "shutdown")) {
+        printf("scicapd is stopping\n");
+    } else if (!strcmp(cmd, "cancel")) {
+        printf("job %lld: cancel requested (state %s)\n", (long long)json_integer_value(json_object_get(r, "job")),
+               str(r, "state"));
+    } else if (json_object_get(r, "job") && json_object_size(r) == 2 && json_object_get(r, "state")) {
         printf("job %lld queued\n", (long long)json_integer_value(json_object_get(r, "job")));
         fflush(stdout);
         if (wait)

@@ -468,6 +468,8 @@ static void run_capture(scicapd_acquire *a, scicapd_job *j)
         if (atomic_load(&j->cancel) || atomic_load(&a->stop))
             break;
         apply_faults(a);
+        scicapd_span sp;
+        scicapd_span_begin(&sp);
         if ((rc = program(a, c->mask_set.name, masks, c->pattern_us, c->dark_us, c->sync, &err)) < 0 ||
             (rc = take(a, masks->n, exposure, c->sync, 0, &err)) < 0)
             break;
@@ -477,6 +479,7 @@ static void run_capture(scicapd_acquire *a, scicapd_job *j)
         scicapd_snapshot *s = NULL;
         if ((rc = package(a, j, i, masks, &s, &err)) < 0)
             break;
+        scicapd_timing_add(a->env.timing, SCICAPD_STAGE_ACQUIRE, &sp);
         post(a, j, "capture.snapshot", json_pack("{s:i, s:i, s:b, s:s, s:i, s:I}", "index", i, "count", c->count,
                                                  "broken", s->broken, "sync", flags, "inside", a->snap->report.inside,
                                                  "offset_ns", (json_int_t)a->snap->report.offset_ns));

@@ -23,6 +23,7 @@
 #include "daemon/mailbox.h"
 #include "daemon/queue.h"
 #include "daemon/store.h"
+#include "daemon/timing.h"
 
 typedef struct scicapd_acquire scicapd_acquire;
 
@@ -32,6 +33,7 @@ typedef struct scicapd_acquire_env {
     scicapd_store *store;
     scicapd_queue *in;        /* capture and calibrate jobs (references) */
     scicapd_queue *out;       /* snapshots for the writer */
+    scicapd_timing *timing;   /* SCICAPD_STAGE_ACQUIRE per snapshot; may be NULL */
     const sci_log *log;
 } scicapd_acquire_env;
 

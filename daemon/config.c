@@ -81,7 +81,7 @@ static void defaults(scicapd_config *c)
     snprintf(c->recon_curves, sizeof c->recon_curves, "%s/results.csv", SCICAP_DATADIR);
     default_curves(c->recon_curves, sizeof c->recon_curves);
     c->recon_auto = 0;
-    c->workers = 1;
+    c->workers = 2;
     c->capture_queue = 16;
     c->recon_queue = 16;
 }
@@ -279,7 +279,7 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
     static const char *const dmds[] = {"sim", "dlpc900", NULL};
     static const char *const cams[] = {"sim", "v4l2", "aravis", NULL};
     static const char *const trigs[] = {"sim", "gpiod", NULL};
-    static const char *const cam_strip[] = {"readout_us", NULL};
+    static const char *const cam_strip[] = {"readout_us", "usb", NULL};
     int rc;
     if ((rc = sci_json_check_keys(doc, o, "devices", keys, err)) < 0 ||
         (rc = parse_device(doc, o, "dmd", dmds, c->dmd_backend, sizeof c->dmd_backend, NULL, NULL, err)) < 0 ||
@@ -294,6 +294,24 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
     const json_t *cam = json_object_get(o, "camera");
     if (cam && (rc = get_u32(doc, cam, "devices.camera", "readout_us", 0, 1000000, &c->camera_readout_us, err)) < 0)
         return rc;
+    const json_t *usb = cam ? json_object_get(cam, "usb") : NULL;
+    if (usb) { /* the camera's USB ids, for `scicapd --udev-rules` only (daemon/udev_rules.h) */
+        static const char *const ukeys[] = {"vendor", "product", "serial", NULL};
+        if (!json_is_object(usb))
+            return sci_json_fail(doc, err, "devices.camera.usb", "must be an object {\"vendor\", \"product\", "
+                                 "\"serial\"}");
+        if ((rc = sci_json_check_keys(doc, usb, "devices.camera.usb", ukeys, err)) < 0 ||
+            (rc = get_str(doc, usb, "devices.camera.usb", "vendor", c->camera_usb_vendor,
+                          sizeof c->camera_usb_vendor, err)) < 0 ||
+            (rc = get_str(doc, usb, "devices.camera.usb", "product", c->camera_usb_product,
+                          sizeof c->camera_usb_product, err)) < 0 ||
+            (rc = get_str(doc, usb, "devices.camera.usb", "serial", c->camera_usb_serial,
+                          sizeof c->camera_usb_serial, err)) < 0)
+            return rc;
+        if (!c->camera_usb_vendor[0] || !c->camera_usb_product[0])
+            return sci_json_fail(doc, err, "devices.camera.usb", "needs \"vendor\" and \"product\" (lsusb: "
+                                 "ID vendor:product)");
+    }
     int sim_cam = strcmp(c->camera_backend, "sim") == 0, sim_trig = strcmp(c->trigger_backend, "sim") == 0;
     if (sim_cam && c->camera_json && json_object_size(c->camera_json) > 0)
         return sci_json_fail(doc, err, "devices.camera", "the sim camera takes no settings besides \"backend\" "

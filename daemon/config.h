@@ -68,8 +68,10 @@ typedef struct scicapd_config {
     uint32_t dmd_trigger_delay_us;        /* dlpc900: TRIG_IN_1 edge to pattern (external trigger); 0 = 105 */
     int dmd_trigger_falling;              /* dlpc900: advance on the falling edge of TRIG_IN_1 */
     uint32_t camera_readout_us;           /* exposure end to frame timestamp (window estimate without a strobe) */
+    char camera_usb_vendor[8], camera_usb_product[8], camera_usb_serial[SCICAPD_NAME_MAX]; /* "camera.usb":
+                                             USB ids for `scicapd --udev-rules`; "" = not given */
     json_t *camera_json, *trigger_json;   /* the "camera" / "trigger" objects minus the daemon's own keys
-                                             ("backend", "readout_us"): what camera_config_from_json /
+                                             ("backend", "readout_us", "usb"): what camera_config_from_json /
                                              trigger_config_from_json read; may be NULL */
     /* simulator (used when a backend is "sim") */
     char scene_path[SCICAPD_PATH_MAX];    /* "" = the embedded default scene */
@@ -96,8 +98,8 @@ typedef struct scicapd_config {
                                              SCICAP_DATADIR/results.csv (installed by make install), else, from a
                                              build tree, <exe dir>/../bench/results.csv */
     int recon_auto;                       /* reconstruct every capture unless the request says otherwise */
-    int workers;                          /* reconstruction threads, 1..16 */
-    int recon_threads;                    /* OpenMP threads per reconstruction; 0 = OpenMP's default */
+    int workers;                          /* reconstruction workers, 1..16 (default 2) */
+    int recon_threads;                    /* OpenMP threads per worker; 0 = the process's CPUs / workers, >= 1 */
     /* queues */
     int capture_queue, recon_queue;       /* bounded job queues: a full queue answers "busy" */
 } scicapd_config;

@@ -131,8 +131,54 @@ fail:
     return rc;
 }
 
+static void close_passed(scicapd_client *c)
+{
+    for (int i = 0; i < c->nfds; i++)
+        close(c->fds[i]);
+    c->nfds = 0;
+}
+
+int scicapd_client_take_fds(scicapd_client *c, int *out, int max)
+{
+    int n = c->nfds < max ? c->nfds : max;
+    memcpy(out, c->fds, (size_t)n * sizeof *out);
+    memmove(c->fds, c->fds + n, (size_t)(c->nfds - n) * sizeof *c->fds);
+    c->nfds -= n;
+    return n;
+}
+
+/* recv with the descriptors a peer passed kept in c->fds (beyond the table's room: closed). */
+static ssize_t recv_with_fds(scicapd_client *c, void *buf, size_t len)
+{
+    union {
+        char b[CMSG_SPACE(sizeof(int) * SCICAPD_CLIENT_MAX_FDS)];
+        struct cmsghdr align;
+    } ctl;
+    struct iovec iov = {.iov_base = buf, .iov_len = len};
+    struct msghdr m = {.msg_iov = &iov, .msg_iovlen = 1, .msg_control = ctl.b, .msg_controllen = sizeof ctl.b};
+    ssize_t r = recvmsg(c->fd, &m, MSG_DONTWAIT | MSG_CMSG_CLOEXEC);
+    if (r < 0)
+        return r;
+    for (struct cmsghdr *h = CMSG_FIRSTHDR(&m); h; h = CMSG_NXTHDR(&m, h)) {
+        if (h->cmsg_level != SOL_SOCKET || h->cmsg_type != SCM_RIGHTS)
+            continue;
+        int n = (int)((h->cmsg_len - CMSG_LEN(0)) / sizeof(int));
+        const unsigned char *p = CMSG_DATA(h);
+        for (int i = 0; i < n; i++) {
+            int fd;
+            memcpy(&fd, p + (size_t)i * sizeof fd, sizeof fd);
+            if (c->nfds < SCICAPD_CLIENT_MAX_FDS)
+                c->fds[c->nfds++] = fd;
+            else
+                close(fd);
+        }
+    }
+    return r;
+}
+
 static void client_free(scicapd_client *c)
 {
+    close_passed(c);
     close(c->fd);
     free(c->in);
     free(c->out);
@@ -331,7 +377,7 @@ static int read_client(scicapd_control *ctl, scicapd_client *c)
             c->in_len = 0;
             c->skipping = 1;
         }
-        ssize_t r = recv(c->fd, c->in + c->in_len, ctl->lim.max_line + 1 - c->in_len, MSG_DONTWAIT);
+        ssize_t r = recv_with_fds(c, c->in + c->in_len, ctl->lim.max_line + 1 - c->in_len);
         if (r < 0)
             return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR ? 0 : -1;
         if (r == 0)
@@ -352,6 +398,7 @@ static int read_client(scicapd_control *ctl, scicapd_client *c)
                 c->last_request_ns = now;
                 ctl->hooks.on_line(ctl->hooks.user, c, c->in + start, len);
             }
+            close_passed(c); /* what the request did not take */
             start = i + 1;
             /* bytes after this newline, if any, begin the next line now */
             c->line_start_ns = end > start ? now : 0;

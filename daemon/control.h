@@ -7,6 +7,9 @@
  * Each connection's peer credentials (SO_PEERCRED: pid, uid, gid) are taken at accept and logged.
  * Input is split into lines of at most max_line bytes; each complete line goes to on_line. A longer line is
  * answered "too_long" (check 1 of daemon/protocol.h) and skipped up to its newline; the connection stays.
+ * Descriptors a peer passes (SCM_RIGHTS, sent with the first byte of a request line in one sendmsg) wait in the
+ * connection until its line is complete; on_line may take them (scicapd_client_take_fds), and whatever it does
+ * not take is closed when it returns, so a descriptor never outlives the request it came with.
  * Output is buffered per connection and written as the socket accepts it (never blocks the loop); a client that
  * lets more than 16 MiB pile up is disconnected (logged). Used only from the event-loop thread.
  *
@@ -31,6 +34,8 @@
 #include "base/error.h"
 #include "base/log.h"
 
+#define SCICAPD_CLIENT_MAX_FDS 253 /* the kernel's SCM_MAX_FD: what one sendmsg can carry */
+
 typedef struct scicapd_client {
     uint64_t id;        /* 1, 2, ... never reused within a run */
     int fd;
@@ -47,7 +52,12 @@ typedef struct scicapd_client {
     char *out;          /* pending output */
     size_t out_len, out_off, out_cap;
     int closing;        /* close once the output is written */
+    int fds[SCICAPD_CLIENT_MAX_FDS]; /* descriptors passed with the pending line (close-on-exec) */
+    int nfds;
 } scicapd_client;
+
+/* Move the descriptors passed with the current line into out (at most max; the rest stay, to be closed). */
+int scicapd_client_take_fds(scicapd_client *c, int *out, int max);
 
 typedef struct scicapd_control scicapd_control;
 

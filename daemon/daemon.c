@@ -22,6 +22,7 @@
 #include "daemon/acquire.h"
 #include "daemon/config.h"
 #include "daemon/control.h"
+#include "daemon/import.h"
 #include "daemon/jobs.h"
 #include "daemon/mailbox.h"
 #include "daemon/notify.h"
@@ -29,10 +30,14 @@
 #include "daemon/queue.h"
 #include "daemon/reconq.h"
 #include "daemon/store.h"
+#include "daemon/timing.h"
 #include "daemon/workers.h"
 
 /* Snapshots waiting for a writer: enough to keep every writer busy while the acquisition thread runs ahead. */
 #define STORE_QUEUE_MIN 8
+/* A capture's reconstruction gets the snapshot's problem from memory up to this size (a 256×256×8 simulated
+ * capture holds 4.5 MB); larger ones are read back from the folder, so a full queue never pins gigabytes. */
+#define HANDOVER_MAX_BYTES (64LL << 20)
 
 struct scicapd {
     const sci_log *log;
@@ -48,6 +53,7 @@ struct scicapd {
     scicapd_queue *acq_q, *store_q, *recon_q;
     scicapd_acquire *acq;
     scicapd_workers *workers;
+    scicapd_timing *timing;     /* per-stage time counters, shown by status */
     scicapd_control *ctl;
     int sfd, stopfd;
     sigset_t oldmask;
@@ -118,6 +124,16 @@ static int reload(scicapd *d, json_t **restart, sci_error *err)
 
 /* ---- from the writer thread ---- */
 
+static long long problem_bytes(const sci_problem *p)
+{
+    long long n = 0;
+    const sci_cube *c[] = {p->meas, p->mask, p->truth};
+    for (int i = 0; i < 3; i++)
+        if (c[i])
+            n += (long long)sci_cube_count(c[i]) * (long long)sizeof(float);
+    return n;
+}
+
 static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *err)
 {
     scicapd *d = user;
@@ -154,15 +170,23 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
         } else {
             snprintf(r->recon.capture_id, sizeof r->recon.capture_id, "%s", s->capture_id);
             r->recon.spec = c->recon;
+            if (problem_bytes(s->problem) <= HANDOVER_MAX_BYTES) {
+                r->problem = s->problem; /* the worker need not read back what was just written */
+                s->problem = NULL;
+            }
             sci_error e2 = {0};
             int q = scicapd_reconq_save(d->store, r, &e2);
             if (q < 0)
                 sci_log_write(d->log, SCI_LOG_ERR, "job %llu: %s", (unsigned long long)r->id, e2.msg);
-            else
-                q = scicapd_queue_push(d->recon_q, r);
-            if (q < 0) {
-                why = q == SCI_EBUSY ? "reconstruction queue full" : q == -EPIPE ? "daemon stopping"
-                                                                                 : "cannot save the queue entry";
+            else /* back-pressure: a full queue holds this writer, the store queue then the acquisition, so a
+                  * capture runs at the pace its reconstructions keep up with instead of refusing them */
+                q = scicapd_queue_push_wait(d->recon_q, r);
+            if (q == -EPIPE) { /* stopping: the saved entry stays and is resumed at the next start */
+                why = "daemon stopping; resumed at the next start";
+                scicapd_jobs_forget(d->jobs, r);
+                scicapd_job_unref(d->jobs, r);
+            } else if (q < 0) {
+                why = "cannot save the queue entry";
                 scicapd_reconq_drop(d->store, r);
                 scicapd_jobs_forget(d->jobs, r);
                 scicapd_job_unref(d->jobs, r);
@@ -240,7 +264,7 @@ static json_t *status_json(scicapd *d)
     int q, r, f;
     scicapd_jobs_count(d->jobs, &q, &r, &f);
     return json_pack("{s:s, s:i, s:i, s:f, s:s, s:s, s:s, s:b, s:{s:[i,i], s:[i,i], s:[i,i]}, s:{s:i, s:i, s:i},"
-                     " s:i, s:i, s:I, s:{s:i, s:i, s:i}, s:b, s:o}",
+                     " s:i, s:i, s:I, s:{s:i, s:i, s:i}, s:b, s:o, s:o}",
                      "version", SCICAP_VERSION, "protocol", SCICAPD_PROTOCOL_VERSION, "pid", (int)getpid(),
                      "uptime_s", sci_clock_s(d->started_ns, sci_clock_mono_ns()), "config",
                      d->cfg->path[0] ? d->cfg->path : "(built-in defaults)", "socket", d->cfg->socket_path,
@@ -252,7 +276,8 @@ static json_t *status_json(scicapd *d)
                      scicapd_control_clients(d->ctl), "captures_stored", (json_int_t)atomic_load(&d->stored),
                      "recovered", "captures", d->recovered.captures, "removed_partial", d->recovered.removed,
                      "reconstructions_resumed", d->resumed,
-                     "stopping", atomic_load(&d->stopping), "devices", scicapd_acquire_devices_json(d->acq));
+                     "stopping", atomic_load(&d->stopping), "devices", scicapd_acquire_devices_json(d->acq),
+                     "timing", scicapd_timing_json(d->timing));
 }
 
 static void submit(scicapd *d, scicapd_client *c, const json_t *id, scicapd_job *j, scicapd_queue *q,
@@ -296,6 +321,7 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
     scicapd_calib_args cal;
     scicapd_recon_args rec;
     scicapd_simulate_args sim;
+    scicapd_import_args *imp = NULL;
     uint64_t job_id = 0;
     int rc;
     switch (r.cmd) {
@@ -304,6 +330,12 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
     case SCICAPD_CMD_RECONSTRUCT: rc = scicapd_args_reconstruct(&r, d->cfg, &rec, &err); break;
     case SCICAPD_CMD_CANCEL: rc = scicapd_args_cancel(&r, &job_id, &err); break;
     case SCICAPD_CMD_SIMULATE: rc = scicapd_args_simulate(&r, &sim, &err); break;
+    case SCICAPD_CMD_IMPORT: {
+        int fds[SCICAPD_CLIENT_MAX_FDS];
+        int n = scicapd_client_take_fds(c, fds, SCICAPD_CLIENT_MAX_FDS);
+        rc = scicapd_args_import(&r, d->cfg, fds, n, &imp, &err);
+        break;
+    }
     default: rc = scicapd_args_none(&r, &err); break;
     }
     if (rc < 0) {
@@ -345,6 +377,15 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
         j->capture = cap;
         j->calib = cal;
         submit(d, c, r.id, j, d->acq_q, "capture");
+        break;
+    case SCICAPD_CMD_IMPORT: /* read, stored and reconstructed on a worker: the loop never waits for files */
+        if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_IMPORT, c->id, c->uid, r.id, &j) < 0) {
+            reply_err(d, c, r.id, SCICAPD_E_FAILED, "out of memory");
+            break;
+        }
+        j->import = imp;
+        imp = NULL;
+        submit(d, c, r.id, j, d->recon_q, "reconstruction");
         break;
     case SCICAPD_CMD_RECONSTRUCT: {
         char dir[1100];
@@ -409,6 +450,7 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
     case SCICAPD_CMD_COUNT: break;
     }
 out:
+    scicapd_import_args_free(imp);
     scicapd_request_clear(&r);
 }
 
@@ -480,8 +522,10 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
         sci_log_write(log, SCI_LOG_WARNING, "storage %s: removed %d partial folders left by an interrupted run",
                       d->cfg->storage_root, d->recovered.removed);
     sci_log_write(log, SCI_LOG_INFO, "storage %s: %d captures", d->cfg->storage_root, d->recovered.captures);
+    scicapd_import_sweep(d->store); /* staging copies an interrupted import left */
     /* 3. queues and the job table */
     if ((rc = scicapd_jobs_new(&d->jobs)) < 0 || (rc = scicapd_mailbox_new(&d->mailbox)) < 0 ||
+        (rc = scicapd_timing_new(&d->timing)) < 0 ||
         (rc = scicapd_queue_new(&d->acq_q, d->cfg->capture_queue)) < 0 ||
         (rc = scicapd_queue_new(&d->store_q, d->cfg->writers * 2 > STORE_QUEUE_MIN ? d->cfg->writers * 2
                                                                                  : STORE_QUEUE_MIN)) < 0 ||
@@ -512,7 +556,7 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
     }
     /* 5. devices */
     scicapd_acquire_env ae = {.jobs = d->jobs, .mailbox = d->mailbox, .store = d->store, .in = d->acq_q,
-                              .out = d->store_q, .log = log};
+                              .out = d->store_q, .timing = d->timing, .log = log};
     if ((rc = scicapd_acquire_new(&d->acq, d->cfg, &ae, err)) < 0)
         goto fail;
     /* 6. the control socket */
@@ -524,9 +568,10 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
     /* 7. threads: writer, reconstruction workers, acquisition */
     scicapd_store_set_previews(d->store, d->cfg->previews);
     d->store_started = 1; /* stop joins whatever threads did start */
-    if ((rc = scicapd_store_start(d->store, d->store_q, d->cfg->writers, on_stored, d, err)) < 0)
+    if ((rc = scicapd_store_start(d->store, d->store_q, d->cfg->writers, on_stored, d, d->timing, err)) < 0)
         goto fail;
-    scicapd_workers_env we = {.jobs = d->jobs, .mailbox = d->mailbox, .store = d->store, .in = d->recon_q, .log = log};
+    scicapd_workers_env we = {.jobs = d->jobs, .mailbox = d->mailbox, .store = d->store, .in = d->recon_q,
+                              .timing = d->timing, .log = log};
     if ((rc = scicapd_workers_start(&d->workers, &we, d->cfg->workers, d->cfg->recon_threads, err)) < 0 ||
         (rc = scicapd_acquire_start(d->acq, err)) < 0)
         goto fail;
@@ -681,6 +726,7 @@ void scicapd_free(scicapd *d)
     scicapd_queue_free(d->acq_q);
     scicapd_mailbox_free(d->mailbox);
     scicapd_jobs_free(d->jobs);
+    scicapd_timing_free(d->timing);
     scicapd_store_close(d->store);
     if (d->sfd >= 0) {
         close(d->sfd);

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "base/clock.h"
+#include "daemon/import.h"
 
 struct scicapd_jobs {
     pthread_mutex_t mu;
@@ -18,7 +19,10 @@ struct scicapd_jobs {
 
 const char *scicapd_job_kind_name(scicapd_job_kind k)
 {
-    return k == SCICAPD_JOB_CAPTURE ? "capture" : k == SCICAPD_JOB_CALIBRATE ? "calibrate" : "reconstruct";
+    return k == SCICAPD_JOB_CAPTURE     ? "capture"
+           : k == SCICAPD_JOB_CALIBRATE ? "calibrate"
+           : k == SCICAPD_JOB_IMPORT    ? "import"
+                                        : "reconstruct";
 }
 
 const char *scicapd_job_state_name(scicapd_job_state s)
@@ -42,6 +46,8 @@ static void job_free(scicapd_job *j)
 {
     json_decref(j->request_id);
     json_decref(j->outputs);
+    sci_problem_free(j->problem);
+    scicapd_import_args_free(j->import);
     free(j);
 }
 

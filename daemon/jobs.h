@@ -21,10 +21,13 @@
 #include <sys/types.h>
 
 #include "daemon/protocol.h"
+#include "recon/problem.h"
 
 #define SCICAPD_JOBS_HISTORY 256
 
-typedef enum scicapd_job_kind { SCICAPD_JOB_CAPTURE, SCICAPD_JOB_CALIBRATE, SCICAPD_JOB_RECONSTRUCT } scicapd_job_kind;
+typedef enum scicapd_job_kind {
+    SCICAPD_JOB_CAPTURE, SCICAPD_JOB_CALIBRATE, SCICAPD_JOB_RECONSTRUCT, SCICAPD_JOB_IMPORT
+} scicapd_job_kind;
 typedef enum scicapd_job_state {
     SCICAPD_JOB_QUEUED, SCICAPD_JOB_RUNNING, SCICAPD_JOB_DONE, SCICAPD_JOB_FAILED, SCICAPD_JOB_CANCELED
 } scicapd_job_state;
@@ -49,6 +52,9 @@ typedef struct scicapd_job {
     scicapd_capture_args capture;
     scicapd_calib_args calib;
     scicapd_recon_args recon;
+    struct scicapd_import_args *import; /* import: the arguments and passed descriptors (owned; daemon/import.h) */
+    sci_problem *problem;      /* reconstruct: the capture's problem handed over by the writer that stored it (owned;
+                                  the worker takes it), or NULL: the worker reads the capture folder */
     /* under the table lock */
     scicapd_job_state state;
     int done, total;           /* snapshots stored / iterations run, of total */

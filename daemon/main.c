@@ -19,6 +19,7 @@
 #include "base/omp_env.h"
 #include "daemon/config.h"
 #include "daemon/daemon.h"
+#include "daemon/udev_rules.h"
 
 static void usage(FILE *f)
 {
@@ -38,6 +39,7 @@ static void usage(FILE *f)
             "      --allow-root       run as uid 0 outside systemd (refused otherwise)\n"
             "  -v, --verbose          debug messages\n"
             "  -t, --check-config     validate the configuration and exit (0 valid, 1 invalid)\n"
+            "      --udev-rules       print udev rules giving group scicap exactly the configured devices, exit\n"
             "  -h, --help             this text\n"
             "      --version          print the version\n");
 }
@@ -51,10 +53,10 @@ int main(int argc, char **argv)
         {"runtime-dir", required_argument, 0, 'r'}, {"no-fsync", no_argument, 0, 'F'},
         {"verbose", no_argument, 0, 'v'}, {"check-config", no_argument, 0, 't'},
         {"help", no_argument, 0, 'h'}, {"version", no_argument, 0, 'V'}, {"allow-root", no_argument, 0, 'R'},
-        {0, 0, 0, 0},
+        {"udev-rules", no_argument, 0, 'U'}, {0, 0, 0, 0},
     };
     scicapd_options o = {.fsync = -1};
-    int verbose = 0, check = 0, no_config = 0, allow_root = 0, c;
+    int verbose = 0, check = 0, no_config = 0, allow_root = 0, udev = 0, c;
     while ((c = getopt_long(argc, argv, "c:s:d:r:vth", opts, NULL)) != -1) {
         switch (c) {
         case 'c': o.config_path = optarg; break;
@@ -66,6 +68,7 @@ int main(int argc, char **argv)
         case 'R': allow_root = 1; break;
         case 'v': verbose = 1; break;
         case 't': check = 1; break;
+        case 'U': udev = 1; break;
         case 'h': usage(stdout); return 0;
         case 'V': printf("scicapd %s\n", SCICAP_VERSION); return 0;
         default: usage(stderr); return 2;
@@ -82,15 +85,21 @@ int main(int argc, char **argv)
     sci_log log = {.fd = 2, .level = verbose ? SCI_LOG_DEBUG : SCI_LOG_INFO, .journal = getenv("JOURNAL_STREAM") != NULL,
                    .tag = "scicapd"};
     sci_error err = {0};
-    if (check) {
+    if (check || udev) {
         scicapd_config *cfg;
         if (scicapd_config_load(&cfg, o.config_path, &err) < 0) {
             fprintf(stderr, "scicapd: %s\n", err.msg);
             return 1;
         }
-        printf("%s: valid\n", o.config_path ? o.config_path : "built-in defaults");
+        int rc = 0;
+        if (udev && scicapd_udev_rules_write(stdout, cfg, &err) < 0) {
+            fprintf(stderr, "scicapd: %s%s%s\n", cfg->path[0] ? cfg->path : "", cfg->path[0] ? ": " : "", err.msg);
+            rc = 1;
+        } else if (!udev) {
+            printf("%s: valid\n", o.config_path ? o.config_path : "built-in defaults");
+        }
         scicapd_config_free(cfg);
-        return 0;
+        return rc;
     }
     const char *inv = getenv("INVOCATION_ID");
     if (geteuid() == 0 && !allow_root && !(inv && inv[0])) {

@@ -9,7 +9,7 @@
 
 static const char *const cmd_names[SCICAPD_CMD_COUNT] = {
     "status", "devices", "capture", "calibrate", "reconstruct", "jobs", "cancel", "watch", "reload", "shutdown",
-    "simulate",
+    "simulate", "import",
 };
 static const char *const err_names[SCICAPD_E_COUNT] = {
     "ok", "too_long", "bad_json", "bad_version", "unknown_command", "bad_arguments", "permission", "busy",

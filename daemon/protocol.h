@@ -50,6 +50,7 @@ typedef enum scicapd_cmd {
     SCICAPD_CMD_RELOAD,
     SCICAPD_CMD_SHUTDOWN,
     SCICAPD_CMD_SIMULATE, /* fault injection on the simulated bench (admin; refused on hardware) */
+    SCICAPD_CMD_IMPORT,   /* captures from files the client passes as descriptors (daemon/import.h) */
     SCICAPD_CMD_COUNT
 } scicapd_cmd;
 

@@ -38,6 +38,7 @@ struct scicapd_store {
     scicapd_queue *q;
     scicapd_stored_fn on_stored;
     void *user;
+    scicapd_timing *timing;  /* borrowed; may be NULL */
 };
 
 static int rm_cb(const char *p, const struct stat *sb, int flag, struct FTW *ftw)
@@ -429,9 +430,9 @@ int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_erro
     if (rc < 0)
         goto fail;
     snprintf(path, sizeof path, "%s/raw.tif", tmp);
-    if ((rc = sci_image_write(path, s->raw, 0, SCI_PIXEL_U16, 1.0, "scicap raw snapshot (counts)", err)) < 0)
+    if (s->raw && (rc = sci_image_write(path, s->raw, 0, SCI_PIXEL_U16, 1.0, "scicap raw snapshot (counts)", err)) < 0)
         goto fail;
-    if ((rc = write_shown_masks(st, s->dmd_masks, tmp, err)) < 0)
+    if (s->dmd_masks && (rc = write_shown_masks(st, s->dmd_masks, tmp, err)) < 0)
         goto fail;
     if (s->dark) {
         snprintf(path, sizeof path, "%s/dark.tif", tmp);
@@ -560,16 +561,20 @@ static void *writer_main(void *arg)
     scicapd_snapshot *s;
     while ((s = scicapd_queue_pop(st->q, -1))) {
         sci_error err = {0};
+        scicapd_span sp;
+        scicapd_span_begin(&sp);
         int rc = scicapd_store_write_capture(st, s, &err);
+        scicapd_timing_add(st->timing, SCICAPD_STAGE_STORE, &sp);
         st->on_stored(st->user, s, rc, &err);
     }
     return NULL;
 }
 
 int scicapd_store_start(scicapd_store *st, scicapd_queue *q, int writers, scicapd_stored_fn on_stored, void *user,
-                        sci_error *err)
+                        scicapd_timing *timing, sci_error *err)
 {
     st->q = q;
+    st->timing = timing;
     st->on_stored = on_stored;
     st->user = user;
     writers = writers < 1 ? 1 : writers > STORE_MAX_WRITERS ? STORE_MAX_WRITERS : writers;

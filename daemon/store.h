@@ -36,6 +36,7 @@
 #include "base/log.h"
 #include "daemon/jobs.h"
 #include "daemon/queue.h"
+#include "daemon/timing.h"
 #include "recon/problem.h"
 
 typedef struct scicapd_store scicapd_store;
@@ -45,8 +46,8 @@ typedef struct scicapd_snapshot {
     scicapd_job *job;        /* reference (released by scicapd_snapshot_free through the jobs table) */
     int index;               /* 0-based snapshot of the job */
     sci_problem *problem;    /* meas in calibrated units, the masks used, truth on the simulator */
-    sci_cube *raw;           /* counts, w×h×1 */
-    sci_cube *dmd_masks;     /* as shown on the DMD (0/1) */
+    sci_cube *raw;           /* counts, w×h×1; NULL for an import (no raw.tif) */
+    sci_cube *dmd_masks;     /* as shown on the DMD (0/1); NULL for an import (no dmd_mask_*.png) */
     sci_cube *dark;          /* dark frame subtracted (counts), or NULL */
     json_t *meta;            /* settings, identities, timestamps, sync report */
     json_t *calibration;     /* the calibration record used, or NULL */
@@ -79,7 +80,8 @@ int scicapd_store_fsync_on(const scicapd_store *s);
 int scicapd_store_reserve_id(scicapd_store *st, scicapd_snapshot *s, sci_error *err);
 /* Previews (preview_*.png, preview_truth.gif) in the folders written from now on (storage.previews). */
 void scicapd_store_set_previews(scicapd_store *st, int on);
-/* Write one snapshot as a capture folder (reserves an id unless s has one; sets s->dir). Blocks on file I/O. */
+/* Write one snapshot as a capture folder (reserves an id unless s has one; sets s->dir). Blocks on file I/O.
+ * s->job may be NULL (imports). */
 int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_error *err);
 /* ROOT/captures/<id> into buf if it is a complete capture; -ENOENT otherwise. */
 int scicapd_store_capture_dir(const scicapd_store *st, const char *id, char *buf, size_t n, sci_error *err);
@@ -94,12 +96,13 @@ int scicapd_store_write_calibration(scicapd_store *st, const char *key, const sc
 int scicapd_store_load_calibration(scicapd_store *st, const char *key, sci_cube **data, json_t **record,
                                    sci_error *err);
 
-/* The writer threads (1..16): each pops snapshots from q until it is closed and empty, writes each, then calls
- * on_stored (on that writer thread, so on_stored must be thread-safe) with rc and err; on_stored takes ownership
- * of the snapshot. On failure the threads already started keep running: call scicapd_store_stop. */
+/* The writer threads (1..16): each pops snapshots from q until it is closed and empty, writes each (its time
+ * counted under SCICAPD_STAGE_STORE in `timing`, which may be NULL), then calls on_stored (on that writer
+ * thread, so on_stored must be thread-safe) with rc and err; on_stored takes ownership of the snapshot. On
+ * failure the threads already started keep running: call scicapd_store_stop. */
 typedef void (*scicapd_stored_fn)(void *user, scicapd_snapshot *s, int rc, const sci_error *err);
 int scicapd_store_start(scicapd_store *st, scicapd_queue *q, int writers, scicapd_stored_fn on_stored, void *user,
-                        sci_error *err);
+                        scicapd_timing *timing, sci_error *err);
 /* Waits for the queue (closed by the caller) to drain and the threads to end. */
 void scicapd_store_stop(scicapd_store *st);
 

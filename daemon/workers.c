@@ -5,18 +5,23 @@
 #include <math.h>
 #include <omp.h>
 #include <pthread.h>
+#include <sched.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "base/clock.h"
+#include "daemon/import.h"
 #include "daemon/reconq.h"
 #include "io/problem_dir.h"
 #include "io/recon_store.h"
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
+
+#define SCICAPD_IMPORT_RECON_MAX 1000 /* reconstructions one import queues (a .mat may hold more snapshots) */
 
 struct scicapd_workers {
     scicapd_workers_env env;
@@ -74,23 +79,44 @@ static void run(scicapd_workers *w, scicapd_job *j)
     int64_t t0 = sci_clock_mono_ns();
     scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_RUNNING, NULL);
     post(w, j, "recon.started", json_pack("{s:s, s:s}", "capture", ra->capture_id, "method", method));
-    if ((rc = scicapd_store_capture_dir(w->env.store, ra->capture_id, dir, sizeof dir, &err)) < 0 ||
-        (rc = sci_problem_dir_read(dir, &pp, &k, &err)) < 0)
+    scicapd_span sp;
+    scicapd_span_begin(&sp);
+    if ((rc = scicapd_store_capture_dir(w->env.store, ra->capture_id, dir, sizeof dir, &err)) < 0)
         goto done;
+    if (j->problem) { /* handed over by the writer that stored it: the same values, not read back */
+        if (!(pp = malloc(sizeof *pp))) {
+            rc = sci_error_set(&err, -ENOMEM, "out of memory");
+            goto done;
+        }
+        pp[0] = j->problem;
+        j->problem = NULL;
+        k = 1;
+    } else if ((rc = sci_problem_dir_read(dir, &pp, &k, &err)) < 0) {
+        goto done;
+    }
     if (k < 1) {
         rc = sci_error_set(&err, SCI_EFORMAT, "%s: no snapshot", dir);
         goto done;
     }
+    scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_READ, &sp);
     run_ctx ctx = {.w = w, .job = j, .t0_ns = sci_clock_mono_ns()};
     int64_t ts = sci_clock_mono_ns();
+    scicapd_span_begin(&sp);
+    /* PSNR against the truth on every 10th iteration (and the last) rather than each: progress events go out
+     * every 100 ms at most, and two PSNRs per iteration cost as much as half a fast GAP-TV iteration */
+    sci_gaptv_params gap = ra->spec.gap;
+    sci_admmtv_params admm = ra->spec.admm;
+    gap.metrics_every = gap.iters >= 20 ? gap.iters / 10 : 1;
+    admm.metrics_every = admm.iters >= 20 ? admm.iters / 10 : 1;
     if (ra->spec.method == SCICAPD_METHOD_ADMMTV) {
-        ctx.iters = ra->spec.admm.iters;
-        rc = sci_admmtv_solve(pp[0], &ra->spec.admm, &r, on_progress, &ctx);
+        ctx.iters = admm.iters;
+        rc = sci_admmtv_solve(pp[0], &admm, &r, on_progress, &ctx);
     } else {
-        ctx.iters = ra->spec.gap.iters;
-        rc = sci_gaptv_solve(pp[0], &ra->spec.gap, &r, on_progress, &ctx);
+        ctx.iters = gap.iters;
+        rc = sci_gaptv_solve(pp[0], &gap, &r, on_progress, &ctx);
     }
     double solve_s = sci_clock_s(ts, sci_clock_mono_ns());
+    scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_SOLVE, &sp);
     if (rc < 0) {
         if (rc == SCI_ECANCELED)
             sci_error_set(&err, rc, "canceled after %d iterations", r.iters_done);
@@ -98,6 +124,7 @@ static void run(scicapd_workers *w, scicapd_job *j)
             sci_error_set(&err, rc, "%s", r.error.msg[0] ? r.error.msg : sci_strerror(rc));
         goto done;
     }
+    scicapd_span_begin(&sp);
     snprintf(out, sizeof out, "%s/recon/%s", dir, method);
     char rdir[1200];
     snprintf(rdir, sizeof rdir, "%s/recon", dir);
@@ -110,6 +137,7 @@ static void run(scicapd_workers *w, scicapd_job *j)
     json_decref(params);
     if (rc < 0)
         goto done;
+    scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_WRITE, &sp);
     const sci_trace_entry *last = r.trace.len ? &r.trace.e[r.trace.len - 1] : NULL;
     json_t *d = json_pack("{s:s, s:s, s:s, s:i, s:f, s:f}", "capture", ra->capture_id, "method", method, "dir", out,
                           "iters", r.iters_done, "solve_s", solve_s, "total_s", sci_clock_s(t0, sci_clock_mono_ns()));
@@ -141,29 +169,143 @@ done:
     sci_problem_array_free(pp, k);
 }
 
+static void run_import(scicapd_workers *w, scicapd_job *j);
+
+/* One job off the queue: run it, or, when it was canceled or the daemon stops before it started, say so. */
+static void process(scicapd_workers *w, scicapd_job *j)
+{
+    if (atomic_load(&w->stop) || atomic_load(&j->cancel)) {
+        int later = stopped_by_daemon(w, j) && j->kind == SCICAPD_JOB_RECONSTRUCT; /* imports are not persisted */
+        const char *why = later ? "daemon stopping; resumed at the next start"
+                          : atomic_load(&w->stop) ? "daemon stopping" : "canceled";
+        scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_CANCELED, why);
+        if (j->kind == SCICAPD_JOB_IMPORT)
+            post(w, j, "import.canceled", json_pack("{s:s}", "error", why));
+        else
+            post(w, j, "recon.canceled", json_pack("{s:s, s:s}", "capture", j->recon.capture_id, "error", why));
+        if (!later)
+            scicapd_reconq_drop(w->env.store, j);
+        return;
+    }
+    atomic_fetch_add(&w->busy, 1);
+    if (j->kind == SCICAPD_JOB_IMPORT)
+        run_import(w, j);
+    else
+        run(w, j);
+    atomic_fetch_sub(&w->busy, 1);
+}
+
+/* An import (daemon/import.h): the passed files read, each snapshot stored as a capture, then, when asked,
+ * reconstructed here one after the other (each its own job, persisted first so that a stop resumes them).
+ * Their recon.queued events come before import.done, as a capture's come before capture.done: a client that
+ * waits knows what to wait for when the import's last word arrives. */
+static void run_import(scicapd_workers *w, scicapd_job *j)
+{
+    scicapd_import_args *a = j->import;
+    sci_error err = {0};
+    sci_problem **pp = NULL;
+    int k = 0, stored = 0;
+    sci_mat_info info;
+    scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_RUNNING, NULL);
+    post(w, j, "import.started", json_pack("{s:s, s:i}", "kind", a->folder ? "folder" : "mat", "files", a->nfiles));
+    int rc = scicapd_import_read(w->env.store, j->id, a, &pp, &k, &info, &err);
+    json_t *ids = json_array();
+    for (int i = 0; rc == 0 && i < k; i++) {
+        if (atomic_load(&j->cancel) || atomic_load(&w->stop)) {
+            rc = sci_error_set(&err, SCI_ECANCELED, "canceled after %d of %d snapshots", i, k);
+            break;
+        }
+        char id[32], dir[1100];
+        sci_problem *p = pp[i];
+        pp[i] = NULL;
+        if ((rc = scicapd_import_store(w->env.store, a, &info, j->owner, j->id, i, p, id, dir, &err)) < 0)
+            break;
+        stored++;
+        json_array_append_new(ids, json_string(id));
+        scicapd_job_add_output(w->env.jobs, j, id);
+        scicapd_job_set_progress(w->env.jobs, j, i + 1, k, NAN);
+        post(w, j, "import.stored", json_pack("{s:s, s:s, s:i, s:i}", "capture", id, "dir", dir, "index", i, "count",
+                                              k));
+    }
+    sci_problem_array_free(pp, k);
+    if (rc < 0) {
+        int canceled = rc == SCI_ECANCELED;
+        scicapd_job_set_state(w->env.jobs, j, canceled ? SCICAPD_JOB_CANCELED : SCICAPD_JOB_FAILED, err.msg);
+        post(w, j, canceled ? "import.canceled" : "import.failed",
+             json_pack("{s:s, s:O}", "error", err.msg, "captures", ids));
+        sci_log_write(w->env.log, SCI_LOG_WARNING, "job %llu: import: %s", (unsigned long long)j->id, err.msg);
+        json_decref(ids);
+        return;
+    }
+    size_t i;
+    json_t *v;
+    scicapd_job *r[SCICAPD_IMPORT_RECON_MAX];
+    int nr = 0;
+    json_array_foreach(ids, i, v) {
+        if (!a->reconstruct)
+            break;
+        const char *why = NULL;
+        scicapd_job *q;
+        if (nr == SCICAPD_IMPORT_RECON_MAX) {
+            why = "more snapshots than one import reconstructs; request the rest with reconstruct";
+        } else if (scicapd_jobs_create(w->env.jobs, SCICAPD_JOB_RECONSTRUCT, j->client, j->owner, j->request_id,
+                                       &q) < 0) {
+            why = "out of memory";
+        } else {
+            snprintf(q->recon.capture_id, sizeof q->recon.capture_id, "%s", json_string_value(v));
+            q->recon.spec = a->recon;
+            sci_error e2 = {0};
+            if (scicapd_reconq_save(w->env.store, q, &e2) < 0) {
+                sci_log_write(w->env.log, SCI_LOG_ERR, "job %llu: %s", (unsigned long long)q->id, e2.msg);
+                why = "cannot save the queue entry";
+                scicapd_jobs_forget(w->env.jobs, q);
+                scicapd_job_unref(w->env.jobs, q);
+            } else {
+                r[nr++] = q;
+                post(w, q, "recon.queued", json_pack("{s:s, s:s, s:I}", "capture", q->recon.capture_id, "method",
+                                                     scicapd_method_name(a->recon.method), "import_job",
+                                                     (json_int_t)j->id));
+            }
+        }
+        if (why)
+            post(w, j, "recon.rejected", json_pack("{s:s, s:s}", "capture", json_string_value(v), "reason", why));
+    }
+    json_t *d = json_pack("{s:O, s:i}", "captures", ids, "snapshots", stored);
+    if (!a->folder) {
+        json_object_set_new(d, "white", json_real(info.white));
+        json_object_set_new(d, "mask_variable", json_string(info.mask_var));
+        if (info.how[0])
+            json_object_set_new(d, "scale_auto", json_string(info.how));
+    }
+    scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_DONE, NULL);
+    sci_log_write(w->env.log, SCI_LOG_INFO, "job %llu: imported %d snapshots from %s (uid %d)",
+                  (unsigned long long)j->id, stored, a->names[a->folder ? 0 : a->data_index], (int)j->owner);
+    post(w, j, "import.done", d);
+    json_decref(ids);
+    for (int n = 0; n < nr; n++) {
+        process(w, r[n]);
+        scicapd_job_unref(w->env.jobs, r[n]);
+    }
+}
+
 static void *worker_main(void *arg)
 {
     scicapd_workers *w = arg;
-    if (w->omp_threads > 0)
-        omp_set_num_threads(w->omp_threads);
+    omp_set_num_threads(w->omp_threads);
     scicapd_job *j;
     while ((j = scicapd_queue_pop(w->env.in, -1))) {
-        if (atomic_load(&w->stop) || atomic_load(&j->cancel)) {
-            int later = stopped_by_daemon(w, j);
-            scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_CANCELED,
-                                  later ? "daemon stopping; resumed at the next start" : "canceled");
-            post(w, j, "recon.canceled", json_pack("{s:s, s:s}", "capture", j->recon.capture_id, "error",
-                                                   later ? "daemon stopping; resumed at the next start" : "canceled"));
-            if (!later)
-                scicapd_reconq_drop(w->env.store, j);
-        } else {
-            atomic_fetch_add(&w->busy, 1);
-            run(w, j);
-            atomic_fetch_sub(&w->busy, 1);
-        }
+        process(w, j);
         scicapd_job_unref(w->env.jobs, j);
     }
     return NULL;
+}
+
+int scicapd_workers_auto_threads(int count)
+{
+    cpu_set_t set;
+    int cpus = sched_getaffinity(0, sizeof set, &set) == 0 ? CPU_COUNT(&set) : (int)sysconf(_SC_NPROCESSORS_ONLN);
+    int t = count > 0 ? cpus / count : cpus;
+    return t < 1 ? 1 : t;
 }
 
 int scicapd_workers_start(scicapd_workers **out, const scicapd_workers_env *env, int count, int omp_threads,
@@ -176,7 +318,7 @@ int scicapd_workers_start(scicapd_workers **out, const scicapd_workers_env *env,
     }
     w->env = *env;
     w->count = count;
-    w->omp_threads = omp_threads;
+    w->omp_threads = omp_threads > 0 ? omp_threads : scicapd_workers_auto_threads(count);
     for (int i = 0; i < count; i++) {
         int rc = pthread_create(&w->threads[i], NULL, worker_main, w);
         if (rc != 0) {

@@ -7,7 +7,11 @@
  * atomically (io/recon_store.h); a canceled or failed run writes nothing. A job that ends for good (done,
  * failed, canceled by a user) has its saved copy removed (daemon/reconq.h); one stopped by the daemon's own
  * stop keeps it, to be resumed at the next start.
- * Threads: `count` POSIX threads, each running OpenMP with `omp_threads` threads (0: OpenMP's default).
+ * The input is the problem the capture's writer handed over with the job (scicapd_job.problem) when there is one,
+ * else the capture folder read back (requests, resumed jobs). Each stage's time is counted in env->timing.
+ * Threads: `count` POSIX threads, each running OpenMP with `omp_threads` threads (0: the CPUs this process may
+ * use divided by `count`, at least 1 — several single-threaded solves in parallel outrun one solve on every core
+ * when writers share the cores: OpenMP's barriers stall whenever one of its threads is preempted).
  */
 #ifndef SCICAP_DAEMON_WORKERS_H
 #define SCICAP_DAEMON_WORKERS_H
@@ -17,6 +21,7 @@
 #include "daemon/mailbox.h"
 #include "daemon/queue.h"
 #include "daemon/store.h"
+#include "daemon/timing.h"
 
 typedef struct scicapd_workers scicapd_workers;
 
@@ -25,6 +30,7 @@ typedef struct scicapd_workers_env {
     scicapd_mailbox *mailbox;
     scicapd_store *store;
     scicapd_queue *in;    /* reconstruct jobs (references) */
+    scicapd_timing *timing; /* recon_read, recon_solve, recon_write; may be NULL */
     const sci_log *log;
 } scicapd_workers_env;
 
@@ -33,6 +39,8 @@ int scicapd_workers_start(scicapd_workers **out, const scicapd_workers_env *env,
 /* Cancel running reconstructions, cancel what is queued (each announced), join the threads, free. The caller
  * closes env->in first. NULL is harmless. */
 void scicapd_workers_stop(scicapd_workers *w);
+/* OpenMP threads per worker for `count` workers when none are configured (see above). */
+int scicapd_workers_auto_threads(int count);
 /* Workers busy right now. */
 int scicapd_workers_busy(scicapd_workers *w);
 

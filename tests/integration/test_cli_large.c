@@ -25,63 +25,10 @@
 
 #include "io/image.h"
 #include "io/problem_dir.h"
+#include "tests/helpers/cli_child.h"
 
 static char dir[] = "/tmp/scicap-test-cli-large-XXXXXX";
 static char scicap[1024];
-
-typedef struct child {
-    pid_t pid;
-    int status;
-    long maxrss_kb;
-    char err[8192]; /* its stderr */
-} child;
-
-/* Start `scicap CMD ARGS...` (NULL-terminated) with stderr to dir/stderr.txt. */
-static pid_t start_cmd(const char *cmd, const char *const *args)
-{
-    char *argv[64];
-    int n = 0;
-    argv[n++] = scicap;
-    argv[n++] = (char *)cmd;
-    for (; *args && n < 62; args++)
-        argv[n++] = (char *)*args;
-    argv[n] = NULL;
-    char errpath[512];
-    snprintf(errpath, sizeof errpath, "%s/stderr.txt", dir);
-    pid_t pid = fork();
-    assert_true(pid >= 0);
-    if (pid == 0) {
-        int fd = open(errpath, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        int nul = open("/dev/null", O_WRONLY);
-        dup2(fd, 2);
-        dup2(nul, 1);
-        execv(scicap, argv);
-        _exit(127);
-    }
-    return pid;
-}
-
-static void finish(child *c)
-{
-    struct rusage ru;
-    assert_int_equal(wait4(c->pid, &c->status, 0, &ru), c->pid);
-    c->maxrss_kb = ru.ru_maxrss;
-    char errpath[512];
-    snprintf(errpath, sizeof errpath, "%s/stderr.txt", dir);
-    FILE *f = fopen(errpath, "r");
-    size_t n = f ? fread(c->err, 1, sizeof c->err - 1, f) : 0;
-    c->err[n] = 0;
-    if (f)
-        fclose(f);
-}
-
-static void run_cmd(child *c, const char *cmd, const char *const *args)
-{
-    c->pid = start_cmd(cmd, args);
-    finish(c);
-}
-
-static int exit_code(const child *c) { return WIFEXITED(c->status) ? WEXITSTATUS(c->status) : -1; }
 
 /* A small problem folder; optionally its mask sidecar rewritten to claim w×h. */
 static void write_problem(const char *path, int w, int h, int n, int k)
@@ -116,9 +63,10 @@ static void test_4200_square_reconstructs_with_small_gif(void **state)
     snprintf(out, sizeof out, "%s/out_huge", dir);
     snprintf(gif, sizeof gif, "%s/preview.gif", out);
     write_problem(in, 4200, 4200, 2, 1);
-    child c;
-    run_cmd(&c, "recon", (const char *const[]){"-q", "--iters", "1", "--tv-iters", "1", in, "-o", out, NULL});
-    if (exit_code(&c) != 0)
+    cli_child c;
+    cli_child_run(&c, scicap,
+                  (const char *const[]){"recon", "-q", "--iters", "1", "--tv-iters", "1", in, "-o", out, NULL}, dir);
+    if (cli_child_exit_code(&c) != 0)
         fail_msg("status 0x%x (signal %d), stderr: %s", c.status, WIFSIGNALED(c.status) ? WTERMSIG(c.status) : 0,
                  c.err);
     sci_cube *g = NULL;
@@ -137,12 +85,8 @@ static void test_4200_square_reconstructs_with_small_gif(void **state)
 
 static int setup(void **state)
 {
-    const char *build = getenv("BUILD");
-    snprintf(scicap, sizeof scicap, "%s/scicap", build ? build : "build");
-    if (access(scicap, X_OK) != 0) {
-        fprintf(stderr, "%s: not built\n", scicap);
+    if (cli_child_program(scicap, sizeof scicap, "scicap") < 0)
         return -1;
-    }
     return mkdtemp(dir) ? 0 : -1;
 }
 

@@ -28,63 +28,10 @@
 
 #include "io/image.h"
 #include "io/problem_dir.h"
+#include "tests/helpers/cli_child.h"
 
 static char dir[] = "/tmp/scicap-test-cli-limits-XXXXXX";
 static char scicap[1024];
-
-typedef struct child {
-    pid_t pid;
-    int status;
-    long maxrss_kb;
-    char err[8192]; /* its stderr */
-} child;
-
-/* Start `scicap recon ARGS...` (NULL-terminated) with stderr to dir/stderr.txt. */
-static pid_t start(const char *const *args)
-{
-    char *argv[64];
-    int n = 0;
-    argv[n++] = scicap;
-    argv[n++] = "recon";
-    for (; *args && n < 62; args++)
-        argv[n++] = (char *)*args;
-    argv[n] = NULL;
-    char errpath[512];
-    snprintf(errpath, sizeof errpath, "%s/stderr.txt", dir);
-    pid_t pid = fork();
-    assert_true(pid >= 0);
-    if (pid == 0) {
-        int fd = open(errpath, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        int nul = open("/dev/null", O_WRONLY);
-        dup2(fd, 2);
-        dup2(nul, 1);
-        execv(scicap, argv);
-        _exit(127);
-    }
-    return pid;
-}
-
-static void finish(child *c)
-{
-    struct rusage ru;
-    assert_int_equal(wait4(c->pid, &c->status, 0, &ru), c->pid);
-    c->maxrss_kb = ru.ru_maxrss;
-    char errpath[512];
-    snprintf(errpath, sizeof errpath, "%s/stderr.txt", dir);
-    FILE *f = fopen(errpath, "r");
-    size_t n = f ? fread(c->err, 1, sizeof c->err - 1, f) : 0;
-    c->err[n] = 0;
-    if (f)
-        fclose(f);
-}
-
-static void run(child *c, const char *const *args)
-{
-    c->pid = start(args);
-    finish(c);
-}
-
-static int exit_code(const child *c) { return WIFEXITED(c->status) ? WEXITSTATUS(c->status) : -1; }
 
 /* Nothing named OUT or OUT.tmp-* / OUT.old-* exists. */
 static void assert_nothing_at(const char *out)
@@ -126,10 +73,10 @@ static void write_tiny_mat(const char *path, size_t nmask, size_t nmeas)
     assert_true(st.st_size < 4096);
 }
 
-static void assert_limit_refusal(const child *c, const char *out)
+static void assert_limit_refusal(const cli_child *c, const char *out)
 {
-    if (exit_code(c) != 1 || !strstr(c->err, "limit of") || !strstr(c->err, "--allow-large"))
-        fail_msg("exit %d, stderr: %s", exit_code(c), c->err);
+    if (cli_child_exit_code(c) != 1 || !strstr(c->err, "limit of") || !strstr(c->err, "--allow-large"))
+        fail_msg("exit %d, stderr: %s", cli_child_exit_code(c), c->err);
     assert_nothing_at(out);
 }
 
@@ -139,8 +86,8 @@ static void test_mat_declaring_2m_frames_refused(void **state)
     snprintf(in, sizeof in, "%s/frames.mat", dir);
     snprintf(out, sizeof out, "%s/out_frames", dir);
     write_tiny_mat(in, 2000000, 1);
-    child c;
-    run(&c, (const char *const[]){"-q", "--iters", "1", in, "-o", out, NULL});
+    cli_child c;
+    cli_child_run(&c, scicap, (const char *const[]){"recon", "-q", "--iters", "1", in, "-o", out, NULL}, dir);
     assert_limit_refusal(&c, out);
     assert_non_null(strstr(c.err, "2000000 frames each"));
 }
@@ -151,8 +98,8 @@ static void test_mat_declaring_2m_snapshots_refused(void **state)
     snprintf(in, sizeof in, "%s/snaps.mat", dir);
     snprintf(out, sizeof out, "%s/out_snaps", dir);
     write_tiny_mat(in, 8, 2000000);
-    child c;
-    run(&c, (const char *const[]){"-q", "--iters", "1", in, "-o", out, NULL});
+    cli_child c;
+    cli_child_run(&c, scicap, (const char *const[]){"recon", "-q", "--iters", "1", in, "-o", out, NULL}, dir);
     assert_limit_refusal(&c, out);
     assert_non_null(strstr(c.err, "2000000 snapshot(s)"));
     assert_true(c.maxrss_kb < 300 * 1024); /* refused from the headers: 2,000,000 problems never built */
@@ -166,10 +113,11 @@ static void test_allow_large_lifts_the_limits(void **state)
     snprintf(in, sizeof in, "%s/frames.mat", dir);
     snprintf(out, sizeof out, "%s/no/such/parent/out", dir);
     write_tiny_mat(in, 2000000, 1);
-    child c;
-    run(&c, (const char *const[]){"-q", "--iters", "1", "--allow-large", in, "-o", out, NULL});
-    if (exit_code(&c) != 1 || strstr(c.err, "limit of") || !strstr(c.err, "no/such/parent"))
-        fail_msg("exit %d, stderr: %s", exit_code(&c), c.err);
+    cli_child c;
+    cli_child_run(&c, scicap,
+                  (const char *const[]){"recon", "-q", "--iters", "1", "--allow-large", in, "-o", out, NULL}, dir);
+    if (cli_child_exit_code(&c) != 1 || strstr(c.err, "limit of") || !strstr(c.err, "no/such/parent"))
+        fail_msg("exit %d, stderr: %s", cli_child_exit_code(&c), c.err);
 }
 
 /* A small problem folder; optionally its mask sidecar rewritten to claim w×h. */
@@ -212,13 +160,14 @@ static void test_sidecar_claim_refused_before_allocating(void **state)
     json_object_set_new(j, "h", json_integer(24576));
     assert_int_equal(json_dump_file(j, side, 0), 0);
     json_decref(j);
-    child c;
-    run(&c, (const char *const[]){"-q", "--iters", "1", in, "-o", out, NULL});
+    cli_child c;
+    cli_child_run(&c, scicap, (const char *const[]){"recon", "-q", "--iters", "1", in, "-o", out, NULL}, dir);
     assert_limit_refusal(&c, out);
     assert_true(c.maxrss_kb < 300 * 1024);
-    run(&c, (const char *const[]){"-q", "--iters", "1", "--allow-large", in, "-o", out, NULL});
-    if (exit_code(&c) != 1 || !strstr(c.err, "24576x24576") || !strstr(c.err, "is 16x16"))
-        fail_msg("exit %d, stderr: %s", exit_code(&c), c.err);
+    cli_child_run(&c, scicap,
+                  (const char *const[]){"recon", "-q", "--iters", "1", "--allow-large", in, "-o", out, NULL}, dir);
+    if (cli_child_exit_code(&c) != 1 || !strstr(c.err, "24576x24576") || !strstr(c.err, "is 16x16"))
+        fail_msg("exit %d, stderr: %s", cli_child_exit_code(&c), c.err);
     if (c.maxrss_kb >= 300 * 1024)
         fail_msg("peak RSS %ld MB: the claimed cube was allocated", c.maxrss_kb / 1024);
     assert_nothing_at(out);
@@ -226,12 +175,8 @@ static void test_sidecar_claim_refused_before_allocating(void **state)
 
 static int setup(void **state)
 {
-    const char *build = getenv("BUILD");
-    snprintf(scicap, sizeof scicap, "%s/scicap", build ? build : "build");
-    if (access(scicap, X_OK) != 0) {
-        fprintf(stderr, "%s: not built\n", scicap);
+    if (cli_child_program(scicap, sizeof scicap, "scicap") < 0)
         return -1;
-    }
     return mkdtemp(dir) ? 0 : -1;
 }
 

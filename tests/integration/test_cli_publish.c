@@ -23,56 +23,10 @@
 
 #include "io/image.h"
 #include "io/problem_dir.h"
+#include "tests/helpers/cli_child.h"
 
 static char dir[] = "/tmp/scicap-test-cli-publish-XXXXXX";
 static char scicap[1024];
-
-typedef struct child {
-    pid_t pid;
-    int status;
-    long maxrss_kb;
-    char err[8192]; /* its stderr */
-} child;
-
-/* Start `scicap recon ARGS...` (NULL-terminated) with stderr to dir/stderr.txt. */
-static pid_t start(const char *const *args)
-{
-    char *argv[64];
-    int n = 0;
-    argv[n++] = scicap;
-    argv[n++] = "recon";
-    for (; *args && n < 62; args++)
-        argv[n++] = (char *)*args;
-    argv[n] = NULL;
-    char errpath[512];
-    snprintf(errpath, sizeof errpath, "%s/stderr.txt", dir);
-    pid_t pid = fork();
-    assert_true(pid >= 0);
-    if (pid == 0) {
-        int fd = open(errpath, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        int nul = open("/dev/null", O_WRONLY);
-        dup2(fd, 2);
-        dup2(nul, 1);
-        execv(scicap, argv);
-        _exit(127);
-    }
-    return pid;
-}
-
-static void finish(child *c)
-{
-    struct rusage ru;
-    assert_int_equal(wait4(c->pid, &c->status, 0, &ru), c->pid);
-    c->maxrss_kb = ru.ru_maxrss;
-    char errpath[512];
-    snprintf(errpath, sizeof errpath, "%s/stderr.txt", dir);
-    FILE *f = fopen(errpath, "r");
-    size_t n = f ? fread(c->err, 1, sizeof c->err - 1, f) : 0;
-    c->err[n] = 0;
-    if (f)
-        fclose(f);
-}
-
 
 /* Nothing named OUT or OUT.tmp-* / OUT.old-* exists. */
 static void assert_nothing_at(const char *out)
@@ -127,9 +81,9 @@ static int exists(const char *path)
 /* Start a reconstruction, wait until OUT.tmp-PID<suffix> (or OUT<suffix>, where the code before
  * publish-on-success wrote) appears, and SIGTERM it at once. *still_writing: the path was still there after the
  * kill, so the signal came while the output was being written. */
-static void sigterm_when(const char *in, const char *out, const char *suffix, int *still_writing, child *c)
+static void sigterm_when(const char *in, const char *out, const char *suffix, int *still_writing, cli_child *c)
 {
-    c->pid = start((const char *const[]){"-q", "--iters", "1", in, "-o", out, NULL});
+    cli_child_start(c, scicap, (const char *const[]){"recon", "-q", "--iters", "1", in, "-o", out, NULL}, dir);
     char w1[700], w2[700];
     snprintf(w1, sizeof w1, "%s.tmp-%d%s", out, (int)c->pid, suffix);
     snprintf(w2, sizeof w2, "%s%s", out, suffix);
@@ -150,7 +104,7 @@ static void sigterm_when(const char *in, const char *out, const char *suffix, in
     }
     kill(c->pid, SIGTERM);
     *still_writing = seen && (exists(w1) || exists(w2));
-    finish(c);
+    cli_child_finish(c);
     if (!seen)
         fail_msg("%s never appeared", w1);
 }
@@ -164,7 +118,7 @@ static void test_sigterm_while_writing_publishes_nothing(void **state)
     /* the staging folder OUT.tmp-PID exists from the first file written to the rename that publishes it; the
      * 16 1024² frames take about a second to write (EXR, PNG, GIF) */
     int mid = 0;
-    child c;
+    cli_child c;
     sigterm_when(in, out, "", &mid, &c);
     if (!mid)
         fail_msg("the write had finished before SIGTERM; make the problem larger");
@@ -181,7 +135,7 @@ static void test_sigterm_between_snapshots_publishes_nothing(void **state)
     write_problem(in, 256, 256, 8, 3);
     /* snapshot 1 finished: OUT.tmp-PID/snap_001 now (OUT/snap_001 before publish-on-success) */
     int mid = 0;
-    child c;
+    cli_child c;
     sigterm_when(in, out, "/snap_001", &mid, &c);
     if (!WIFSIGNALED(c.status) || WTERMSIG(c.status) != SIGTERM)
         fail_msg("status 0x%x, not death by SIGTERM; stderr: %s", c.status, c.err);
@@ -190,12 +144,8 @@ static void test_sigterm_between_snapshots_publishes_nothing(void **state)
 
 static int setup(void **state)
 {
-    const char *build = getenv("BUILD");
-    snprintf(scicap, sizeof scicap, "%s/scicap", build ? build : "build");
-    if (access(scicap, X_OK) != 0) {
-        fprintf(stderr, "%s: not built\n", scicap);
+    if (cli_child_program(scicap, sizeof scicap, "scicap") < 0)
         return -1;
-    }
     return mkdtemp(dir) ? 0 : -1;
 }
 

@@ -1,0 +1,61 @@
+/* daemon/import.h — captures made from a client's files: the "import" command (docs/protocol.md).
+ *
+ * The client opens its files itself and passes the open descriptors with the request line (SCM_RIGHTS, one
+ * sendmsg): the daemon reads them through those descriptors only, so it reads exactly what the client may read
+ * and nothing the client could not — it never opens a path a client names. What may be passed: one .mat (and a
+ * second .mat holding the masks), or the files of a problem folder (problem.json, its *.json sidecars and
+ * *.exr stacks). Each descriptor must be a regular file; their bytes are copied into a private staging folder,
+ * ROOT/imports/.import-<job>/ (0700, removed afterwards, and at start after a crash), and read from there
+ * with the readers `scicap recon` uses: io/matfile.h with the same options as its .mat input (--mask,
+ * --mask-var, --meas-var, --truth-var, --scale auto|N) and the same input limits (io/limits.h), or
+ * io/problem_dir.h. Each snapshot becomes one capture folder, as a bench capture does (no raw.tif, no
+ * dmd_mask_*.png: meta.json says "imported" and from what), and may be reconstructed at once.
+ *
+ * Runs on a reconstruction worker (daemon/workers.h), never on the event loop. Not persisted: an import cut
+ * short by a stop is reported canceled and leaves no capture half written.
+ */
+#ifndef SCICAP_DAEMON_IMPORT_H
+#define SCICAP_DAEMON_IMPORT_H
+
+#include <sys/types.h>
+
+#include "base/error.h"
+#include "daemon/protocol.h"
+#include "daemon/store.h"
+#include "io/matfile.h"
+
+#define SCICAPD_IMPORT_MAX_FILES 250  /* one sendmsg carries at most 253 descriptors */
+#define SCICAPD_IMPORT_NAME_MAX 64
+
+typedef struct scicapd_import_args {
+    int folder;                       /* 1: a problem folder's files; 0: one .mat (+ the mask .mat) */
+    int nfiles;                       /* names and descriptors, in the order they were passed */
+    char names[SCICAPD_IMPORT_MAX_FILES][SCICAPD_IMPORT_NAME_MAX];
+    int fds[SCICAPD_IMPORT_MAX_FILES]; /* owned: closed by scicapd_import_args_free; -1 once closed */
+    int data_index, mask_index;       /* .mat: the data file, the mask file (-1: masks in the data file) */
+    char mask_var[SCICAPD_IMPORT_NAME_MAX], meas_var[SCICAPD_IMPORT_NAME_MAX], truth_var[SCICAPD_IMPORT_NAME_MAX];
+    double white;                     /* 0: 255; SCI_MAT_WHITE_AUTO: from the data; else the white level */
+    int reconstruct;                  /* reconstruct every imported snapshot */
+    scicapd_recon_spec recon;
+} scicapd_import_args;
+
+/* Check 5 for "import": the arguments (docs/protocol.md) and the descriptors that came with the line (fds[0..
+ * nfds-1], taken over: kept in *out, or closed on error). *out is malloc'd; free with scicapd_import_args_free.
+ * SCI_ECONFIG-style errors positioned in the request (bad_arguments). */
+int scicapd_args_import(const scicapd_request *r, const scicapd_config *cfg, int *fds, int nfds,
+                        scicapd_import_args **out, sci_error *err);
+void scicapd_import_args_free(scicapd_import_args *a);
+
+/* Copy the descriptors into ROOT/imports/.import-<job>/ and read the problems: *out (k problems, freed with
+ * sci_problem_array_free) and, for a .mat, *info (white level and how it was chosen). The staging folder is
+ * removed before returning. Errors of the readers (their messages name the option to use), -EINVAL for a
+ * descriptor that is not a regular file, -EFBIG over the input limit. */
+int scicapd_import_read(scicapd_store *st, uint64_t job, scicapd_import_args *a, sci_problem ***out, int *k,
+                        sci_mat_info *info, sci_error *err);
+/* Store problem p (taken over) as one capture folder: id into id (32 bytes), folder into dir (1100 bytes). */
+int scicapd_import_store(scicapd_store *st, const scicapd_import_args *a, const sci_mat_info *info, uid_t owner,
+                         uint64_t job, int index, sci_problem *p, char *id, char *dir, sci_error *err);
+/* Remove ROOT/imports (staging left by a crash). */
+void scicapd_import_sweep(scicapd_store *st);
+
+#endif

@@ -1,0 +1,87 @@
+/* tests/helpers/cli_child.c — a built program in a child process (see the header). */
+#include "tests/helpers/cli_child.h"
+
+#include <fcntl.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+int cli_child_program(char *buf, size_t n, const char *name)
+{
+    const char *build = getenv("BUILD");
+    snprintf(buf, n, "%s/%s", build && build[0] ? build : "build", name);
+    if (access(buf, X_OK) != 0) {
+        fprintf(stderr, "%s: not built\n", buf);
+        return -1;
+    }
+    return 0;
+}
+
+static void stream_path(const cli_child *c, const char *which, char *buf, size_t n)
+{
+    snprintf(buf, n, "%s/%s-%d.txt", c->dir, which, (int)c->pid);
+}
+
+void cli_child_start(cli_child *c, const char *prog, const char *const *args, const char *dir)
+{
+    char *argv[64];
+    int n = 0;
+    argv[n++] = (char *)prog;
+    for (; *args && n < 63; args++)
+        argv[n++] = (char *)*args;
+    argv[n] = NULL;
+    memset(c, 0, sizeof *c);
+    snprintf(c->dir, sizeof c->dir, "%s", dir);
+    fflush(NULL); /* nothing buffered twice */
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        c->pid = getpid();
+        char errp[600], outp[600];
+        stream_path(c, "stderr", errp, sizeof errp);
+        stream_path(c, "stdout", outp, sizeof outp);
+        int e = open(errp, O_WRONLY | O_CREAT | O_TRUNC, 0644), o = open(outp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        if (e < 0 || o < 0)
+            _exit(126);
+        dup2(e, 2);
+        dup2(o, 1);
+        execv(prog, argv);
+        _exit(127);
+    }
+    c->pid = pid;
+}
+
+static void slurp(const cli_child *c, const char *which, char *buf, size_t n)
+{
+    char path[600];
+    stream_path(c, which, path, sizeof path);
+    FILE *f = fopen(path, "r");
+    size_t len = f ? fread(buf, 1, n - 1, f) : 0;
+    buf[len] = '\0';
+    if (f)
+        fclose(f);
+    unlink(path);
+}
+
+void cli_child_finish(cli_child *c)
+{
+    struct rusage ru;
+    assert_int_equal(wait4(c->pid, &c->status, 0, &ru), c->pid);
+    c->maxrss_kb = ru.ru_maxrss;
+    slurp(c, "stderr", c->err, sizeof c->err);
+    slurp(c, "stdout", c->out, sizeof c->out);
+}
+
+void cli_child_run(cli_child *c, const char *prog, const char *const *args, const char *dir)
+{
+    cli_child_start(c, prog, args, dir);
+    cli_child_finish(c);
+}
+
+int cli_child_exit_code(const cli_child *c) { return WIFEXITED(c->status) ? WEXITSTATUS(c->status) : -1; }

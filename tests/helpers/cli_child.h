@@ -1,0 +1,40 @@
+/* tests/helpers/cli_child.h — run one of the built programs (scicap, scicapd) in a child process and look at
+ * what it did: exit status, peak RSS, stderr and stdout.
+ *
+ *     char scicap[1024];
+ *     cli_child_program(scicap, sizeof scicap, "scicap");        // $BUILD/scicap (BUILD defaults to "build")
+ *     cli_child c;
+ *     cli_child_run(&c, scicap, (const char *const[]){"recon", "-q", in, "-o", out, NULL}, dir);
+ *     if (cli_child_exit_code(&c) != 0) fail_msg("%s", c.err);
+ *
+ * stdout and stderr go to files in `dir` (named after the child's pid: several children may run at once) that
+ * cli_child_finish reads back (the first 8 KB of each) and removes. For use inside cmocka tests: a failed fork
+ * or wait fails the test.
+ */
+#ifndef SCICAP_TESTS_CLI_CHILD_H
+#define SCICAP_TESTS_CLI_CHILD_H
+
+#include <stddef.h>
+#include <sys/types.h>
+
+typedef struct cli_child {
+    pid_t pid;
+    int status;         /* as from wait4 */
+    long maxrss_kb;     /* the child's peak resident set */
+    char err[8192];     /* its stderr */
+    char out[8192];     /* its stdout */
+    char dir[512];
+} cli_child;
+
+/* BUILD/name into buf ($BUILD, default "build"). 0 when it is an executable, else -1 after printing why. */
+int cli_child_program(char *buf, size_t n, const char *name);
+/* Start `prog args...` (args NULL-terminated; prog is also argv[0]). The child's working folder is ours. */
+void cli_child_start(cli_child *c, const char *prog, const char *const *args, const char *dir);
+/* Wait for it (status, peak RSS) and read its stdout and stderr back. */
+void cli_child_finish(cli_child *c);
+/* Start and finish. */
+void cli_child_run(cli_child *c, const char *prog, const char *const *args, const char *dir);
+/* The exit status, or -1 when it died of a signal. */
+int cli_child_exit_code(const cli_child *c);
+
+#endif
