@@ -57,7 +57,7 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools systemd zlib1g-dev \
             python3-dev python3-numpy python3-pytest slurm-wlm munge
 
-.PHONY: python check-python all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
+.PHONY: python check-python check-slurm all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
 all: $(BINS)
 
 help:
@@ -66,6 +66,7 @@ help:
 	@echo "make check     build and run every test (C tests, then the Python module's pytest tests)"
 	@echo "make python    the Python module in BUILD/python (PYTHONPATH=BUILD/python python3 -c 'import scicap')"
 	@echo "make check-asan  every test again under ASan + UBSan at -O1 (build-asan/)"
+	@echo "make check-slurm  scicap batch --slurm on a single-node Slurm started in a temporary folder"
 	@echo "make check-gv  the GenICam (Aravis) backend against a fake GigE Vision camera on loopback"
 	@echo "make check-vm  run the device tests against real kernel drivers under qemu"
 	@echo "make bench     run the benchmarks and print the figures (writes bench/results/)"
@@ -181,6 +182,12 @@ GV_TEST_BIN := $(patsubst %.c,$(BUILD)/%,$(wildcard tests/aravis-gv/test_*.c))
 check-gv: deps
 	@$(MAKE) --no-print-directory $(GV_TEST_BIN)
 	@BUILD=$(BUILD) tests/aravis-gv/run $(GV_TEST_BIN)
+
+# scicap batch --slurm against a real single-node Slurm started in a temporary folder (tests/slurm/run: munge,
+# slurmctld, slurmd; 8 reconstructions as an array job, one task cancelled and resubmitted; under 5 minutes).
+check-slurm: deps
+	@$(MAKE) --no-print-directory all
+	@BUILD=$(BUILD) tests/slurm/run
 
 # Kernel-level device tests under qemu (tests/vm/, README "Kernel-level tests"): the drivers against the real
 # V4L2 (vivid), hidraw (uhid) and GPIO (gpio-sim) subsystems. VM_CACHE keeps downloads and builds between runs.

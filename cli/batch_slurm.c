@@ -188,9 +188,9 @@ int batch_slurm_submit(batch *b, const batch_slurm_opts *o, sci_error *err)
             mem = (long)ceil(fmax(512, 1.5 * e.rss_mib * fmax(1, voxels / e.rss_voxels)));
         if (!tmin)
             tmin = (long)ceil(fmax(5, 4 * e.s_per_voxel * voxels / 60));
-        snprintf(how, sizeof how, "%s rows of %s%s%s in %s: peak RSS %.0f MiB, %.3g s per voxel; inputs up to %.0f "
-                 "voxels", method, e.rows == 1 ? "one" : "the", preset ? " preset " : "", preset ? preset : "",
-                 e.from, e.rss_mib, e.s_per_voxel, voxels);
+        snprintf(how, sizeof how, "from %d row(s) of %s%s%s in %s: peak RSS %.0f MiB, %.3g s per voxel; inputs up "
+                 "to %.0f voxels", e.rows, method, preset ? " preset " : "", preset ? preset : "", e.from, e.rss_mib,
+                 e.s_per_voxel, voxels);
     } else {
         mem = mem ? mem : 2048;
         tmin = tmin ? tmin : 120;
@@ -268,9 +268,9 @@ int batch_slurm_submit(batch *b, const batch_slurm_opts *o, sci_error *err)
     }
     free(todo);
     int rc = batch_state_save(b, err);
-    printf("slurm: submitted array job %s: %d task(s) (%d done, %d already queued or running); %d CPUs, %ld MiB, "
-           "%ld min each (%s)\nslurm: script %s; follow with: scicap batch --status %s\n", id, ntodo, done, inq, cpus,
-           mem, tmin, how, path, b->outdir);
+    printf("slurm: submitted array job %s: %d task(s) (%d done, %d already queued or running); each %d CPU(s), "
+           "%ld MiB, %ld min (%s)\nslurm: script %s; follow with: scicap batch --status %s\n", id, ntodo, done, inq,
+           cpus, mem, tmin, how, path, b->outdir);
     return rc;
 }
 
