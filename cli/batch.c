@@ -632,6 +632,16 @@ int cli_batch_main(int argc, char **argv)
     return rc;
 }
 
+int cli_batch_is_many(const char *input)
+{
+    struct stat st;
+    char pj[PATH_MAX + 16];
+    if (stat(input, &st) != 0)
+        return strpbrk(input, "*?[") != NULL; /* a glob the shell did not expand (quoted) */
+    snprintf(pj, sizeof pj, "%s/problem.json", input);
+    return S_ISDIR(st.st_mode) && access(pj, F_OK) != 0; /* a folder of inputs, not a problem folder */
+}
+
 int cli_batch_recon(int nopts, char **opts, int ninputs, char **inputs)
 {
     /* scicap recon's options minus -o OUT (the batch's folder); the rest goes to every job's scicap recon. */
@@ -668,7 +678,7 @@ int cli_batch_recon(int nopts, char **opts, int ninputs, char **inputs)
         batch_free(&b);
         return 1;
     }
-    fprintf(stderr, "scicap recon: %d inputs: a batch in %s (as scicap batch; OUTDIR/NAME per input)\n", ninputs,
+    fprintf(stderr, "scicap recon: several inputs (%d argument(s)): a batch in %s, as scicap batch (OUTDIR/NAME each)\n", ninputs,
             b.outdir);
     rc = batch_main_run(&b, inputs, ninputs, NULL, 1, 0, 0, NULL);
     batch_free(&b);

@@ -12,5 +12,7 @@ int cli_batch_main(int argc, char **argv);
 /* `scicap recon` given several inputs: the same batch as `scicap batch` (cli/batch.c). opts are recon's options
  * (with -o OUTDIR, the batch's folder; the others go to every job's scicap recon), inputs the INPUT arguments. */
 int cli_batch_recon(int nopts, char **opts, int ninputs, char **inputs);
+/* 1 when one INPUT of scicap recon stands for several: a folder without problem.json, or an unexpanded glob. */
+int cli_batch_is_many(const char *input);
 
 #endif
