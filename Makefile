@@ -57,7 +57,8 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools systemd zlib1g-dev \
             python3-dev python3-numpy python3-pytest slurm-wlm munge
 
-.PHONY: python check-python check-slurm all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
+.PHONY: all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
+.PHONY: python check-python check-slurm
 all: $(BINS)
 
 help:

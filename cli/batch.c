@@ -34,7 +34,7 @@ static void usage(FILE *f)
             "(quoted: expanded here) or a capture id of scicapd's store (c000012). NAME is the input's name (file\n"
             "without .mat, folder, capture id). A progress line per job and an overall one go to stderr, a summary\n"
             "table to stdout. OUTDIR/.batch/ keeps the state: running it again (with or without the inputs) runs only\n"
-            "the jobs whose OUTDIR/NAME is missing (failed, interrupted, new); OUTDIR/NAME appears only when complete.\n"
+            "the jobs whose OUTDIR/NAME is missing (failed, interrupted, new); OUTDIR/NAME appears only complete.\n"
             "\n"
             "  -o, --output DIR       the batch's folder (required)\n"
             "  -m, --method NAME      the method for every job (scicap recon --method)\n"
@@ -678,8 +678,8 @@ int cli_batch_recon(int nopts, char **opts, int ninputs, char **inputs)
         batch_free(&b);
         return 1;
     }
-    fprintf(stderr, "scicap recon: several inputs (%d argument(s)): a batch in %s, as scicap batch (OUTDIR/NAME each)\n", ninputs,
-            b.outdir);
+    fprintf(stderr, "scicap recon: several inputs (%d argument(s)): a batch in %s as scicap batch (OUTDIR/NAME)\n",
+            ninputs, b.outdir);
     rc = batch_main_run(&b, inputs, ninputs, NULL, 1, 0, 0, NULL);
     batch_free(&b);
     return rc;

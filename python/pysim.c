@@ -79,7 +79,8 @@ static PyObject *py_simulate(PyObject *self, PyObject *args, PyObject *kw)
         Py_XDECREF(src);
         if (!bad && sc->cfa) {
             PyObject *rgb = truth_rgb(sc, j), *cfa = PyUnicode_FromString(sci_cfa_name((sci_cfa)sc->cfa));
-            bad = !rgb || !cfa || PyDict_SetItemString(d, "truth_rgb", rgb) < 0 || PyDict_SetItemString(d, "cfa", cfa) < 0;
+            bad = !rgb || !cfa || PyDict_SetItemString(d, "truth_rgb", rgb) < 0 ||
+                  PyDict_SetItemString(d, "cfa", cfa) < 0;
             Py_XDECREF(rgb);
             Py_XDECREF(cfa);
         }

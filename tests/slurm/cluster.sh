@@ -82,7 +82,11 @@ slurm_stop() {
     local f pid i
     for f in slurmd.pid slurmctld.pid munge/munged.pid; do
         pid=$(cat "$SLURM_DIR/$f" 2>/dev/null) || continue
-        for i in $(seq 50); do kill -0 "$pid" 2>/dev/null || break; [ "$i" = 20 ] && kill "$pid" 2>/dev/null; sleep 0.2; done
+        for i in $(seq 50); do  # 10 s for a clean stop, SIGTERM after 4 s
+            kill -0 "$pid" 2>/dev/null || break
+            [ "$i" = 20 ] && kill "$pid" 2>/dev/null
+            sleep 0.2
+        done
         kill -9 "$pid" 2>/dev/null || true
     done
 }
