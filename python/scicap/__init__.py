@@ -12,10 +12,15 @@ as a numpy structured array, .mat files and problem folders, the simulator, and 
 with the library's message. Solves release the GIL and stop on Ctrl-C (KeyboardInterrupt). docs/python.md.
 """
 import json as _json
+import os as _os
 
-import numpy as _np
+# GNU OpenMP threads spin at every barrier by default; on shared cores that turns 0.1 s of GAP-TV into seconds
+# (base/omp_env.h). libgomp reads the policy once, when the extension loads it: set it first unless the user chose.
+_os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
-from . import _scicap
+import numpy as _np  # noqa: E402
+
+from . import _scicap  # noqa: E402
 from ._scicap import Error, InputError, adjoint, forward, phi_sum, residual
 from .client import Client, DaemonError
 from .problem import Problem, Result, problem_from_dict as _problem

@@ -118,9 +118,10 @@ class Client:
                 yield m
 
     def watch(self, timeout=None):
-        """Subscribe to every event this connection may see and iterate over them."""
+        """Subscribe this connection to every event it may see (its uid's jobs and the devices; an admin's: all),
+        now, and return the iterator over them (events())."""
         self.request("watch")
-        yield from self.events(timeout)
+        return self.events(timeout)
 
     def wait(self, request_id=None, timeout=None):
         """The events of the jobs a request started (default: the last request), as a generator that ends when

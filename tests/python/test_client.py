@@ -19,14 +19,22 @@ def daemon(scicapd_bin, tmp_path):
         cmd.append("--allow-root")  # as root outside systemd (docs/man/scicapd.8)
     log = open(tmp_path / "scicapd.log", "w")
     proc = subprocess.Popen(cmd, stderr=log)
-    for _ in range(100):
-        if sock.exists() or proc.poll() is not None:
+    for _ in range(100):  # the socket file appears at bind(), before listen(): wait for a connection
+        try:
+            scicap.Client(sock).close()
             break
-        time.sleep(0.1)
-    assert sock.exists(), (tmp_path / "scicapd.log").read_text()
+        except OSError:
+            assert proc.poll() is None, (tmp_path / "scicapd.log").read_text()
+            time.sleep(0.1)
     yield sock, tmp_path
-    # The test ends with a shutdown request: wait for it before any SIGTERM (a SIGTERM that reaches scicapd while
-    # it is already shutting down makes it spin: reported, daemon/daemon.c forward_to_main).
+    # Stop it with a shutdown request (the test's own, or this one if the test failed before) and wait, before
+    # any SIGTERM: a SIGTERM that reaches scicapd while it is already shutting down makes it spin (reported:
+    # daemon/daemon.c forward_to_main).
+    try:
+        with scicap.Client(sock, timeout=5) as c:
+            c.request("shutdown")
+    except (OSError, scicap.DaemonError):
+        pass
     try:
         proc.wait(timeout=30)
     except subprocess.TimeoutExpired:
@@ -44,6 +52,8 @@ def daemon(scicapd_bin, tmp_path):
 
 def test_status_capture_reconstruct(daemon):
     sock, tmp = daemon
+    watcher = scicap.Client(sock)
+    watched = watcher.watch(timeout=60)  # a second connection that follows everything
     with scicap.Client(sock) as c:
         st = c.status()
         assert st["pid"] > 0 and "devices" in st
@@ -62,4 +72,13 @@ def test_status_capture_reconstruct(daemon):
         with pytest.raises(scicap.DaemonError) as e:
             c.reconstruct("c_no_such_capture")
         assert e.value.code in ("not_found", "bad_arguments")
+        seen = []  # the watcher saw both reconstructions and the capture
+        for ev in watched:
+            data = ev.get("data") or {}
+            seen.append(ev["event"] + (f"({data.get('method')})" if ev["event"] == "recon.done" else ""))
+            if seen[-1] == "recon.done(admm-tv)":
+                break
+        for want in ("capture.started", "capture.stored", "recon.done(gap-tv)", "recon.done(admm-tv)"):
+            assert want in seen, " ".join(seen)
+        watcher.close()
         c.request("shutdown")
