@@ -20,8 +20,8 @@ struct nerf_rayformer {
     nerf_rayformer_config cfg;
     nerf_hashgrid *grid;
     nerf_block_shape bs;
-    int C, G, S, Hc, R, L, cin; /* cin = G + S */
-    size_t n_hash, off_block[MAX_BLOCKS], off_lnf_g, off_lnf_b, off_wh, off_bh, off_wc1, off_bc1, off_wc2,
+    int C, G, S, Hc, Hh, R, L, cin; /* cin = G + S; Hh = head_hidden */
+    size_t n_hash, off_block[MAX_BLOCKS], off_lnf_g, off_lnf_b, off_wh1, off_bh1, off_wh, off_bh, off_wc1, off_bc1, off_wc2,
         off_bc2, n_params;
 };
 
@@ -30,7 +30,7 @@ struct nerf_rayformer_ws {
     size_t rows_max, bytes;
     float *mem;
     /* saved activations (rows_max rows each) */
-    float *u, *xhatf, *rstdf, *hout, *cin, *c1pre, *rgb, *dir;
+    float *u, *xhatf, *rstdf, *hpre, *hout, *cin, *c1pre, *rgb, *dir;
     nerf_block_saved sv[MAX_BLOCKS];
     float *act[2];
     float **scratch;   /* per thread */
@@ -47,6 +47,7 @@ nerf_rayformer_config nerf_rayformer_config_default(void)
         .width = 32, .n_blocks = 2, .heads = 2, .ffn_hidden = 64, .geo_dim = 15, .sh_degree = 4,
         .color_hidden = 32, .patch_w = 8, .patch_h = 8, .samples = 32,
         .aabb_min = {-1, -1, -1}, .aabb_max = {1, 1, 1}, .density_bias = 0.0f, .intra_ray = 1, .inter_ray = 1,
+        .final_norm = 1,
     };
     return c;
 }
@@ -71,6 +72,8 @@ int nerf_rayformer_new(nerf_rayformer **out, const nerf_rayformer_config *cfg, s
         return sci_error_set(err, SCI_ECONFIG, "rayformer: geo_dim %d outside 0..256", c->geo_dim);
     if (c->sh_degree < 1 || c->sh_degree > NERF_SH_MAX_DEGREE)
         return sci_error_set(err, SCI_ECONFIG, "rayformer: sh_degree %d outside 1..4", c->sh_degree);
+    if (c->head_hidden < 0 || c->head_hidden > 4096)
+        return sci_error_set(err, SCI_ECONFIG, "rayformer: head_hidden %d outside 0..4096", c->head_hidden);
     if (c->color_hidden < 0 || c->color_hidden > 4096)
         return sci_error_set(err, SCI_ECONFIG, "rayformer: color_hidden %d outside 0..4096", c->color_hidden);
     if (c->patch_w < 1 || c->patch_h < 1 || c->patch_w * c->patch_h > 4096 || c->samples < 1 || c->samples > 4096)
@@ -89,6 +92,7 @@ int nerf_rayformer_new(nerf_rayformer **out, const nerf_rayformer_config *cfg, s
         return sci_error_prefix(err, "rayformer: ");
     }
     n->C = c->width, n->G = c->geo_dim, n->S = nerf_sh_dim(c->sh_degree), n->Hc = c->color_hidden;
+    n->Hh = c->head_hidden;
     n->R = c->patch_w * c->patch_h, n->L = c->samples, n->cin = n->G + n->S;
     n->bs = (nerf_block_shape){.att = {.C = n->C, .heads = c->heads, .L = n->L, .R = n->R,
                                        .intra_off = !c->intra_ray, .inter_off = !c->inter_ray},
@@ -97,9 +101,14 @@ int nerf_rayformer_new(nerf_rayformer **out, const nerf_rayformer_config *cfg, s
     n->n_hash = k;
     for (int b = 0; b < c->n_blocks; b++) n->off_block[b] = k, k += nerf_block_param_count(&n->bs);
     const size_t C = (size_t)n->C, G1 = (size_t)n->G + 1, Ci = (size_t)n->cin, Hc = (size_t)n->Hc;
+    const size_t Hh = (size_t)n->Hh;
     n->off_lnf_g = k, k += C;
     n->off_lnf_b = k, k += C;
-    n->off_wh = k, k += G1 * C;
+    if (Hh) {
+        n->off_wh1 = k, k += Hh * C;
+        n->off_bh1 = k, k += Hh;
+    }
+    n->off_wh = k, k += G1 * (Hh ? Hh : C);
     n->off_bh = k, k += G1;
     if (Hc) {
         n->off_wc1 = k, k += Hc * Ci;
@@ -128,7 +137,8 @@ const nerf_hashgrid *nerf_rayformer_grid(const nerf_rayformer *net) { return net
 
 nerf_rayformer_layout nerf_rayformer_layout_of(const nerf_rayformer *n)
 {
-    nerf_rayformer_layout l = {.hash = 0, .lnf_g = n->off_lnf_g, .lnf_b = n->off_lnf_b, .wh = n->off_wh,
+    nerf_rayformer_layout l = {.hash = 0, .lnf_g = n->off_lnf_g, .lnf_b = n->off_lnf_b, .wh1 = n->off_wh1,
+                               .bh1 = n->off_bh1, .wh = n->off_wh,
                                .bh = n->off_bh, .wc1 = n->off_wc1, .bc1 = n->off_bc1, .wc2 = n->off_wc2,
                                .bc2 = n->off_bc2, .total = n->n_params};
     for (int b = 0; b < n->cfg.n_blocks; b++) l.block[b] = n->off_block[b];
@@ -149,7 +159,12 @@ void nerf_rayformer_init(const nerf_rayformer *net, float *P, uint64_t seed)
         }
     }
     for (int c = 0; c < net->C; c++) P[net->off_lnf_g + c] = 1.0f, P[net->off_lnf_b + c] = 0.0f;
-    nerf_linear_init(net->C, net->G + 1, P + net->off_wh, P + net->off_bh, 1.0, &rng);
+    if (net->Hh) {
+        nerf_linear_init(net->C, net->Hh, P + net->off_wh1, P + net->off_bh1, sqrt(2.0), &rng);
+        nerf_linear_init(net->Hh, net->G + 1, P + net->off_wh, P + net->off_bh, 1.0, &rng);
+    } else {
+        nerf_linear_init(net->C, net->G + 1, P + net->off_wh, P + net->off_bh, 1.0, &rng);
+    }
     if (net->Hc) {
         nerf_linear_init(net->cin, net->Hc, P + net->off_wc1, P + net->off_bc1, sqrt(2.0), &rng);
         nerf_linear_init(net->Hc, 3, P + net->off_wc2, P + net->off_bc2, 1.0, &rng);
@@ -160,9 +175,10 @@ void nerf_rayformer_init(const nerf_rayformer *net, float *P, uint64_t seed)
 
 static size_t head_scratch_floats(const nerf_rayformer *n, size_t rows)
 {
-    /* forward: y (C), c1 (Hc), rgb_pre (3), sh (R·S); backward: y, dy (C), drgb (3), c1, dc1 (Hc), dcin, dhout,
-     * du (3) */
-    return rows * (2 * (size_t)n->C + 3 + 2 * (size_t)n->Hc + (size_t)n->cin + (size_t)n->G + 1 + 3) +
+    /* forward: y (C), c1 (Hc), rgb_pre (3), sh (R·S), head hidden (Hh); backward: y, dy (C), drgb (3), c1, dc1
+     * (Hc), dcin, dhout, du (3), head hidden and its gradient (Hh each) */
+    return rows * (2 * (size_t)n->C + 3 + 2 * (size_t)n->Hc + (size_t)n->cin + (size_t)n->G + 1 + 3 +
+                   2 * (size_t)n->Hh) +
            (size_t)n->R * n->S + 64;
 }
 
@@ -181,7 +197,7 @@ int nerf_rayformer_ws_new(nerf_rayformer_ws **out, const nerf_rayformer *n, int 
     for (int l = 0; l < NERF_HASHGRID_MAX_LEVELS; l++) w->level_w[l] = 1.0f;
     const size_t rows = (size_t)max_patches * n->R * n->L, C = (size_t)n->C, chunk = (size_t)n->R * n->L;
     w->rows_max = rows;
-    size_t per_row = 3 + C + 1 + (size_t)n->G + 1 + (size_t)n->cin + (size_t)n->Hc + 3 + 2 * C +
+    size_t per_row = 3 + C + 1 + (size_t)n->Hh + (size_t)n->G + 1 + (size_t)n->cin + (size_t)n->Hc + 3 + 2 * C +
                      (size_t)n->cfg.n_blocks * nerf_block_saved_floats(&n->bs);
     size_t bs = nerf_block_scratch_floats(&n->bs, chunk), hs = head_scratch_floats(n, chunk);
     w->scratch_floats = (bs > hs ? bs : hs) + 16;
@@ -199,6 +215,7 @@ int nerf_rayformer_ws_new(nerf_rayformer_ws **out, const nerf_rayformer *n, int 
     w->u = m, m += rows * 3;
     w->xhatf = m, m += rows * C;
     w->rstdf = m, m += rows;
+    w->hpre = m, m += rows * (size_t)n->Hh;
     w->hout = m, m += rows * ((size_t)n->G + 1);
     w->cin = m, m += rows * (size_t)n->cin;
     w->c1pre = m, m += rows * (size_t)n->Hc;
@@ -262,11 +279,25 @@ static void patch_forward(const nerf_rayformer *n, const float *P, nerf_rayforme
         nerf_block_forward(&n->bs, P + n->off_block[b], 1, row0, w->act[cur], w->act[cur ^ 1], &w->sv[b], scr);
         cur ^= 1;
     }
+    const int Hh = n->Hh;
     float *y = scr, *c1 = y + (size_t)rows * C, *rp = c1 + (size_t)rows * Hc, *sh = rp + (size_t)rows * 3;
+    float *ha = sh + (size_t)R * S;
     float *hout = w->hout + row0 * (G + 1), *cin = w->cin + row0 * Ci, *c1pre = w->c1pre + row0 * Hc;
-    nerf_layernorm_forward(rows, C, P + n->off_lnf_g, P + n->off_lnf_b, w->act[cur] + row0 * C, C, y, C,
-                           w->xhatf + row0 * C, w->rstdf + row0);
-    nerf_linear_forward(rows, C, G + 1, P + n->off_wh, P + n->off_bh, y, C, hout, G + 1);
+    if (cf->final_norm) {
+        nerf_layernorm_forward(rows, C, P + n->off_lnf_g, P + n->off_lnf_b, w->act[cur] + row0 * C, C, y, C,
+                               w->xhatf + row0 * C, w->rstdf + row0);
+    } else { /* the head's input is h_B itself, kept in xhatf for the backward */
+        memcpy(y, w->act[cur] + row0 * C, (size_t)rows * C * sizeof *y);
+        memcpy(w->xhatf + row0 * C, y, (size_t)rows * C * sizeof *y);
+    }
+    if (Hh) {
+        float *hpre = w->hpre + row0 * Hh;
+        nerf_linear_forward(rows, C, Hh, P + n->off_wh1, P + n->off_bh1, y, C, hpre, Hh);
+        nerf_act_forward(NERF_ACT_RELU, (size_t)rows * Hh, hpre, ha);
+        nerf_linear_forward(rows, Hh, G + 1, P + n->off_wh, P + n->off_bh, ha, Hh, hout, G + 1);
+    } else {
+        nerf_linear_forward(rows, C, G + 1, P + n->off_wh, P + n->off_bh, y, C, hout, G + 1);
+    }
     for (int i = 0; i < rows; i++) {
         float s = hout[(size_t)i * (G + 1)] + cf->density_bias;
         nerf_act_forward(NERF_ACT_TRUNC_EXP, 1, &s, &sigma[row0 + i]);
@@ -332,6 +363,8 @@ static void patch_backward(const nerf_rayformer *n, const float *P, nerf_rayform
     const nerf_rayformer_config *cf = &n->cfg;
     float *y = scr, *dy = y + (size_t)rows * C, *drp = dy + (size_t)rows * C, *c1 = drp + (size_t)rows * 3;
     float *dc1 = c1 + (size_t)rows * Hc, *dcin = dc1 + (size_t)rows * Hc, *dhout = dcin + (size_t)rows * Ci;
+    const int Hh = n->Hh;
+    float *ha = dhout + (size_t)rows * (G + 1), *dha = ha + (size_t)rows * Hh;
     const float *hout = w->hout + row0 * (G + 1), *cin = w->cin + row0 * Ci, *c1pre = w->c1pre + row0 * Hc;
     const float *rgbs = w->rgb + row0 * 3;
     for (size_t i = 0; i < (size_t)rows * 3; i++) drp[i] = d_rgb ? d_rgb[row0 * 3 + i] : 0.0f;
@@ -365,12 +398,27 @@ static void patch_backward(const nerf_rayformer *n, const float *P, nerf_rayform
         }
     }
     /* head and final LN; the block chain runs in place on act[0] as the gradient buffer */
-    nerf_layernorm_apply(rows, C, P + n->off_lnf_g, P + n->off_lnf_b, w->xhatf + row0 * C, y, C);
-    nerf_linear_backward(rows, C, G + 1, P + n->off_wh, y, C, dhout, G + 1, dy, C, 0, GD(n->off_wh),
-                         GD(n->off_bh));
+    if (cf->final_norm)
+        nerf_layernorm_apply(rows, C, P + n->off_lnf_g, P + n->off_lnf_b, w->xhatf + row0 * C, y, C);
+    else
+        memcpy(y, w->xhatf + row0 * C, (size_t)rows * C * sizeof *y);
+    if (Hh) {
+        const float *hpre = w->hpre + row0 * Hh;
+        nerf_act_forward(NERF_ACT_RELU, (size_t)rows * Hh, hpre, ha);
+        nerf_linear_backward(rows, Hh, G + 1, P + n->off_wh, ha, Hh, dhout, G + 1, dha, Hh, 0, GD(n->off_wh),
+                             GD(n->off_bh));
+        nerf_act_backward(NERF_ACT_RELU, (size_t)rows * Hh, hpre, NULL, dha, dha);
+        nerf_linear_backward(rows, C, Hh, P + n->off_wh1, y, C, dha, Hh, dy, C, 0, GD(n->off_wh1), GD(n->off_bh1));
+    } else {
+        nerf_linear_backward(rows, C, G + 1, P + n->off_wh, y, C, dhout, G + 1, dy, C, 0, GD(n->off_wh),
+                             GD(n->off_bh));
+    }
     float *g = w->act[0] + row0 * C;
-    nerf_layernorm_backward(rows, C, P + n->off_lnf_g, w->xhatf + row0 * C, w->rstdf + row0, dy, C, g, C, 0,
-                            GD(n->off_lnf_g), GD(n->off_lnf_b));
+    if (cf->final_norm)
+        nerf_layernorm_backward(rows, C, P + n->off_lnf_g, w->xhatf + row0 * C, w->rstdf + row0, dy, C, g, C, 0,
+                                GD(n->off_lnf_g), GD(n->off_lnf_b));
+    else
+        memcpy(g, dy, (size_t)rows * C * sizeof *g);
     for (int b = cf->n_blocks - 1; b >= 0; b--)
         nerf_block_backward(&n->bs, P + n->off_block[b], 1, row0, &w->sv[b], w->act[0], w->act[0],
                             GD(n->off_block[b]), scr);

@@ -4,7 +4,8 @@
  *   u   = (x − aabb_min)/(aabb_max − aabb_min)           x: sample position (world units), clamped to [0, 1]³
  *   h₀  = hashgrid(u)                                    L·F = width channels
  *   h_b = block_b(h_{b−1}),  b = 1 … n_blocks            I²R-MSA + FFN, pre-norm (block.h)
- *   [s, geo] = W_h·LN_f(h_B) + b_h                       1 + geo_dim outputs
+ *   [s, geo] = W_h·LN_f(h_B) + b_h                       1 + geo_dim outputs (head_hidden = 0, the paper's FC)
+ *   [s, geo] = W_h·ReLU(W_h1·LN_f(h_B) + b_h1) + b_h     head_hidden > 0: a hidden layer first
  *   σ   = trunc_exp(s + density_bias)                    (act.h: backward clamped at ±15)
  *   rgb = sigmoid(MLP([geo, SH₄(d)]))                    ReLU hidden layer of color_hidden (0: a single FC layer)
  *
@@ -57,6 +58,12 @@ typedef struct nerf_rayformer_config {
     float aabb_min[3], aabb_max[3];
     float density_bias;        /* added before trunc_exp */
     int intra_ray, inter_ray;  /* 1: the attention path; 0: pass-through (o = V, per point) — the paper's ablation */
+    int head_hidden;           /* 0: density and geometry from one FC layer on LN_f(h) (the paper); > 0: a ReLU
+                                  hidden layer of this width first, as SCINeRF's density MLP (issue 15: with the
+                                  blocks starting as the identity, one FC layer on normalised hash features fits
+                                  slower per point than SCINeRF's field) */
+    int final_norm;            /* 1: LN_f before the head (pre-norm transformers, the default); 0: the head reads h_B
+                                  as it is, as SCINeRF's MLP reads the hash features */
     int zero_gates;            /* init: 1 zeroes each block's attention and FFN output projections, so every block
                                   starts as the identity and mixes rays only as far as that lowers the loss */
 } nerf_rayformer_config;
@@ -74,9 +81,10 @@ const nerf_rayformer_config *nerf_rayformer_config_of(const nerf_rayformer *net)
 size_t nerf_rayformer_param_count(const nerf_rayformer *net);
 size_t nerf_rayformer_hash_param_count(const nerf_rayformer *net); /* the first this many params are the table */
 const nerf_hashgrid *nerf_rayformer_grid(const nerf_rayformer *net);
-/* Where each part sits in the parameter array (floats). wc1/bc1 are unused when color_hidden = 0. */
+/* Where each part sits in the parameter array (floats). wc1/bc1 are unused when color_hidden = 0, wh1/bh1 when
+ * head_hidden = 0. */
 typedef struct nerf_rayformer_layout {
-    size_t hash, block[8], lnf_g, lnf_b, wh, bh, wc1, bc1, wc2, bc2, total;
+    size_t hash, block[8], lnf_g, lnf_b, wh1, bh1, wh, bh, wc1, bc1, wc2, bc2, total;
 } nerf_rayformer_layout;
 nerf_rayformer_layout nerf_rayformer_layout_of(const nerf_rayformer *net);
 /* Seeded initialisation (hash U(±1e-4), linear Kaiming-uniform, LN identity, zero biases). */

@@ -28,6 +28,8 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
                                 .finest_res = 512,
                                 .sh_degree = 1,
                                 .zero_gates = 1,
+                                .final_norm = 1,
+                                .head_hidden = 0,
                                 .heads_full_lr = 1,
                                 .recipe = {.spacing = NERF_SPACING_LINEAR, .distortion_weight = 0.01},
                                 .lr = 1e-2,
@@ -177,6 +179,8 @@ static int rf_build(const void *params, const sci_problem *problem, const nerf_t
     cfg.inter_ray = p->inter_ray;
     cfg.intra_ray = p->intra_ray;
     cfg.zero_gates = p->zero_gates;
+    cfg.final_norm = p->final_norm;
+    cfg.head_hidden = p->head_hidden;
     cfg.density_bias = (float)p->recipe.density_bias;
     memcpy(cfg.aabb_min, tc->box_lo, sizeof cfg.aabb_min);
     memcpy(cfg.aabb_max, tc->box_hi, sizeof cfg.aabb_max);
@@ -254,6 +258,8 @@ static const solver_field rf_fields[] = {
     RF("inter_ray", SOLVER_FIELD_BOOL, inter_ray, 0, 1, "inter-ray attention"),
     RF("intra_ray", SOLVER_FIELD_BOOL, intra_ray, 0, 1, "intra-ray attention"),
     RF("zero_gates", SOLVER_FIELD_BOOL, zero_gates, 0, 1, "blocks start as the identity"),
+    RF("final_norm", SOLVER_FIELD_BOOL, final_norm, 0, 1, "layer norm before the density head"),
+    RF("head_hidden", SOLVER_FIELD_INT, head_hidden, 0, 4096, "hidden ReLU layer of the density head (0: one FC)"),
     {"ablation", SOLVER_FIELD_ACTION, 0, 0, 0, ablation_steps, 0,
      "the paper's ladder: sets patch_sampling, inter_ray, intra_ray, tv_weight (tv: the full method)"},
 };

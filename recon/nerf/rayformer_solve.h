@@ -48,6 +48,9 @@ typedef struct sci_rayformer_params {
     int inter_ray, intra_ray;    /* 1: the attention path; 0: pass-through (ablation) */
     int zero_gates;              /* 1: each block's output projections start at zero (the block starts as the
                                     identity, ReZero/LayerScale-style); 0: Kaiming-uniform */
+    int final_norm;              /* 1: layer norm before the density head (pre-norm transformers); 0: the head reads
+                                    the features as they are, as SCINeRF's MLP reads the hash features */
+    int head_hidden;             /* 0: density and geometry from one FC layer (the paper); > 0: a ReLU layer first */
     /* iters, samples (L per ray, paper 32), lr, lr_final, recipe, pose_*, metrics_every, ssim_every, seed, threads,
      * checkpoint_*, resume*: the settings every NeRF method shares (recon/nerf/nerf_solve.h) */
     union {

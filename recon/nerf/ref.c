@@ -154,8 +154,20 @@ void nerf_ref_rayformer_forward(const nerf_rayformer *net, const double *P, int 
         nerf_ref_block_forward(&bs, P + lo.block[k], n_patches, a, b);
         memcpy(a, b, n * C * sizeof *a);
     }
-    nerf_ref_layernorm((int)n, C, P + lo.lnf_g, P + lo.lnf_b, a, b);
-    nerf_ref_linear((int)n, C, G + 1, P + lo.wh, P + lo.bh, b, ho);
+    if (cf->final_norm)
+        nerf_ref_layernorm((int)n, C, P + lo.lnf_g, P + lo.lnf_b, a, b);
+    else
+        memcpy(b, a, n * C * sizeof *b);
+    if (cf->head_hidden) {
+        const int Hh = cf->head_hidden;
+        double *hh = malloc(n * Hh * sizeof *hh);
+        nerf_ref_linear((int)n, C, Hh, P + lo.wh1, P + lo.bh1, b, hh);
+        for (size_t i = 0; i < n * Hh; i++) hh[i] = hh[i] > 0 ? hh[i] : 0;
+        nerf_ref_linear((int)n, Hh, G + 1, P + lo.wh, P + lo.bh, hh, ho);
+        free(hh);
+    } else {
+        nerf_ref_linear((int)n, C, G + 1, P + lo.wh, P + lo.bh, b, ho);
+    }
     for (size_t i = 0; i < n; i++) {
         double s = ho[i * (G + 1)] + cf->density_bias;
         sigma[i] = exp(s < 88 ? s : 88);

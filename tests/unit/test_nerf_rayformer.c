@@ -102,7 +102,7 @@ static void gradcheck(const nerf_rayformer_config *cfg_in, const char *what)
     for (size_t j = 0; j < nh; j++) P[j] = (float)(sci_rng_uniform(&rng) - 0.5);
     /* LN affine away from identity to exercise γ, β */
     nerf_rayformer_layout lo = nerf_rayformer_layout_of(net);
-    for (size_t j = lo.lnf_g; j < lo.wh; j++) P[j] = (float)(1.0 + 0.3 * sci_rng_normal(&rng));
+    for (size_t j = lo.lnf_g; j < lo.lnf_b + (size_t)cfg.width; j++) P[j] = (float)(1.0 + 0.3 * sci_rng_normal(&rng));
     nerf_rayformer_ws *ws;
     assert_int_equal(nerf_rayformer_ws_new(&ws, net, pr.P, 2, &err), 0);
     int N = pr.N, nr = pr.P * pr.R;
@@ -179,6 +179,18 @@ static void test_rayformer_gradcheck_ablation(void **state)
     gradcheck(&c, "inter-ray off");
 }
 
+/* The density/geometry head with a hidden ReLU layer (head_hidden > 0) instead of the paper's single FC layer. */
+static void test_rayformer_gradcheck_head_hidden(void **state)
+{
+    (void)state;
+    nerf_rayformer_config c = small_config();
+    c.head_hidden = 6;
+    gradcheck(&c, "hidden head layer");
+    c = small_config();
+    c.final_norm = 0;
+    gradcheck(&c, "no final layer norm");
+}
+
 /* Same seed: bitwise identical outputs and gradients (full-size 8×8×32 patches), on 2 threads and on 3 (patches and
  * hash levels are scheduled dynamically and the sums never depend on which thread did what). */
 static void test_rayformer_deterministic(void **state)
@@ -236,6 +248,10 @@ static void test_rayformer_config_errors(void **state)
     assert_int_equal(nerf_rayformer_new(&net, &c, &err), SCI_ECONFIG);
     assert_non_null(strstr(err.msg, "heads"));
     c = nerf_rayformer_config_default();
+    c.head_hidden = -1;
+    assert_int_equal(nerf_rayformer_new(&net, &c, &err), SCI_ECONFIG);
+    assert_non_null(strstr(err.msg, "head_hidden"));
+    c = nerf_rayformer_config_default();
     c.aabb_max[1] = c.aabb_min[1];
     assert_int_equal(nerf_rayformer_new(&net, &c, &err), SCI_ECONFIG);
     assert_null(net);
@@ -246,6 +262,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rayformer_gradcheck),
         cmocka_unit_test(test_rayformer_gradcheck_ablation),
+        cmocka_unit_test(test_rayformer_gradcheck_head_hidden),
         cmocka_unit_test(test_rayformer_deterministic),
         cmocka_unit_test(test_rayformer_config_errors),
     };
