@@ -2,6 +2,7 @@
 #include "tests/helpers/cli_child.h"
 
 #include <fcntl.h>
+#include <ftw.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -85,3 +86,18 @@ void cli_child_run(cli_child *c, const char *prog, const char *const *args, cons
 }
 
 int cli_child_exit_code(const cli_child *c) { return WIFEXITED(c->status) ? WEXITSTATUS(c->status) : -1; }
+
+int cli_child_setup(char *prog, size_t n, const char *name, char *dir)
+{
+    if (cli_child_program(prog, n, name) < 0)
+        return -1;
+    return mkdtemp(dir) ? 0 : -1;
+}
+
+static int remove_entry(const char *path, const struct stat *sb, int flag, struct FTW *ftw)
+{
+    (void)sb, (void)flag, (void)ftw;
+    return remove(path);
+}
+
+int cli_child_remove_dir(const char *dir) { return nftw(dir, remove_entry, 16, FTW_DEPTH | FTW_PHYS) == 0 ? 0 : -1; }

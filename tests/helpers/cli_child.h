@@ -37,4 +37,9 @@ void cli_child_run(cli_child *c, const char *prog, const char *const *args, cons
 /* The exit status, or -1 when it died of a signal. */
 int cli_child_exit_code(const cli_child *c);
 
+/* A test group's setup and teardown: BUILD/name into prog and a new folder from the mkdtemp template in dir
+ * (0 or -1); then the folder removed with everything in it (0 or -1). */
+int cli_child_setup(char *prog, size_t n, const char *name, char *dir);
+int cli_child_remove_dir(const char *dir);
+
 #endif

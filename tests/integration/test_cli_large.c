@@ -83,19 +83,8 @@ static void test_4200_square_reconstructs_with_small_gif(void **state)
     globfree(&gl);
 }
 
-static int setup(void **state)
-{
-    if (cli_child_program(scicap, sizeof scicap, "scicap") < 0)
-        return -1;
-    return mkdtemp(dir) ? 0 : -1;
-}
-
-static int teardown(void **state)
-{
-    char cmd[512];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    return system(cmd) == 0 ? 0 : -1;
-}
+static int setup(void **state) { return cli_child_setup(scicap, sizeof scicap, "scicap", dir); }
+static int teardown(void **state) { return cli_child_remove_dir(dir); }
 
 int main(void)
 {

@@ -173,19 +173,8 @@ static void test_sidecar_claim_refused_before_allocating(void **state)
     assert_nothing_at(out);
 }
 
-static int setup(void **state)
-{
-    if (cli_child_program(scicap, sizeof scicap, "scicap") < 0)
-        return -1;
-    return mkdtemp(dir) ? 0 : -1;
-}
-
-static int teardown(void **state)
-{
-    char cmd[512];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    return system(cmd) == 0 ? 0 : -1;
-}
+static int setup(void **state) { return cli_child_setup(scicap, sizeof scicap, "scicap", dir); }
+static int teardown(void **state) { return cli_child_remove_dir(dir); }
 
 int main(void)
 {

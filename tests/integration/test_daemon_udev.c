@@ -171,19 +171,8 @@ static void test_refuses_to_widen(void **state)
     assert_non_null(strstr(c.err, "devices.trigger.chip"));
 }
 
-static int setup(void **state)
-{
-    if (cli_child_program(scicapd, sizeof scicapd, "scicapd") < 0)
-        return -1;
-    return mkdtemp(dir) ? 0 : -1;
-}
-
-static int teardown(void **state)
-{
-    char cmd[512];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    return system(cmd) == 0 ? 0 : -1;
-}
+static int setup(void **state) { return cli_child_setup(scicapd, sizeof scicapd, "scicapd", dir); }
+static int teardown(void **state) { return cli_child_remove_dir(dir); }
 
 int main(void)
 {
