@@ -50,6 +50,32 @@ int camera_frame_reserve(camera_frame *f, uint32_t w, uint32_t h, sci_error *err
     return 0;
 }
 
+int camera_frame_unpack(camera_frame *f, const camera_format *fmt, const void *src, size_t len, size_t stride,
+                        sci_error *err)
+{
+    int rc = camera_frame_reserve(f, fmt->width, fmt->height, err);
+    if (rc == 0)
+        rc = pixfmt_unpack(fmt->pixfmt, src, len, stride, fmt->width, fmt->height, f->data, err);
+    if (rc < 0)
+        return rc;
+    f->width = fmt->width;
+    f->height = fmt->height;
+    f->bits_per_sample = fmt->bits_per_sample;
+    f->pixfmt = fmt->pixfmt;
+    return 0;
+}
+
+int camera_recover_controls(const camera_ops *ops, void *state, uint32_t exposure_us, int32_t gain,
+                            int was_streaming, sci_error *err)
+{
+    int rc;
+    if (exposure_us && (rc = ops->set_exposure_us(state, &exposure_us, err)) < 0)
+        return rc;
+    if (gain >= 0 && (rc = ops->set_gain(state, &gain, err)) < 0)
+        return rc;
+    return was_streaming ? ops->start(state, err) : 0;
+}
+
 int camera_open(camera **out, const camera_ops *ops, const camera_config *cfg, sci_error *err)
 {
     *out = NULL;

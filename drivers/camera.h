@@ -193,4 +193,17 @@ json_t *camera_identity_json(const camera_identity *id);
 /* Make sure f->data holds at least w*h samples. -ENOMEM (f unchanged) or -EOVERFLOW. For backends. */
 int camera_frame_reserve(camera_frame *f, uint32_t w, uint32_t h, sci_error *err);
 
+/* For backends' wait_frame, the one conversion path from the wire: unpack a buffer of `len` bytes, rows `stride`
+ * bytes apart, in the negotiated format `fmt` into f (data reserved as needed, samples unscaled) and set the
+ * format fields (width, height, bits_per_sample, pixfmt). The backend fills the rest (sequence, timestamp,
+ * ts_source, corrupt, exposure_us, gain). Errors as camera_frame_reserve and pixfmt_unpack; the format fields are
+ * left as they were then. */
+int camera_frame_unpack(camera_frame *f, const camera_format *fmt, const void *src, size_t len, size_t stride,
+                        sci_error *err);
+
+/* For backends' recover, once reconnected with profile and format back: put the manual exposure back (0: none was
+ * set), then the gain (-1: none was set), through `ops` on `state`, and start streaming again if it was on. */
+int camera_recover_controls(const camera_ops *ops, void *state, uint32_t exposure_us, int32_t gain,
+                            int was_streaming, sci_error *err);
+
 #endif

@@ -648,9 +648,8 @@ static int aravis_wait_frame(void *state, int64_t timeout_ns, camera_frame *out,
             rc = sci_error_set(err, SCI_EDEVICE, "%s: frame %llu is %dx%d PixelFormat 0x%08x, not the %ux%u 0x%08x "
                                "negotiated", c->id, (unsigned long long)id, w, h, (unsigned)pf, c->fmt.width,
                                c->fmt.height, (unsigned)c->arv_fmt);
-        else if ((rc = camera_frame_reserve(out, c->fmt.width, c->fmt.height, err)) == 0)
-            rc = pixfmt_unpack(c->fmt.pixfmt, data, size, c->fmt.bytesperline + (size_t)xpad, c->fmt.width,
-                               c->fmt.height, out->data, err);
+        else
+            rc = camera_frame_unpack(out, &c->fmt, data, size, c->fmt.bytesperline + (size_t)xpad, err);
         uint64_t under = s->underruns_before - c->underruns_at_start;
         aravis_push(c, b); /* back to the pool at once, whatever happened */
         if (rc < 0)
@@ -669,10 +668,6 @@ static int aravis_wait_frame(void *state, int64_t timeout_ns, camera_frame *out,
         c->sequence = c->have_sequence ? c->sequence + 1 + lost_before : lost_before;
         c->have_sequence = 1;
         int64_t now_mono = clock_ns(CLOCK_MONOTONIC), now_real = clock_ns(CLOCK_REALTIME);
-        out->width = c->fmt.width;
-        out->height = c->fmt.height;
-        out->bits_per_sample = c->fmt.bits_per_sample;
-        out->pixfmt = c->fmt.pixfmt;
         out->sequence = c->sequence;
         out->timestamp_ns = sys_ns > 0 ? sys_ns - (now_real - now_mono) : now_mono;
         out->ts_source = CAMERA_TS_EOF;
@@ -694,17 +689,7 @@ static int aravis_recover(void *state, sci_error *err)
     camera_format f;
     if (c->have_fmt && (rc = aravis_set_format(c, &c->want, &f, err)) < 0)
         return rc;
-    if (c->exposure_us) {
-        uint32_t e = c->exposure_us;
-        if ((rc = aravis_set_exposure(c, &e, err)) < 0)
-            return rc;
-    }
-    if (c->gain >= 0) {
-        int32_t g = c->gain;
-        if ((rc = aravis_set_gain(c, &g, err)) < 0)
-            return rc;
-    }
-    return was_streaming ? aravis_start(c, err) : 0;
+    return camera_recover_controls(&camera_aravis_ops, c, c->exposure_us, c->gain, was_streaming, err);
 }
 
 const camera_ops camera_aravis_ops = {

@@ -1,5 +1,6 @@
 /* drivers/camera_skeleton.c — the template for a new camera backend. Copy it to camera_<name>.c, rename the
- * skel_ prefix, fill each function, and declare `extern const camera_ops camera_<name>_ops;` in camera_<name>.h.
+ * skel_ prefix, fill each function, declare `extern const camera_ops camera_<name>_ops;` in camera_<name>.h and
+ * list it in drivers/backends.c (the config then finds it by its `name`).
  *
  * Rules every backend keeps (drivers/camera.h has the full contract):
  *   - all state lives in the object that open() allocates; no statics, no globals;
@@ -7,8 +8,10 @@
  *   - set_format reports what the device accepted, and refuses (-ENOTSUP) rather than silently changing it;
  *   - exposure in µs, timestamps in ns of CLOCK_MONOTONIC, samples unscaled with bits_per_sample set;
  *   - wait_frame fills every camera_frame field except lost_before/lost_total (the front end counts those from
- *     the sequence numbers, so a backend must pass the device's own frame counter through untouched);
- *   - recover reopens after -ENODEV/-EIO and restores format, exposure, gain and streaming.
+ *     the sequence numbers, so a backend must pass the device's own frame counter through untouched); the pixels
+ *     go through camera_frame_unpack, the one conversion from the wire every backend shares;
+ *   - recover reopens after -ENODEV/-EIO and restores format, then camera_recover_controls puts exposure, gain
+ *     and streaming back.
  * This skeleton opens nothing and refuses everything, so it is safe to link. */
 #include <errno.h>
 #include <stdio.h>
@@ -76,12 +79,16 @@ static int skel_stop(void *state, sci_error *err)
 
 static int skel_wait_frame(void *state, int64_t timeout_ns, camera_frame *out, sci_error *err)
 {
+    /* A real backend waits for a buffer, then camera_frame_unpack(out, &c->fmt, buf, bytesused, stride, err),
+     * gives the buffer back, and sets sequence, timestamp_ns, ts_source, corrupt, exposure_us and gain. */
     skel_cam *c = state;
     return sci_error_set(err, -ENOTSUP, "%s: wait_frame not implemented", c->path);
 }
 
 static int skel_recover(void *state, sci_error *err)
 {
+    /* A real backend reopens, re-applies its trigger profile and c->fmt, then ends with
+     * camera_recover_controls(&camera_<name>_ops, c, c->exposure_us, c->gain, was_streaming, err). */
     skel_cam *c = state;
     return sci_error_set(err, -ENOTSUP, "%s: recover not implemented", c->path);
 }

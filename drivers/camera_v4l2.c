@@ -480,10 +480,7 @@ static int v4l2_wait_frame(void *state, int64_t timeout_ns, camera_frame *out, s
         size_t used = b.bytesused ? b.bytesused : c->bufs[b.index].len;
         if (used > c->bufs[b.index].len)
             used = c->bufs[b.index].len;
-        rc = camera_frame_reserve(out, c->fmt.width, c->fmt.height, err);
-        if (rc == 0)
-            rc = pixfmt_unpack(c->fmt.pixfmt, c->bufs[b.index].ptr, used, c->fmt.bytesperline, c->fmt.width,
-                               c->fmt.height, out->data, err);
+        rc = camera_frame_unpack(out, &c->fmt, c->bufs[b.index].ptr, used, c->fmt.bytesperline, err);
         /* Back to the driver at once, whatever happened. QBUF is _IOWR: the kernel rewrites the struct with the
          * queued state (sequence 0, no timestamp, no ERROR flag), so it gets a copy and `b` keeps the frame's. */
         struct v4l2_buffer q = b;
@@ -493,10 +490,6 @@ static int v4l2_wait_frame(void *state, int64_t timeout_ns, camera_frame *out, s
         if (qrc < 0)
             return qrc == -ENODEV ? sci_error_set(err, -ENODEV, "%s: device disconnected", c->path)
                                   : v4l2_fail(c, qrc, err, "VIDIOC_QBUF");
-        out->width = c->fmt.width;
-        out->height = c->fmt.height;
-        out->bits_per_sample = c->fmt.bits_per_sample;
-        out->pixfmt = c->fmt.pixfmt;
         out->sequence = b.sequence;
         out->timestamp_ns = (int64_t)b.timestamp.tv_sec * 1000000000LL + (int64_t)b.timestamp.tv_usec * 1000;
         uint32_t src = b.flags & V4L2_BUF_FLAG_TSTAMP_SRC_MASK;
@@ -529,17 +522,7 @@ static int v4l2_recover(void *state, sci_error *err)
     camera_format f;
     if ((rc = v4l2_apply_profile(c, err)) < 0 || (c->have_fmt && (rc = v4l2_set_format(c, &c->want, &f, err)) < 0))
         return rc;
-    if (c->exposure_us) {
-        uint32_t e = c->exposure_us;
-        if ((rc = v4l2_set_exposure(c, &e, err)) < 0)
-            return rc;
-    }
-    if (c->gain >= 0) {
-        int32_t g = c->gain;
-        if ((rc = v4l2_set_gain(c, &g, err)) < 0)
-            return rc;
-    }
-    return was_streaming ? v4l2_start(c, err) : 0;
+    return camera_recover_controls(&camera_v4l2_ops, c, c->exposure_us, c->gain, was_streaming, err);
 }
 
 const camera_ops camera_v4l2_ops = {

@@ -59,9 +59,11 @@ typedef struct dmd_config {
     const sci_log *log;       /* may be NULL; borrowed for the life of the device */
     void *emulator;           /* dlpc900 only: a dlpc900_emu * to drive instead of USB (borrowed; outlives the dmd) */
     int width, height;        /* sim only: DMD size (0 = 1920×1080) */
+    const void *backend_options; /* backend-specific, borrowed during open (a wrapper's own state, e.g.) */
 } dmd_config;
 
-static inline dmd_config dmd_config_default(void) { return (dmd_config){.timeout_ms = 1000}; }
+/* timeout_ms 1000, everything else zero / NULL. */
+dmd_config dmd_config_default(void);
 
 typedef struct dmd_identity {
     char backend[16];   /* "dlpc900", "sim" */
@@ -111,32 +113,22 @@ typedef struct dmd {
     void *state;
 } dmd;
 
-/* Backends. */
+/* Backends: this one here; the rest by name through drivers/backends.h. */
 extern const dmd_ops dmd_dlpc900_ops;
 
-static inline int dmd_open(dmd *d, const dmd_ops *ops, const dmd_config *cfg, sci_error *err)
-{
-    d->ops = ops;
-    d->state = 0;
-    int rc = ops->open(&d->state, cfg, err);
-    if (rc < 0)
-        d->ops = 0;
-    return rc;
-}
+/* Open `ops` into d. On failure d is left closed (dmd_close harmless). */
+int dmd_open(dmd *d, const dmd_ops *ops, const dmd_config *cfg, sci_error *err);
 /* Stops the sequence (best effort) and releases the device. Harmless on a closed handle. */
-static inline void dmd_close(dmd *d)
-{
-    if (d->ops)
-        d->ops->close(d->state);
-    d->ops = 0;
-    d->state = 0;
-}
-static inline int dmd_identify(dmd *d, dmd_identity *id, sci_error *e) { return d->ops->identify(d->state, id, e); }
-static inline int dmd_upload(dmd *d, const sci_cube *m, sci_error *e) { return d->ops->upload(d->state, m, e); }
-static inline int dmd_set_timing(dmd *d, const dmd_timing *t, sci_error *e) { return d->ops->set_timing(d->state, t, e); }
-static inline int dmd_start(dmd *d, sci_error *e) { return d->ops->start(d->state, e); }
-static inline int dmd_stop(dmd *d, sci_error *e) { return d->ops->stop(d->state, e); }
-static inline int dmd_status_get(dmd *d, dmd_status *s, sci_error *e) { return d->ops->status(d->state, s, e); }
-static inline int dmd_poll(dmd *d, int timeout_ms, sci_error *e) { return d->ops->poll(d->state, timeout_ms, e); }
+void dmd_close(dmd *d);
+int dmd_identify(dmd *d, dmd_identity *id, sci_error *err);
+int dmd_upload(dmd *d, const sci_cube *masks, sci_error *err);
+int dmd_set_timing(dmd *d, const dmd_timing *t, sci_error *err);
+int dmd_start(dmd *d, sci_error *err);
+int dmd_stop(dmd *d, sci_error *err);
+int dmd_status_get(dmd *d, dmd_status *st, sci_error *err);
+/* Hotplug notifications for up to timeout_ms (0 = do not wait); on_event is called from here. */
+int dmd_poll(dmd *d, int timeout_ms, sci_error *err);
+/* The backend's state if d runs on `ops`, else NULL: how sim/ reaches its simulator-only queries. */
+void *dmd_backend_state(const dmd *d, const dmd_ops *ops);
 
 #endif

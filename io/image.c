@@ -78,65 +78,50 @@ static int publish(const char *tmp, const char *path, int rc, const char *msg, s
     return 0;
 }
 
-int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type type, double scale,
-                    const char *description, sci_error *err)
+/* One image from `channels` frames of `c` starting at `k0` (1: grey, 3: RGB), interleaved per pixel, scaled,
+ * and for integer types rounded and clamped; written to a temporary name and renamed. */
+static int write_frames(const char *path, const sci_cube *c, int k0, int channels, sci_pixel_type type, double scale,
+                        const char *description, sci_error *err)
 {
-    if (k < 0 || k >= c->n)
-        return sci_error_set(err, -EINVAL, "%s: frame %d out of range (cube has %d)", path, k, c->n);
     if (!sci_pixel_type_name(type))
         return sci_error_set(err, -EINVAL, "%s: invalid pixel type", path);
     const size_t fs = sci_cube_frame_size(c);
-    const float *src = sci_cube_frame(c, k);
-    float *buf = malloc(fs * sizeof *buf);
+    float *buf = malloc((size_t)channels * fs * sizeof *buf);
     if (!buf)
         return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
     const double hi = type == SCI_PIXEL_U8 ? 255 : 65535;
-    for (size_t i = 0; i < fs; i++) {
-        double v = (double)src[i] * scale;
-        if (type == SCI_PIXEL_U8 || type == SCI_PIXEL_U16) {
-            v = isnan(v) ? 0 : nearbyint(v);
-            v = v < 0 ? 0 : (v > hi ? hi : v);
-        }
-        buf[i] = (float)v;
-    }
-    char tmp[4096], msg[SCI_ERROR_MSG_MAX];
-    tmp_name(tmp, sizeof tmp, path);
-    int rc = sci_oiio_write(tmp, buf, c->w, c->h, (int)type, description, msg, sizeof msg);
-    free(buf);
-    return publish(tmp, path, rc, msg, err);
-}
-
-/* io/image_rgb.cpp */
-int sci_oiio_write_rgb(const char *path, const float *rgb, int w, int h, int pixel_type, char *errbuf, size_t errlen);
-
-int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_type type, double scale,
-                        sci_error *err)
-{
-    if (f < 0 || 3 * f + 2 >= rgb->n)
-        return sci_error_set(err, -EINVAL, "%s: RGB frame %d out of range (cube has %d channels)", path, f, rgb->n);
-    if (!sci_pixel_type_name(type))
-        return sci_error_set(err, -EINVAL, "%s: invalid pixel type", path);
-    const size_t fs = sci_cube_frame_size(rgb);
-    float *buf = malloc(3 * fs * sizeof *buf);
-    if (!buf)
-        return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
-    const double hi = type == SCI_PIXEL_U8 ? 255 : 65535;
-    for (int c = 0; c < 3; c++) {
-        const float *src = sci_cube_frame(rgb, 3 * f + c);
+    for (int ch = 0; ch < channels; ch++) {
+        const float *src = sci_cube_frame(c, k0 + ch);
         for (size_t i = 0; i < fs; i++) {
             double v = (double)src[i] * scale;
             if (type == SCI_PIXEL_U8 || type == SCI_PIXEL_U16) {
                 v = isnan(v) ? 0 : nearbyint(v);
                 v = v < 0 ? 0 : (v > hi ? hi : v);
             }
-            buf[3 * i + c] = (float)v;
+            buf[(size_t)channels * i + ch] = (float)v;
         }
     }
     char tmp[4096], msg[SCI_ERROR_MSG_MAX];
     tmp_name(tmp, sizeof tmp, path);
-    int rc = sci_oiio_write_rgb(tmp, buf, rgb->w, rgb->h, (int)type, msg, sizeof msg);
+    int rc = sci_oiio_write(tmp, buf, c->w, c->h, channels, (int)type, description, msg, sizeof msg);
     free(buf);
     return publish(tmp, path, rc, msg, err);
+}
+
+int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type type, double scale,
+                    const char *description, sci_error *err)
+{
+    if (k < 0 || k >= c->n)
+        return sci_error_set(err, -EINVAL, "%s: frame %d out of range (cube has %d)", path, k, c->n);
+    return write_frames(path, c, k, 1, type, scale, description, err);
+}
+
+int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_type type, double scale,
+                        sci_error *err)
+{
+    if (f < 0 || 3 * f + 2 >= rgb->n)
+        return sci_error_set(err, -EINVAL, "%s: RGB frame %d out of range (cube has %d channels)", path, f, rgb->n);
+    return write_frames(path, rgb, 3 * f, 3, type, scale, NULL, err);
 }
 
 /* The smallest f with ceil(w/f)·ceil(h/f) <= SCI_GIF_MAX_PIXELS and both sides <= 65535. */

@@ -125,7 +125,7 @@ extern "C" int sci_oiio_probe(const char *path, int *w, int *h, char *errbuf, si
     }
 }
 
-extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h, int pixel_type,
+extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h, int channels, int pixel_type,
                               const char *description, char *errbuf, size_t errlen)
 {
     try {
@@ -137,7 +137,10 @@ extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h,
         if (!out)
             return fail(errbuf, errlen, SCI_EFORMAT,
                         std::string(path) + ": no image writer for this extension (" + OIIO::geterror() + ")");
-        ImageSpec spec(w, h, 1, t);
+        if (channels != 1 && channels != 3)
+            return fail(errbuf, errlen, -EINVAL, std::string(path) + ": " + std::to_string(channels) +
+                                                     " channels (1 or 3 are written)");
+        ImageSpec spec(w, h, channels, t);
         std::string p(path);
         auto ends = [&](const char *s) {
             size_t l = std::strlen(s);
@@ -157,7 +160,7 @@ extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h,
         std::vector<uint16_t> u16;
         const void *pixels = data;
         TypeDesc given = TypeDesc::FLOAT;
-        const size_t count = (size_t)w * h;
+        const size_t count = (size_t)w * h * channels;
         if (pixel_type == 0) {
             u8.resize(count);
             for (size_t i = 0; i < count; i++)

@@ -21,11 +21,12 @@ int sci_oiio_read(const char *path, float **data, int *w, int *h, int *nframes, 
 /* The size of the first subimage of `path`, from its header alone (no pixels read, nothing allocated for them). */
 int sci_oiio_probe(const char *path, int *w, int *h, char *errbuf, size_t errlen);
 
-/* Write one w×h grey image. `pixel_type` 0 = uint8, 1 = uint16, 2 = half, 3 = float; values must already be in
- * the type's range (integer types: rounded by the caller). description may be NULL. Not atomic: io/image.c
- * writes to a temporary name and renames. */
-int sci_oiio_write(const char *path, const float *data, int w, int h, int pixel_type, const char *description,
-                   char *errbuf, size_t errlen);
+/* Write one w×h image of `channels` interleaved samples per pixel (1 grey, 3 RGB; others -EINVAL). `pixel_type`
+ * 0 = uint8, 1 = uint16, 2 = half, 3 = float; values must already be in the type's range (integer types: rounded
+ * by the caller). TIFF and EXR are zip-compressed. description may be NULL. Not atomic: io/image.c writes to a
+ * temporary name and renames. */
+int sci_oiio_write(const char *path, const float *data, int w, int h, int channels, int pixel_type,
+                   const char *description, char *errbuf, size_t errlen);
 
 /* Write an animated GIF of n 8-bit frames, delay_ms per frame. */
 int sci_oiio_write_gif(const char *path, const unsigned char *frames, int w, int h, int n, int delay_ms,

@@ -405,16 +405,9 @@ static int sim_wait_frame(void *state, int64_t timeout_ns, camera_frame *out, sc
     int rc = sim_render(s, &slot.e, err);
     if (rc < 0)
         return rc;
-    if ((rc = camera_frame_reserve(out, s->fmt.width, s->fmt.height, err)) < 0)
-        return rc;
     /* the capture path proper: unpack the wire format, as from a V4L2 mmap buffer */
-    if ((rc = pixfmt_unpack(s->fmt.pixfmt, s->raw, s->fmt.sizeimage, s->fmt.bytesperline, s->fmt.width,
-                            s->fmt.height, out->data, err)) < 0)
+    if ((rc = camera_frame_unpack(out, &s->fmt, s->raw, s->fmt.sizeimage, s->fmt.bytesperline, err)) < 0)
         return rc;
-    out->width = s->fmt.width;
-    out->height = s->fmt.height;
-    out->bits_per_sample = s->fmt.bits_per_sample;
-    out->pixfmt = s->fmt.pixfmt;
     out->sequence = slot.e.sequence;
     out->ts_source = s->opt.timestamp_soe ? CAMERA_TS_SOE : CAMERA_TS_EOF;
     out->timestamp_ns = s->opt.timestamp_soe ? slot.e.start_ns : slot.ready_ns;

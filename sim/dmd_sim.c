@@ -86,7 +86,7 @@ const dmd_ops dmd_sim_ops = {
     .poll = sim_poll,
 };
 
-static sim_dmd *as_sim(const dmd *d) { return d && d->ops == &dmd_sim_ops ? d->state : NULL; }
+static sim_dmd *as_sim(const dmd *d) { return dmd_backend_state(d, &dmd_sim_ops); }
 
 int dmd_sim_displayed_at(const dmd *d, int64_t t_ns)
 {
