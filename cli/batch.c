@@ -81,7 +81,12 @@ typedef struct slot {
     size_t len;
     char last[512]; /* last non-empty line */
     int64_t t0_ns;
+    int signaled;  /* the stop was passed on to it */
 } slot;
+
+/* After a stop, how long a child gets to end on its own: Ctrl-C on a terminal reaches it directly, and scicap recon
+ * dies at once on a second signal (its handler is one-shot), which would leave its staging folder behind. */
+#define STOP_GRACE_NS 1500000000LL
 
 int batch_job_spawn(const batch *b, const batch_job *j, int log_fd, int err_fd, int threads)
 {
@@ -212,6 +217,7 @@ int batch_run_local(batch *b, int parallel, int quiet)
     sigaction(SIGINT, &sa, &old_int);
     sigaction(SIGTERM, &sa, &old_term);
     const int64_t t0 = sci_clock_mono_ns();
+    int64_t stop_ns = 0;
     int next = 0, running = 0, ran = 0, failed = 0;
     double ran_s = 0;
     while (next < ntodo || running) {
@@ -235,6 +241,7 @@ int batch_run_local(batch *b, int parallel, int quiet)
                 next++, failed++;
                 continue;
             }
+            batch_job_clean_staging(b, j);
             memset(s, 0, sizeof *s);
             s->job = todo[next++];
             s->t0_ns = sci_clock_mono_ns();
@@ -257,9 +264,13 @@ int batch_run_local(batch *b, int parallel, int quiet)
             batch_state_save(b, &err);
         }
         if (stop_signal && running) {
+            if (!stop_ns)
+                stop_ns = sci_clock_mono_ns();
             for (int k = 0; k < parallel; k++)
-                if (slots[k].pid)
+                if (slots[k].pid && !slots[k].signaled && sci_clock_mono_ns() - stop_ns > STOP_GRACE_NS) {
                     kill(slots[k].pid, SIGTERM);
+                    slots[k].signaled = 1;
+                }
         }
         if (!running)
             break;
@@ -378,6 +389,7 @@ int batch_task_run(batch *b, const char *name)
         perror("scicap batch: pipe");
         return 1;
     }
+    batch_job_clean_staging(b, j);
     slot s = {.job = (int)(j - b->jobs), .t0_ns = sci_clock_mono_ns()};
     int pid = batch_job_spawn(b, j, -1, fds[1], 0);
     close(fds[1]);

@@ -69,6 +69,8 @@ void batch_free(batch *b);
 
 /* Is the job's output there (OUTDIR/NAME)? Also refreshes its PSNR from result.json and marks it DONE. */
 int batch_job_finished(const batch *b, batch_job *j);
+/* Remove OUTDIR/NAME.tmp-PID folders left by a scicap recon that was killed (its process is gone). */
+void batch_job_clean_staging(const batch *b, const batch_job *j);
 /* "OUTDIR/.batch/<rel>" into buf (mkdir -p of OUTDIR/.batch and its logs, tasks folders). */
 int batch_path(const batch *b, char *buf, size_t n, const char *rel, sci_error *err);
 /* The argv of the job's scicap recon (malloc'd array of borrowed and malloc'd strings; free with

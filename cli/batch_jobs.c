@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <glob.h>
 #include <limits.h>
+#include <signal.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,6 +14,8 @@
 #include <unistd.h>
 
 #include <jansson.h>
+
+#include "io/staging.h"
 
 static const char *const state_names[] = {"pending", "running", "done", "failed", "submitted"};
 
@@ -207,6 +210,27 @@ int batch_job_finished(const batch *b, batch_job *j)
     j->state = BATCH_DONE;
     j->error[0] = 0;
     return 1;
+}
+
+void batch_job_clean_staging(const batch *b, const batch_job *j)
+{
+    DIR *d = opendir(b->outdir);
+    if (!d)
+        return;
+    const size_t l = strlen(j->name);
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        char *end;
+        if (strncmp(e->d_name, j->name, l) != 0 || strncmp(e->d_name + l, ".tmp-", 5) != 0)
+            continue;
+        long pid = strtol(e->d_name + l + 5, &end, 10);
+        if (*end || pid <= 0 || (kill((pid_t)pid, 0) == 0 || errno != ESRCH))
+            continue; /* not a staging name, or its writer is still alive */
+        char p[PATH_MAX + 300];
+        snprintf(p, sizeof p, "%s/%s", b->outdir, e->d_name);
+        sci_staging_remove(p);
+    }
+    closedir(d);
 }
 
 int batch_set_recon_args(batch *b, char *const *args, int n, sci_error *err)
