@@ -33,46 +33,42 @@ static int load_pair(PyObject *mask_obj, PyObject *x_obj, int dims, const char *
     return 0;
 }
 
+/* out = op(mask, in) with the GIL released, out having n_out frames; a new array, (h, w) when as_frame. Takes
+ * (frees) mask and in. */
+static PyObject *apply_op(sci_cube *m, sci_cube *in, int n_out, int as_frame,
+                          void (*op)(const sci_cube *, const sci_cube *, sci_cube *))
+{
+    sci_cube *out = NULL;
+    sci_error err = {0};
+    int rc = sci_cube_new(&out, m->w, m->h, n_out, &err);
+    if (rc == 0) {
+        Py_BEGIN_ALLOW_THREADS
+        op(m, in, out);
+        Py_END_ALLOW_THREADS
+    }
+    PyObject *res = rc < 0 ? py_error_raise(rc, &err) : py_array_from_cube(out, as_frame);
+    sci_cube_free(m), sci_cube_free(in), sci_cube_free(out);
+    return res;
+}
+
 static PyObject *py_forward(PyObject *self, PyObject *args, PyObject *kw)
 {
     static char *kws[] = {"mask", "x", NULL};
     PyObject *mo, *xo;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO:forward", kws, &mo, &xo))
+    sci_cube *m, *x;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO:forward", kws, &mo, &xo) || load_pair(mo, xo, 3, "x", &m, &x) < 0)
         return NULL;
-    sci_cube *m, *x, *y = NULL;
-    if (load_pair(mo, xo, 3, "x", &m, &x) < 0)
-        return NULL;
-    sci_error err = {0};
-    int rc = sci_cube_new(&y, m->w, m->h, 1, &err);
-    if (rc == 0) {
-        Py_BEGIN_ALLOW_THREADS
-        sci_op_forward(m, x, y);
-        Py_END_ALLOW_THREADS
-    }
-    PyObject *res = rc < 0 ? py_error_raise(rc, &err) : py_array_from_cube(y, 1);
-    sci_cube_free(m), sci_cube_free(x), sci_cube_free(y);
-    return res;
+    return apply_op(m, x, 1, 1, sci_op_forward);
 }
 
 static PyObject *py_adjoint(PyObject *self, PyObject *args, PyObject *kw)
 {
     static char *kws[] = {"mask", "y", NULL};
     PyObject *mo, *yo;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO:adjoint", kws, &mo, &yo))
+    sci_cube *m, *y;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO:adjoint", kws, &mo, &yo) || load_pair(mo, yo, 2, "y", &m, &y) < 0)
         return NULL;
-    sci_cube *m, *y, *x = NULL;
-    if (load_pair(mo, yo, 2, "y", &m, &y) < 0)
-        return NULL;
-    sci_error err = {0};
-    int rc = sci_cube_new(&x, m->w, m->h, m->n, &err);
-    if (rc == 0) {
-        Py_BEGIN_ALLOW_THREADS
-        sci_op_adjoint(m, y, x);
-        Py_END_ALLOW_THREADS
-    }
-    PyObject *res = rc < 0 ? py_error_raise(rc, &err) : py_array_from_cube(x, 0);
-    sci_cube_free(m), sci_cube_free(x), sci_cube_free(y);
-    return res;
+    return apply_op(m, y, m->n, 0, sci_op_adjoint);
 }
 
 static PyObject *py_phi_sum(PyObject *self, PyObject *args, PyObject *kw)
