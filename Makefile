@@ -266,4 +266,5 @@ fuzz: deps
 clean:
 	rm -rf $(BUILD)
 
--include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(PIC_OBJ:.o=.d) $(PY_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d) $(GV_TEST_BIN:=.d) $(FUZZ_OBJ:.o=.d)
+-include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d) $(GV_TEST_BIN:=.d) $(FUZZ_OBJ:.o=.d)
+-include $(PIC_OBJ:.o=.d) $(PY_OBJ:.o=.d)
