@@ -238,7 +238,7 @@ int batch_run_local(batch *b, int parallel, int quiet)
                     close(logfd);
                 j->state = BATCH_FAILED;
                 snprintf(j->error, sizeof j->error, "could not start: %s", strerror(errno));
-                next++, failed++;
+                next++, ran++, failed++;
                 continue;
             }
             batch_job_clean_staging(b, j);
@@ -252,7 +252,8 @@ int batch_run_local(batch *b, int parallel, int quiet)
                 close(fds[0]);
                 j->state = BATCH_FAILED;
                 snprintf(j->error, sizeof j->error, "could not start: %s", strerror(-pid));
-                failed++;
+                fprintf(stderr, "scicap batch: %s: %s\n", j->name, j->error);
+                ran++, failed++;
                 continue;
             }
             s->pid = pid, s->errfd = fds[0], s->idx = finished + ran + running + 1;
