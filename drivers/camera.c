@@ -65,6 +65,18 @@ int camera_frame_unpack(camera_frame *f, const camera_format *fmt, const void *s
     return 0;
 }
 
+camera_config camera_config_format_request(uint32_t width, uint32_t height, enum pixfmt pixfmt,
+                                           const camera_config *want)
+{
+    camera_config c = camera_config_default();
+    c.width = width;
+    c.height = height;
+    c.pixfmt = pixfmt;
+    c.interval_num = want->interval_num;
+    c.interval_den = want->interval_den;
+    return c;
+}
+
 int camera_recover_controls(const camera_ops *ops, void *state, uint32_t exposure_us, int32_t gain,
                             int was_streaming, sci_error *err)
 {

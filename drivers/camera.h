@@ -201,6 +201,11 @@ int camera_frame_reserve(camera_frame *f, uint32_t w, uint32_t h, sci_error *err
 int camera_frame_unpack(camera_frame *f, const camera_format *fmt, const void *src, size_t len, size_t stride,
                         sci_error *err);
 
+/* For backends' set_format: what to keep of a request so that recover can ask again — the negotiated width,
+ * height and pixfmt and the frame interval asked for; every other field default (no borrowed string survives). */
+camera_config camera_config_format_request(uint32_t width, uint32_t height, enum pixfmt pixfmt,
+                                           const camera_config *want);
+
 /* For backends' recover, once reconnected with profile and format back: put the manual exposure back (0: none was
  * set), then the gain (-1: none was set), through `ops` on `state`, and start streaming again if it was on. */
 int camera_recover_controls(const camera_ops *ops, void *state, uint32_t exposure_us, int32_t gain,

@@ -407,12 +407,7 @@ static int aravis_set_format(void *state, const camera_config *want, camera_form
         }
     }
     c->arv_fmt = aravis_formats[k].arv;
-    c->want = camera_config_default();
-    c->want.width = (uint32_t)w;
-    c->want.height = (uint32_t)h;
-    c->want.pixfmt = pf;
-    c->want.interval_num = want->interval_num;
-    c->want.interval_den = want->interval_den;
+    c->want = camera_config_format_request((uint32_t)w, (uint32_t)h, pf, want);
     c->have_fmt = 1;
     *out = c->fmt;
     return 0;

@@ -341,12 +341,7 @@ static int v4l2_set_format(void *state, const camera_config *want, camera_format
     }
     c->fmt.interval_num = parm.parm.capture.timeperframe.numerator;
     c->fmt.interval_den = parm.parm.capture.timeperframe.denominator;
-    c->want = camera_config_default();
-    c->want.width = w;
-    c->want.height = h;
-    c->want.pixfmt = pf;
-    c->want.interval_num = want->interval_num;
-    c->want.interval_den = want->interval_den;
+    c->want = camera_config_format_request(w, h, pf, want);
     c->have_fmt = 1;
     *out = c->fmt;
     return 0;
