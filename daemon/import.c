@@ -78,6 +78,8 @@ int scicapd_args_import(const scicapd_request *r, const scicapd_config *cfg, int
         return sci_error_set(err, -ENOMEM, "import: out of memory");
     }
     a->mask_index = -1;
+    for (int i = 0; i < SCICAPD_IMPORT_MAX_FILES; i++)
+        a->fds[i] = -1; /* until the descriptors are taken, at the very end: a refusal before closes only theirs */
     int rc, kind = 0;
     const json_t *files = r->args ? json_object_get(r->args, "files") : NULL, *v;
     size_t i;
@@ -103,14 +105,6 @@ int scicapd_args_import(const scicapd_request *r, const scicapd_config *cfg, int
         }
         snprintf(a->names[a->nfiles++], SCICAPD_IMPORT_NAME_MAX, "%s", s);
     }
-    if (nfds != a->nfiles) {
-        rc = sci_json_fail(r->doc, err, "args.files", "%d files named but %d descriptors passed: send one open "
-                           "descriptor per file (SCM_RIGHTS) with the request line, in the same order", a->nfiles,
-                           nfds);
-        goto fail;
-    }
-    memcpy(a->fds, fds, (size_t)nfds * sizeof *fds);
-    nfds = 0; /* ours now */
     const char *mask = NULL;
     if ((rc = sci_json_get_string(r->doc, r->args, "args", "mask", 0, &mask, err)) < 0 ||
         (rc = get_var(r, "mask_var", a->mask_var, sizeof a->mask_var, err)) < 0 ||
@@ -159,6 +153,14 @@ int scicapd_args_import(const scicapd_request *r, const scicapd_config *cfg, int
     if ((rc = scicapd_recon_spec_resolve(method, preset, r->doc, json_object_get(r->args, "params"), "args.params",
                                          &a->recon, err)) < 0)
         goto fail;
+    /* last, so that every argument is checked (and fuzzed) with or without descriptors */
+    if (nfds != a->nfiles) {
+        rc = sci_json_fail(r->doc, err, "args.files", "%d files named but %d descriptors passed: send one open "
+                           "descriptor per file (SCM_RIGHTS) with the request line, in the same order", a->nfiles,
+                           nfds);
+        goto fail;
+    }
+    memcpy(a->fds, fds, (size_t)nfds * sizeof *fds); /* ours now */
     *out = a;
     return 0;
 fail:

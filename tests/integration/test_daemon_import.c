@@ -287,6 +287,10 @@ static void test_refusals(void **state)
     hconn_open(&c, &H);
     int fd = open(drop40, O_RDONLY | O_CLOEXEC);
     assert_true(fd >= 0);
+    /* a refused request closes the descriptors it brought and nothing of the daemon's own (its stdin here) */
+    char fd0[64], before[512] = "", after[512] = "";
+    snprintf(fd0, sizeof fd0, "/proc/%d/fd/0", (int)H.pid);
+    assert_true(readlink(fd0, before, sizeof before - 1) > 0);
     /* two names, one descriptor */
     json_t *r = call_with_fds(&c, json_pack("{s:[s,s], s:s}", "files", "a.mat", "b.mat", "mask", "b.mat"), &fd, 1);
     assert_string_equal(err_code(r), "bad_arguments");
@@ -326,6 +330,8 @@ static void test_refusals(void **state)
     json_decref(e);
     close(fd);
     hconn_close(&c);
+    if (readlink(fd0, after, sizeof after - 1) <= 0 || strcmp(before, after) != 0)
+        fail_msg("the daemon's fd 0 was %s, is now %s", before, after[0] ? after : "closed");
 }
 
 static void test_problem_folder(void **state)
