@@ -346,8 +346,8 @@ int main(void)
             fprintf(f, "\n| of those 40: reconstructed / refused |");
             for (int i = 0; i < NS; i++)
                 fprintf(f, " %d / %d |", s[i].with_recon.recons, s[i].with_recon.rejected);
-            fprintf(f, "\n| per snapshot with reconstruction, thread CPU ms: acquire / store / recon read / "
-                       "solve / write |");
+            fprintf(f, "\n| per snapshot with reconstruction, CPU ms of the stage's thread (OpenEXR compresses on "
+                       "its own pool threads, not counted): acquire / store / recon read / solve / write |");
             for (int i = 0; i < NS; i++) {
                 const double *c = s[i].with_recon.stage_cpu_ms;
                 fprintf(f, " %.0f / %.0f / %.0f / %.0f / %.0f |", c[0], c[1], c[2], c[3], c[4]);

@@ -2,7 +2,8 @@
  *
  * Each stage (acquire, store, recon_read, recon_solve, recon_write) accumulates how many times it ran, its wall
  * time and the CPU time of the thread that ran it (CLOCK_THREAD_CPUTIME_ID: the stage's own cost, not the other
- * threads' that shared the cores meanwhile). Reading two clocks costs well under a microsecond, so the counters
+ * threads' that shared the cores meanwhile; work a library hands to its own threads, such as OpenEXR's
+ * compression pool, is not in it). Reading two clocks costs well under a microsecond, so the counters
  * stay on in production; `scicap status --json` shows them under "timing" and bench/bench_daemon reports them.
  *
  *     scicapd_span sp;
