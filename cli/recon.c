@@ -47,6 +47,7 @@ static void usage(FILE *f)
 {
     const solver_ops *const *l = solver_list(NULL);
     fprintf(f, "usage: scicap recon [OPTIONS] INPUT -o OUTDIR\n"
+               "       scicap recon [OPTIONS] INPUT... -o OUTDIR   (several: as scicap batch, OUTDIR/NAME each)\n"
                "       scicap recon --capture ID [--method M] [--wait]   (ask scicapd; see scicap status)\n\n"
                "Methods (-m, --method NAME; default %s):\n", l[0]->name);
     for (int i = 0; l[i]; i++)
@@ -413,6 +414,10 @@ int cli_recon_main(int argc, char **argv)
         if (bad)
             return 2;
     }
+    /* Several inputs (or a folder of them, or a quoted glob): the batch of cli/batch.c, one scicap recon per input
+     * into OUTDIR/NAME, resumable. getopt has moved the options before the inputs. */
+    if (out && (optind < argc - 1 || (optind == argc - 1 && cli_batch_is_many(argv[optind]))))
+        return cli_batch_recon(optind - 1, argv + 1, argc - optind, argv + optind);
     if (optind != argc - 1 || !out) {
         fprintf(stderr, "scicap recon: %s\n", !out ? "-o OUTDIR is required" : "exactly one INPUT is required");
         usage(stderr);

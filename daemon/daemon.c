@@ -493,7 +493,10 @@ static int resume_reconstructions(scicapd *d, sci_error *err)
 static void forward_to_main(int sig)
 {
     int saved = errno;
-    syscall(SYS_tgkill, getpid(), getpid(), sig);
+    /* On the main thread itself (scicapd_free restored its mask while shutting down) there is nowhere to forward
+     * to: sending it again would recurse forever. The shutdown is already under way: drop it. */
+    if (syscall(SYS_gettid) != getpid())
+        syscall(SYS_tgkill, getpid(), getpid(), sig);
     errno = saved;
 }
 
