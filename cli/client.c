@@ -17,6 +17,8 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include "recon/solver.h"
+
 typedef struct conn {
     int fd;
     FILE *in;
@@ -649,10 +651,12 @@ static int run(int argc, char **argv, int recon_mode)
             /* --recon takes an optional method; getopt only binds "--recon=M", so take "--recon M" here too
              * (capture has no positional arguments, so a following method name cannot be anything else). */
             const char *m = optarg;
-            if (!m && optind < argc && (!strcmp(argv[optind], "gap-tv") || !strcmp(argv[optind], "admm-tv")))
+            if (!m && optind < argc && solver_find(argv[optind]))
                 m = argv[optind++];
-            if (m && strcmp(m, "gap-tv") && strcmp(m, "admm-tv")) {
-                fprintf(stderr, "scicap capture: --recon reconstructs with gap-tv or admm-tv, not '%s'\n", m);
+            if (m && !solver_find(m)) {
+                char names[256];
+                fprintf(stderr, "scicap capture: --recon reconstructs with %s, not '%s'\n",
+                        solver_names_text(names, sizeof names, ", "), m);
                 goto usage_err;
             }
             json_object_set_new(args, "reconstruct", json_true());

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "base/json.h"
+#include "recon/solver.h"
 #include "daemon/backends.h"
 #include "drivers/camera.h"
 #include "drivers/trigger.h"
@@ -76,7 +77,7 @@ static void defaults(scicapd_config *c)
     c->pattern_us = 1000;
     c->dark_us = 100;
     c->sync_mode = SYNC_MODE_HOST_MASTER;
-    strcpy(c->recon_method, "gap-tv");
+    snprintf(c->recon_method, sizeof c->recon_method, "%s", solver_list(NULL)[0]->name); /* the table's first */
     strcpy(c->recon_preset, "default");
     snprintf(c->recon_curves, sizeof c->recon_curves, "%s/results.csv", SCICAP_DATADIR);
     default_curves(c->recon_curves, sizeof c->recon_curves);
@@ -458,14 +459,20 @@ static int parse_capture(const sci_json_doc *doc, const json_t *o, scicapd_confi
 static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
     static const char *const keys[] = {"method", "preset", "auto", "workers", "threads", "curves", NULL};
-    static const char *const methods[] = {"gap-tv", "admm-tv", NULL};
-    static const char *const presets[] = {"fast", "default", "quality", NULL};
-    int rc, m = 0, p = 1;
+    /* every method of the table; the presets, then their deprecated aliases */
+    static const char *const presets[] = {"fast", "balanced", "best", "default", "quality", NULL};
+    const char *m = NULL;
+    int rc, p = 1;
     if ((rc = sci_json_check_keys(doc, o, "reconstruction", keys, err)) < 0 ||
-        (rc = sci_json_get_enum(doc, o, "reconstruction", "method", 0, methods, &m, err)) < 0)
+        (rc = sci_json_get_string(doc, o, "reconstruction", "method", 0, &m, err)) < 0)
         return rc;
+    if (rc == 0 && !solver_find(m)) {
+        char names[256];
+        return sci_json_fail(doc, err, "reconstruction.method", "must be one of %s (got \"%.32s\")",
+                             solver_names_text(names, sizeof names, ", "), m);
+    }
     if (rc == 0)
-        snprintf(c->recon_method, sizeof c->recon_method, "%s", methods[m]);
+        snprintf(c->recon_method, sizeof c->recon_method, "%s", m);
     if ((rc = sci_json_get_enum(doc, o, "reconstruction", "preset", 0, presets, &p, err)) < 0)
         return rc;
     if (rc == 0)

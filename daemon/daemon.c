@@ -194,7 +194,7 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
                 scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1,
                                      scicapd_event("recon.queued", r->id, r->request_id,
                                                    json_pack("{s:s, s:s, s:I}", "capture", s->capture_id, "method",
-                                                             scicapd_method_name(c->recon.method), "capture_job",
+                                                             c->recon.method->name, "capture_job",
                                                              (json_int_t)j->id)));
             }
         }
@@ -479,7 +479,7 @@ static int resume_reconstructions(scicapd *d, sci_error *err)
         scicapd_queue_push(d->recon_q, j); /* room was made above */
         sci_log_write(d->log, SCI_LOG_NOTICE, "job %llu: resumed the reconstruction of %s (%s, uid %d) queued "
                       "before the last stop", (unsigned long long)j->id, j->recon.capture_id,
-                      scicapd_method_name(j->recon.spec.method), (int)j->owner);
+                      j->recon.spec.method->name, (int)j->owner);
     }
     scicapd_queue_resize(d->recon_q, d->cfg->recon_queue);
     d->resumed = n;

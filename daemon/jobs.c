@@ -225,7 +225,7 @@ static json_t *job_json(const scicapd_job *j)
                                                   1e-9));
     if (j->kind == SCICAPD_JOB_RECONSTRUCT) {
         json_object_set_new(o, "capture", json_string(j->recon.capture_id));
-        json_object_set_new(o, "method", json_string(scicapd_method_name(j->recon.spec.method)));
+        json_object_set_new(o, "method", json_string(j->recon.spec.method->name));
     } else if (j->kind == SCICAPD_JOB_CAPTURE) {
         json_object_set_new(o, "mask_set", json_string(j->capture.mask_set.name));
     } else {

@@ -22,7 +22,6 @@ int scicapd_cmd_is_admin(scicapd_cmd c)
     return c == SCICAPD_CMD_RELOAD || c == SCICAPD_CMD_SHUTDOWN || c == SCICAPD_CMD_SIMULATE;
 }
 const char *scicapd_errcode_name(scicapd_errcode e) { return (unsigned)e < SCICAPD_E_COUNT ? err_names[e] : "?"; }
-const char *scicapd_method_name(scicapd_method m) { return m == SCICAPD_METHOD_ADMMTV ? "admm-tv" : "gap-tv"; }
 
 void scicapd_request_clear(scicapd_request *r)
 {
@@ -129,48 +128,29 @@ int scicapd_recon_spec_resolve(const char *method, const char *preset, const sci
                                const json_t *params, const char *path, scicapd_recon_spec *out, sci_error *err)
 {
     memset(out, 0, sizeof *out);
-    if (strcmp(method, "gap-tv") == 0)
-        out->method = SCICAPD_METHOD_GAPTV;
-    else if (strcmp(method, "admm-tv") == 0)
-        out->method = SCICAPD_METHOD_ADMMTV;
-    else
-        return sci_error_set(err, SCI_ECONFIG, "method \"%.32s\": expected gap-tv or admm-tv", method);
-    sci_gaptv_params_default(&out->gap);
-    sci_admmtv_params_default(&out->admm);
-    int iters = 100, tv_iters = 5;
-    if (strcmp(preset, "fast") == 0)
-        iters = 30;
-    else if (strcmp(preset, "quality") == 0)
-        iters = 200, tv_iters = 8;
-    else if (strcmp(preset, "default") != 0)
-        return sci_error_set(err, SCI_ECONFIG, "preset \"%.32s\": expected fast, default or quality", preset);
+    sci_error e2 = {0};
+    solver_preset pr;
+    if (!(out->method = solver_find_err(method, &e2)))
+        return sci_error_set(err, SCI_ECONFIG, "method \"%.32s\": %s", method, e2.msg);
+    if (out->method->settings_size > sizeof out->settings)
+        return sci_error_set(err, SCI_ECONFIG, "method %s: its settings (%zu bytes) do not fit a spec", method,
+                             out->method->settings_size);
+    if (solver_preset_parse(preset, &pr, NULL, &e2) < 0)
+        return sci_error_set(err, SCI_ECONFIG, "preset \"%.32s\": expected fast, balanced or best", preset);
     snprintf(out->preset, sizeof out->preset, "%s", preset);
-    out->gap.iters = out->admm.iters = iters;
-    out->gap.tv_iters = out->admm.tv_iters = tv_iters;
-    out->gap.metrics_every = out->admm.metrics_every = 1;
-    out->gap.ssim_every = out->admm.ssim_every = 0;
-    if (params) {
-        static const char *const keys[] = {"iters", "lambda", "tv_weight", "tv_iters", "gamma", "accelerate", NULL};
-        if (!json_is_object(params))
-            return sci_json_fail(doc, err, path, "must be an object");
-        long long it = iters, tvi = tv_iters;
-        double lambda = 1, tvw = out->gap.tv_weight, gamma = out->admm.gamma;
-        int acc = out->gap.accelerate, rc;
-        if ((rc = sci_json_check_keys(doc, params, path, keys, err)) < 0 ||
-            (rc = sci_json_get_int(doc, params, path, "iters", 0, 1, 100000, &it, err)) < 0 ||
-            (rc = sci_json_get_int(doc, params, path, "tv_iters", 0, 1, 1000, &tvi, err)) < 0 ||
-            (rc = sci_json_get_double(doc, params, path, "lambda", 0, 1e-9, 1e3, &lambda, err)) < 0 ||
-            (rc = sci_json_get_double(doc, params, path, "tv_weight", 0, 0, 1e3, &tvw, err)) < 0 ||
-            (rc = sci_json_get_double(doc, params, path, "gamma", 0, 0, 1e3, &gamma, err)) < 0 ||
-            (rc = sci_json_get_bool(doc, params, path, "accelerate", 0, &acc, err)) < 0)
+    out->method->defaults(out->settings);
+    solver_settings_preset(out->method, out->settings, pr);
+    /* the classical methods' trace: PSNR at every iteration (the progress events carry it), SSIM at the end; the
+     * NeRF methods keep their own intervals (a PSNR there is a full render) */
+    if (!(out->method->caps & SOLVER_NEEDS_CAMERA)) {
+        json_t *tr = json_pack("{s:i, s:i}", "metrics_every", 1, "ssim_every", 0);
+        int rc = solver_settings_from_json(out->method, out->settings, tr, NULL, "trace", err);
+        json_decref(tr);
+        if (rc < 0)
             return rc;
-        out->gap.iters = out->admm.iters = (int)it;
-        out->gap.tv_iters = out->admm.tv_iters = (int)tvi;
-        out->gap.lambda = out->admm.lambda = lambda;
-        out->gap.tv_weight = out->admm.tv_weight = tvw;
-        out->admm.gamma = gamma;
-        out->gap.accelerate = acc;
     }
+    if (params && solver_settings_from_json(out->method, out->settings, params, doc, path, err) < 0)
+        return SCI_ECONFIG;
     return 0;
 }
 
@@ -195,24 +175,19 @@ static int apply_budget(const scicapd_config *cfg, const sci_json_doc *doc, cons
     sci_curve_choice ch;
     int rc = sci_curves_pick(cv, method, 0, voxels, budget_s, &ch, &e2);
     sci_curves_free(cv);
-    if (rc == 0 && strcmp(ch.method, "gap-tv") != 0 && strcmp(ch.method, "admm-tv") != 0)
-        rc = sci_error_set(&e2, -ENOENT, "the best setting in budget is %s, which the daemon does not run", ch.method);
     if (rc < 0)
         return sci_json_fail(doc, err, path, "%s", e2.msg);
+    /* the curves file is data a user may edit: its setting is read as the method's settings, type- and
+     * range-checked, never read as 0 */
     json_t *params = sci_curves_setting_json(ch.setting);
-    json_t *it = json_object_get(params, "iters"), *tvi = json_object_get(params, "tv_iters");
-    out->method = strcmp(ch.method, "admm-tv") == 0 ? SCICAPD_METHOD_ADMMTV : SCICAPD_METHOD_GAPTV;
-    /* the curves file is data a user may edit: anything but a positive integer is refused, not read as 0 */
-    if (!params || (it && (!json_is_integer(it) || json_integer_value(it) < 1 || json_integer_value(it) > 1000000)) ||
-        (tvi && (!json_is_integer(tvi) || json_integer_value(tvi) < 1 || json_integer_value(tvi) > 100000))) {
-        json_decref(params);
-        return sci_json_fail(doc, err, path, "recon_curves: setting '%s' of %s is malformed", ch.setting, ch.method);
-    }
-    if (it)
-        out->gap.iters = out->admm.iters = (int)json_integer_value(it);
-    if (tvi)
-        out->gap.tv_iters = out->admm.tv_iters = (int)json_integer_value(tvi);
+    scicapd_recon_spec chosen;
+    rc = params ? scicapd_recon_spec_resolve(ch.method, "balanced", NULL, params, "setting", &chosen, &e2) : -EINVAL;
     json_decref(params);
+    if (rc < 0)
+        return sci_json_fail(doc, err, path, "recon_curves: setting '%s' of %s is malformed: %s", ch.setting,
+                             ch.method, e2.msg);
+    out->method = chosen.method;
+    memcpy(out->settings, chosen.settings, sizeof out->settings);
     snprintf(out->preset, sizeof out->preset, "budget");
     out->budget_s = budget_s;
     out->predicted_s = ch.predicted_s;
@@ -222,29 +197,33 @@ static int apply_budget(const scicapd_config *cfg, const sci_json_doc *doc, cons
 
 json_t *scicapd_recon_spec_json_plain(const scicapd_recon_spec *s)
 {
-    if (s->method == SCICAPD_METHOD_ADMMTV)
-        return json_pack("{s:s, s:s, s:i, s:f, s:f, s:f, s:i}", "method", "admm-tv", "preset", s->preset, "iters",
-                         s->admm.iters, "lambda", s->admm.lambda, "gamma", s->admm.gamma, "tv_weight",
-                         s->admm.tv_weight, "tv_iters", s->admm.tv_iters);
-    return json_pack("{s:s, s:s, s:i, s:f, s:b, s:f, s:i}", "method", "gap-tv", "preset", s->preset, "iters",
-                     s->gap.iters, "lambda", s->gap.lambda, "accelerate", s->gap.accelerate, "tv_weight",
-                     s->gap.tv_weight, "tv_iters", s->gap.tv_iters);
+    json_t *j = solver_settings_to_json(s->method, s->settings);
+    if (j)
+        json_object_set_new(j, "preset", json_string(s->preset));
+    return j;
 }
 
 /* method / preset / params members of `obj` at `path` with defaults from the configuration. */
 static int get_recon(const scicapd_request *r, const json_t *obj, const char *path, const scicapd_config *cfg,
                      scicapd_recon_spec *out, sci_error *err)
 {
-    static const char *const methods[] = {"gap-tv", "admm-tv", NULL};
-    static const char *const presets[] = {"fast", "default", "quality", NULL};
+    /* every method of the table; the presets, then their deprecated aliases */
+    static const char *const presets[] = {"fast", "balanced", "best", "default", "quality", NULL};
     const char *method = cfg->recon_method, *preset = cfg->recon_preset;
     const json_t *params = NULL;
     if (obj) {
-        int m, p, rc;
-        if ((rc = sci_json_get_enum(r->doc, obj, path, "method", 0, methods, &m, err)) < 0)
+        int p, rc;
+        const char *m = NULL;
+        if ((rc = sci_json_get_string(r->doc, obj, path, "method", 0, &m, err)) < 0)
             return rc;
-        if (rc == 0)
-            method = methods[m];
+        if (rc == 0) {
+            char mp[64], names[256];
+            if (!solver_find(m))
+                return sci_json_fail(r->doc, err, sci_json_path_key(mp, sizeof mp, path, "method"),
+                                     "must be one of %s (got \"%.32s\")", solver_names_text(names, sizeof names, ", "),
+                                     m);
+            method = m;
+        }
         if ((rc = sci_json_get_enum(r->doc, obj, path, "preset", 0, presets, &p, err)) < 0)
             return rc;
         if (rc == 0)
@@ -354,9 +333,7 @@ int scicapd_args_reconstruct(const scicapd_request *r, const scicapd_config *cfg
     if (!(voxels > 0))
         return sci_json_fail(r->doc, err, "args.capture", "capture \"%s\" not found (needed to size the budget)",
                              out->capture_id);
-    const char *method = json_object_get(r->args, "method") ? (out->spec.method == SCICAPD_METHOD_ADMMTV ? "admm-tv"
-                                                                                                         : "gap-tv")
-                                                            : NULL;
+    const char *method = json_object_get(r->args, "method") ? out->spec.method->name : NULL;
     return apply_budget(cfg, r->doc, "args.budget_s", budget, method, voxels, &out->spec, err);
 }
 

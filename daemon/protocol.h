@@ -33,8 +33,7 @@
 #include "base/json.h"
 #include "daemon/config.h"
 #include "drivers/sync.h"
-#include "recon/admmtv.h"
-#include "recon/gaptv.h"
+#include "recon/solver.h"
 
 #define SCICAPD_PROTOCOL_VERSION 1
 
@@ -93,22 +92,21 @@ void scicapd_request_clear(scicapd_request *r);
 
 /* ---- check 5: typed arguments of each command, defaults from the configuration in force ---- */
 
-typedef enum scicapd_method { SCICAPD_METHOD_GAPTV, SCICAPD_METHOD_ADMMTV } scicapd_method;
-const char *scicapd_method_name(scicapd_method m);
+/* Largest settings struct of a method (recon/solver.h) a spec can hold by value. */
+#define SCICAPD_SETTINGS_MAX 1024
 
-/* A reconstruction fully resolved: method, preset, parameters. */
+/* A reconstruction fully resolved: method, preset, parameters. Plain data: copied by value through the queues. */
 typedef struct scicapd_recon_spec {
-    scicapd_method method;
-    char preset[16];                 /* "budget" when chosen by time budget */
+    const solver_ops *method;        /* a row of the method table (static) */
+    char preset[16];                 /* fast|balanced|best (default|quality as sent), "budget" when chosen by budget */
     double budget_s;                 /* the request's budget (0: none) */
     double predicted_s, expected_db; /* the chosen setting's predicted solver time and mean PSNR on the suite */
-    sci_gaptv_params gap;
-    sci_admmtv_params admm;
+    _Alignas(max_align_t) unsigned char settings[SCICAPD_SETTINGS_MAX]; /* the method's params struct */
 } scicapd_recon_spec;
 
-/* Preset + overrides: "fast" (30 iterations), "default" (the PnP-SCI settings, 100), "quality" (200, 8 TV
- * passes). `params` (may be NULL) overrides iters, lambda, tv_weight, tv_iters, gamma (admm-tv), accelerate
- * (gap-tv). Errors are positioned in doc at `path`. */
+/* Method by name (solver_find), preset fast|balanced|best (default and quality: deprecated aliases of balanced and
+ * best), then `params` (may be NULL): the method's settings keys (solver_settings_from_json). Errors are positioned
+ * in doc at `path`. */
 int scicapd_recon_spec_resolve(const char *method, const char *preset, const sci_json_doc *doc,
                                const json_t *params, const char *path, scicapd_recon_spec *out, sci_error *err);
 /* The spec as JSON; with a budget, also what was chosen for it (budget_s, predicted_s, expected_psnr_db). */

@@ -9,6 +9,7 @@
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <stddef.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -18,8 +19,7 @@
 #include "daemon/reconq.h"
 #include "io/problem_dir.h"
 #include "io/recon_store.h"
-#include "recon/admmtv.h"
-#include "recon/gaptv.h"
+#include "recon/solver.h"
 
 #define SCICAPD_IMPORT_RECON_MAX 1000 /* reconstructions one import queues (a .mat may hold more snapshots) */
 
@@ -70,7 +70,7 @@ static int stopped_by_daemon(scicapd_workers *w, scicapd_job *j)
 static void run(scicapd_workers *w, scicapd_job *j)
 {
     const scicapd_recon_args *ra = &j->recon;
-    const char *method = scicapd_method_name(ra->spec.method);
+    const char *method = ra->spec.method->name;
     sci_error err = {0};
     char dir[1100], out[1300];
     sci_problem **pp = NULL;
@@ -104,17 +104,17 @@ static void run(scicapd_workers *w, scicapd_job *j)
     scicapd_span_begin(&sp);
     /* PSNR against the truth on every 10th iteration (and the last) rather than each: progress events go out
      * every 100 ms at most, and two PSNRs per iteration cost as much as half a fast GAP-TV iteration */
-    sci_gaptv_params gap = ra->spec.gap;
-    sci_admmtv_params admm = ra->spec.admm;
-    gap.metrics_every = gap.iters >= 20 ? gap.iters / 10 : 1;
-    admm.metrics_every = admm.iters >= 20 ? admm.iters / 10 : 1;
-    if (ra->spec.method == SCICAPD_METHOD_ADMMTV) {
-        ctx.iters = admm.iters;
-        rc = sci_admmtv_solve(pp[0], &admm, &r, on_progress, &ctx);
-    } else {
-        ctx.iters = gap.iters;
-        rc = sci_gaptv_solve(pp[0], &gap, &r, on_progress, &ctx);
+    _Alignas(max_align_t) unsigned char settings[SCICAPD_SETTINGS_MAX];
+    memcpy(settings, ra->spec.settings, sizeof settings);
+    ctx.iters = solver_settings_iters(ra->spec.method, settings);
+    if (!(ra->spec.method->caps & SOLVER_NEEDS_CAMERA)) {
+        json_t *every = json_pack("{s:i}", "metrics_every", ctx.iters >= 20 ? ctx.iters / 10 : 1);
+        solver_settings_set(ra->spec.method, settings, "metrics_every", json_object_get(every, "metrics_every"),
+                            NULL, "metrics_every", &err);
+        json_decref(every);
     }
+    const solver_io io = {.progress = on_progress, .user = &ctx};
+    rc = solver_run(ra->spec.method, pp[0], settings, &io, &r);
     double solve_s = sci_clock_s(ts, sci_clock_mono_ns());
     scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_SOLVE, &sp);
     if (rc < 0) {
@@ -263,7 +263,7 @@ static void run_import(scicapd_workers *w, scicapd_job *j)
             } else {
                 r[nr++] = q;
                 post(w, q, "recon.queued", json_pack("{s:s, s:s, s:I}", "capture", q->recon.capture_id, "method",
-                                                     scicapd_method_name(a->recon.method), "import_job",
+                                                     a->recon.method->name, "import_job",
                                                      (json_int_t)j->id));
             }
         }
