@@ -19,10 +19,10 @@ static int parse_aravis(const json_t *obj, const char *where, camera_config *cfg
 }
 
 static const scicapd_camera_backend backends[] = {
-    {.name = "v4l2", .ops = &camera_v4l2_ops, .parse = parse_v4l2,
+    {.ops = &camera_v4l2_ops, .parse = parse_v4l2,
      .locate_hint = "the v4l2 camera needs \"device\" (best a /dev/v4l/by-id/... path), or \"card\" and/or "
                     "\"bus_info\" to find it"},
-    {.name = "aravis", .ops = &camera_aravis_ops, .parse = parse_aravis,
+    {.ops = &camera_aravis_ops, .parse = parse_aravis,
      .locate_hint = "the aravis camera needs \"device\" (the Aravis device id, e.g. \"Basler-21234567\", or a "
                     "GigE Vision camera's IP address), or \"card\" (model) and/or \"bus_info\" (serial)"},
 };
@@ -30,7 +30,7 @@ static const scicapd_camera_backend backends[] = {
 const scicapd_camera_backend *scicapd_camera_backend_find(const char *name)
 {
     for (size_t i = 0; name && i < sizeof backends / sizeof backends[0]; i++)
-        if (strcmp(backends[i].name, name) == 0)
+        if (strcmp(backends[i].ops->name, name) == 0) /* the table's own name is the config's spelling */
             return &backends[i];
     return NULL;
 }

@@ -28,8 +28,7 @@ typedef union scicapd_camera_opts {
 } scicapd_camera_opts;
 
 typedef struct scicapd_camera_backend {
-    const char *name;         /* the config's devices.camera.backend */
-    const camera_ops *ops;
+    const camera_ops *ops;    /* ops->name is the config's devices.camera.backend */
     /* Parse the camera object (daemon keys already removed) into cfg and opts; SCI_ECONFIG naming where.key. */
     int (*parse)(const json_t *obj, const char *where, camera_config *cfg, scicapd_camera_opts *opts,
                  sci_error *err);

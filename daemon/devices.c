@@ -11,13 +11,20 @@
 #include "base/clock.h"
 #include "daemon/backends.h"
 #include "daemon/swtrigger.h"
+#include "drivers/backends.h"
 #include "drivers/dlpc900_emu.h"
-#include "drivers/trigger_gpiod.h"
+#include "sim/camera_sim.h"
 #include "sim/dmd_sim.h"
 #include "sim/trigger_sim.h"
 
 enum { DEV_DMD, DEV_CAMERA, DEV_TRIGGER, DEV_COUNT };
 static const char *const dev_names[DEV_COUNT] = {"dmd", "camera", "trigger"};
+
+/* The backends of the layer above drivers: the daemon knows both layers, so it adds sim/'s simulated devices to
+ * the drivers' own when it looks a configured backend up by name (drivers/backends.h). */
+static const dmd_ops *const sim_dmds[] = {&dmd_sim_ops, NULL};
+static const camera_ops *const sim_cameras[] = {&camera_sim_ops, NULL};
+static const trigger_ops *const sim_triggers[] = {&trigger_sim_ops, NULL};
 
 struct scicapd_devices {
     scicapd_config *cfg;       /* owned copy: what the devices were opened with */
@@ -174,20 +181,23 @@ static void open_trigger(scicapd_devices *d)
         set_error(d, DEV_TRIGGER, "waiting for the camera (its software trigger is fired with each pulse)");
         return;
     }
-    if (strcmp(c->trigger_backend, "sim") == 0) {
+    const trigger_ops *ops = trigger_backend_find(c->trigger_backend, sim_triggers, &e);
+    if (!ops)
+        rc = e.code;
+    else if (ops == &trigger_sim_ops) {
         trigger_sim_options so = {.seed = c->sim_seed};
         trigger_config tc = trigger_config_default();
         tc.chip = "sim-gpiochip";
         tc.output.offset = 0;
         tc.backend_options = &so;
-        rc = trigger_open(&t, &trigger_sim_ops, &tc, &e);
+        rc = trigger_open(&t, ops, &tc, &e);
     } else {
         trigger_config tc;
         rc = trigger_config_from_json(c->trigger_json, "devices.trigger", &tc, &e);
         if (rc == 0) {
             if (!tc.consumer)
                 tc.consumer = "scicapd";
-            rc = trigger_open(&t, &trigger_gpiod_ops, &tc, &e);
+            rc = trigger_open(&t, ops, &tc, &e);
         }
     }
     if (rc == 0 && d->cam_software) {
@@ -211,7 +221,8 @@ static void open_bench(scicapd_devices *d)
 {
     const scicapd_config *c = d->cfg;
     sci_error e = {0};
-    if (strcmp(c->camera_backend, "sim") == 0) {
+    /* the simulated camera comes with the simulated bench (daemon/simbench.h), which also opens the trigger */
+    if (camera_backend_find(c->camera_backend, sim_cameras, NULL) == &camera_sim_ops) {
         if (!d->sim && scicapd_simbench_open(&d->sim, c, &e) < 0) {
             set_error(d, DEV_CAMERA, e.msg);
             set_error(d, DEV_TRIGGER, e.msg);
@@ -250,12 +261,14 @@ static void open_dmd(scicapd_devices *d)
         w = (int)cf.width;
         h = (int)cf.height;
     }
-    const dmd_ops *ops = &dmd_dlpc900_ops;
-    if (strcmp(c->dmd_backend, "sim") == 0) {
-        ops = &dmd_sim_ops;
-        dc.width = w;
-        dc.height = h;
-    } else if (c->dmd_emulator) {
+    const dmd_ops *ops = dmd_backend_find(c->dmd_backend, sim_dmds, &e);
+    if (!ops) {
+        set_error(d, DEV_DMD, e.msg);
+        return;
+    }
+    dc.width = w; /* the simulated DMD's size; a DLPC900 has its own */
+    dc.height = h;
+    if (ops == &dmd_dlpc900_ops && c->dmd_emulator) {
         if (!d->emu) {
             dlpc900_emu_config ec = {.serial = dc.serial ? dc.serial : "EMU0001", .width = w, .height = h};
             if ((rc = dlpc900_emu_new(&d->emu, &ec, &e)) < 0) {
