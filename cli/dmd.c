@@ -328,7 +328,7 @@ int cli_dmd_main(int argc, char **argv)
     sci_log log = {.fd = 2, .level = SCI_LOG_NOTICE, .tag = "scicap dmd"};
     sci_error err = {0};
     dlpc900_emu *emu = NULL;
-    dmd dev = {0};
+    dmd *dev = NULL;
     int status = 1;
     if (o.emulate && dlpc900_emu_new(&emu, &(dlpc900_emu_config){.serial = o.serial ? o.serial : "EMU0001"}, &err) < 0)
         goto fail;
@@ -338,7 +338,7 @@ int cli_dmd_main(int argc, char **argv)
     cfg.on_event = on_event;
     cfg.log = &log;
     cfg.emulator = emu;
-    if (dmd_open(&dev, &dmd_dlpc900_ops, &cfg, &err) < 0 || dmd_set_timing(&dev, &o.timing, &err) < 0)
+    if (dmd_open(&dev, &dmd_dlpc900_ops, &cfg, &err) < 0 || dmd_set_timing(dev, &o.timing, &err) < 0)
         goto fail;
     for (int i = first_cmd; i < argc; i++) {
         const char *c = argv[i];
@@ -349,22 +349,22 @@ int cli_dmd_main(int argc, char **argv)
             else if (cmd_list())
                 goto out;
         } else if (!strcmp(c, "status")) {
-            print_status(&dev);
+            print_status(dev);
         } else if (!strcmp(c, "start")) {
-            if ((rc = dmd_start(&dev, &err)) == 0)
+            if ((rc = dmd_start(dev, &err)) == 0)
                 printf("started\n");
         } else if (!strcmp(c, "stop")) {
-            if ((rc = dmd_stop(&dev, &err)) == 0)
+            if ((rc = dmd_stop(dev, &err)) == 0)
                 printf("stopped\n");
         } else {
             sci_cube *masks = NULL;
             dmd_identity id;
-            if ((rc = dmd_identify(&dev, &id, &err)) == 0)
+            if ((rc = dmd_identify(dev, &id, &err)) == 0)
                 rc = !strcmp(c, "upload") ? read_masks(argv[i + 1], &masks, &err)
                                           : generate_masks(argv[i + 1], id.width, id.height, o.seed, &masks, &err);
             i++;
             if (rc == 0) {
-                rc = dmd_upload(&dev, masks, &err);
+                rc = dmd_upload(dev, masks, &err);
                 if (rc == 0)
                     printf("uploaded %d masks (%d×%d)\n", masks->n, masks->w, masks->h);
             }
@@ -378,7 +378,7 @@ int cli_dmd_main(int argc, char **argv)
 fail:
     fprintf(stderr, "scicap dmd: %s\n", err.msg);
 out:
-    dmd_close(&dev);
+    dmd_close(dev);
     dlpc900_emu_free(emu);
     return status;
 }

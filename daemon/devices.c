@@ -33,7 +33,7 @@ struct scicapd_devices {
     void *user;
     scicapd_simbench *sim;     /* camera and trigger simulated */
     dlpc900_emu *emu;          /* dlpc900 backend with "emulator": true */
-    dmd dmd_dev;
+    dmd *dmd_dev;              /* NULL while closed */
     int dmd_open;
     dmd_identity dmd_id;
     camera *cam;               /* real camera (the simulated one belongs to sim) */
@@ -282,15 +282,16 @@ static void open_dmd(scicapd_devices *d)
         set_error(d, DEV_DMD, e.msg);
         return;
     }
-    if ((rc = dmd_identify(&d->dmd_dev, &d->dmd_id, &e)) < 0) {
-        dmd_close(&d->dmd_dev);
+    if ((rc = dmd_identify(d->dmd_dev, &d->dmd_id, &e)) < 0) {
+        dmd_close(d->dmd_dev);
+        d->dmd_dev = NULL;
         set_error(d, DEV_DMD, e.msg);
         return;
     }
     d->dmd_open = 1;
     d->error[DEV_DMD][0] = '\0';
     atomic_store(&d->dmd_connected, 1);
-    atomic_store(&d->can_dmd_faults, dmd_sim_emulator(&d->dmd_dev) != NULL || d->emu != NULL);
+    atomic_store(&d->can_dmd_faults, dmd_sim_emulator(d->dmd_dev) != NULL || d->emu != NULL);
     sci_log_write(d->log, SCI_LOG_INFO, "dmd (%s%s): %s %s, %d×%d, firmware %s", c->dmd_backend,
                   d->emu ? " on the DLPC900 emulator" : "", d->dmd_id.model, d->dmd_id.serial, d->dmd_id.width,
                   d->dmd_id.height, d->dmd_id.firmware);
@@ -302,7 +303,7 @@ static void open_missing(scicapd_devices *d)
     open_bench(d);
     open_dmd(d);
     if (d->sim)
-        scicapd_simbench_attach_dmd(d->sim, d->dmd_open ? &d->dmd_dev : NULL);
+        scicapd_simbench_attach_dmd(d->sim, d->dmd_open ? d->dmd_dev : NULL);
     publish(d);
 }
 
@@ -310,8 +311,8 @@ static void close_all(scicapd_devices *d)
 {
     if (d->sim)
         scicapd_simbench_attach_dmd(d->sim, NULL);
-    if (d->dmd_open)
-        dmd_close(&d->dmd_dev);
+    dmd_close(d->dmd_dev);
+    d->dmd_dev = NULL;
     d->dmd_open = 0;
     atomic_store(&d->dmd_connected, 0);
     atomic_store(&d->can_dmd_faults, 0);
@@ -411,7 +412,7 @@ dmd *scicapd_devices_dmd(scicapd_devices *d)
 {
     if (!d->dmd_open)
         return NULL;
-    return d->sim ? scicapd_simbench_dmd(d->sim) : &d->dmd_dev;
+    return d->sim ? scicapd_simbench_dmd(d->sim) : d->dmd_dev;
 }
 
 camera *scicapd_devices_camera(scicapd_devices *d) { return d->sim ? scicapd_simbench_camera(d->sim) : d->cam; }
@@ -451,7 +452,7 @@ int scicapd_devices_fault_supported(scicapd_devices *d, scicapd_fault fault)
 
 void scicapd_devices_fault_apply(scicapd_devices *d, scicapd_fault fault, long n)
 {
-    dlpc900_emu *emu = d->emu ? d->emu : d->dmd_open ? dmd_sim_emulator(&d->dmd_dev) : NULL;
+    dlpc900_emu *emu = d->emu ? d->emu : d->dmd_open ? dmd_sim_emulator(d->dmd_dev) : NULL;
     switch (fault) {
     case SCICAPD_FAULT_DMD_UNPLUG:
         if (emu)

@@ -19,7 +19,7 @@ struct scicapd_simbench {
     sim_scene *scene;
     dmd *inner;              /* the DMD, any backend (borrowed; NULL while it is not open) */
     int ox, oy;              /* the camera sees mirrors [ox, ox + w) × [oy, oy + h) */
-    dmd outer;               /* wrapper handed to the acquisition code */
+    dmd *outer;              /* wrapper handed to the acquisition code (owned) */
     camera *cam;
     trigger *trig;
     camera_sim *cs;
@@ -43,9 +43,13 @@ struct scicapd_simbench {
 
 static int no_dmd(sci_error *err) { return sci_error_set(err, -ENODEV, "DMD: not connected"); }
 
+/* Opened by scicapd_simbench_open only, with the bench as backend_options: the wrapper's state is the bench. */
 static int w_open(void **state, const dmd_config *cfg, sci_error *err)
 {
-    return sci_error_set(err, -ENOTSUP, "simbench DMD: opened by scicapd_simbench_open only");
+    if (!cfg->backend_options)
+        return sci_error_set(err, -ENOTSUP, "simbench DMD: opened by scicapd_simbench_open only");
+    *state = (void *)cfg->backend_options;
+    return 0;
 }
 static void w_close(void *state) { (void)state; }
 static int w_identify(void *state, dmd_identity *id, sci_error *err)
@@ -307,8 +311,10 @@ int scicapd_simbench_open(scicapd_simbench **out, const scicapd_config *cfg, sci
     sb->read_noise = cfg->sim_read_noise;
     sci_rng_seed(&sb->rng, cfg->sim_seed, 0x5c1cbe4c);
 
-    sb->outer.ops = &simbench_dmd_ops;
-    sb->outer.state = sb;
+    dmd_config wc = dmd_config_default();
+    wc.backend_options = sb;
+    if ((rc = dmd_open(&sb->outer, &simbench_dmd_ops, &wc, err)) < 0)
+        goto fail;
 
     if ((rc = open_camera(sb, 0, err)) < 0)
         goto fail;
@@ -338,6 +344,7 @@ void scicapd_simbench_close(scicapd_simbench *sb)
         return;
     trigger_close(sb->trig);
     camera_close(sb->cam);
+    dmd_close(sb->outer);
     sim_scene_free(sb->scene);
     sci_cube_free(sb->masks);
     sci_cube_free(sb->truth);
@@ -377,7 +384,7 @@ int scicapd_simbench_crop(const scicapd_simbench *sb, const sci_cube *dmd_masks,
     return 0;
 }
 
-dmd *scicapd_simbench_dmd(scicapd_simbench *sb) { return &sb->outer; }
+dmd *scicapd_simbench_dmd(scicapd_simbench *sb) { return sb->outer; }
 camera *scicapd_simbench_camera(scicapd_simbench *sb) { return sb->cam; }
 trigger *scicapd_simbench_trigger(scicapd_simbench *sb) { return sb->trig; }
 int64_t scicapd_simbench_dmd_latency_ns(const scicapd_simbench *sb) { return sb->latency_ns; }

@@ -1,18 +1,19 @@
 /* drivers/dmd.h — the DMD device interface (DESIGN.md, Contracts: Devices).
  *
- * A DMD shows N binary masks per camera exposure. Backends are const ops tables; an open device is a `dmd`
- * handle: the table plus the backend's opaque state. Backends: "dlpc900" (drivers/dmd_dlpc900.c, TI DLPC900
- * over USB HID, or its in-process emulator) and "sim" (sim/dmd_sim.h). The caller picks the table at run time
- * (dmd_backend_find in the layer that knows every backend, e.g. the daemon or cli).
+ * A DMD shows N binary masks per camera exposure. A backend is a const dmd_ops table; an open device is the opaque
+ * `dmd` handle (the table plus the backend's state), used through the dmd_* calls below, never the table directly —
+ * the same shape as camera.h and trigger.h. Backends: "dlpc900" (drivers/dmd_dlpc900.c, TI DLPC900 over USB HID,
+ * or its in-process emulator) and "sim" (sim/dmd_sim.h). The caller picks the table by its name at run time
+ * (dmd_backend_find, drivers/backends.h, with sim/'s tables passed in by the layer that knows both).
  *
- *     dmd dev;
+ *     dmd *dev;
  *     dmd_config cfg = dmd_config_default();
  *     cfg.serial = "A1B2C3";                  // NULL: the first device found
- *     if (dmd_open(&dev, &dmd_dlpc900_ops, &cfg, &err) < 0) ...
- *     dmd_upload(&dev, masks, &err);          // w×h×N cube of 0/1, once per mask set
- *     dmd_set_timing(&dev, &(dmd_timing){.exposure_us = 500, .dark_us = 0, .trigger = DMD_TRIGGER_INTERNAL}, &err);
- *     dmd_start(&dev, &err);  ...  dmd_stop(&dev, &err);
- *     dmd_close(&dev);
+ *     if (dmd_open(&dev, dmd_backend_find("dlpc900", NULL, &err), &cfg, &err) < 0) ...
+ *     dmd_upload(dev, masks, &err);           // w×h×N cube of 0/1, once per mask set
+ *     dmd_set_timing(dev, &(dmd_timing){.exposure_us = 500, .dark_us = 0, .trigger = DMD_TRIGGER_INTERNAL}, &err);
+ *     dmd_start(dev, &err);  ...  dmd_stop(dev, &err);
+ *     dmd_close(dev);
  *
  * Masks: a `const sci_cube *` (base/cube.h) of w×h×N with N ≤ identity.max_masks; a value ≥ 0.5 turns the mirror
  * on (towards the sensor), below 0.5 off; NaN/Inf are refused. w×h must equal the DMD size. Mask k is shown k-th.
@@ -108,17 +109,15 @@ typedef struct dmd_ops {
     int (*poll)(void *state, int timeout_ms, sci_error *err);
 } dmd_ops;
 
-typedef struct dmd {
-    const dmd_ops *ops;
-    void *state;
-} dmd;
+/* An open DMD: the backend's table and its state, behind the dmd_* calls (opaque, like camera and trigger). */
+typedef struct dmd dmd;
 
-/* Backends: this one here; the rest by name through drivers/backends.h. */
+/* Backends: this one here; every one by name through drivers/backends.h. */
 extern const dmd_ops dmd_dlpc900_ops;
 
-/* Open `ops` into d. On failure d is left closed (dmd_close harmless). */
-int dmd_open(dmd *d, const dmd_ops *ops, const dmd_config *cfg, sci_error *err);
-/* Stops the sequence (best effort) and releases the device. Harmless on a closed handle. */
+/* Open `ops` into *out (NULL on failure: nothing is left open). */
+int dmd_open(dmd **out, const dmd_ops *ops, const dmd_config *cfg, sci_error *err);
+/* Stops the sequence (best effort) and releases the device. NULL is harmless. */
 void dmd_close(dmd *d);
 int dmd_identify(dmd *d, dmd_identity *id, sci_error *err);
 int dmd_upload(dmd *d, const sci_cube *masks, sci_error *err);
@@ -128,6 +127,8 @@ int dmd_stop(dmd *d, sci_error *err);
 int dmd_status_get(dmd *d, dmd_status *st, sci_error *err);
 /* Hotplug notifications for up to timeout_ms (0 = do not wait); on_event is called from here. */
 int dmd_poll(dmd *d, int timeout_ms, sci_error *err);
+/* The backend's table (its `name` is the config's spelling). */
+const dmd_ops *dmd_backend(const dmd *d);
 /* The backend's state if d runs on `ops`, else NULL: how sim/ reaches its simulator-only queries. */
 void *dmd_backend_state(const dmd *d, const dmd_ops *ops);
 

@@ -8,7 +8,7 @@
 
 typedef struct sim_dmd {
     dlpc900_emu *emu;
-    dmd inner;         /* the dlpc900 backend driving emu */
+    dmd *inner;        /* the dlpc900 backend driving emu */
     int64_t started_ns;
 } sim_dmd;
 
@@ -17,7 +17,7 @@ static void sim_close(void *state)
     sim_dmd *s = state;
     if (!s)
         return;
-    dmd_close(&s->inner); /* before the emulator it talks to */
+    dmd_close(s->inner); /* before the emulator it talks to */
     dlpc900_emu_free(s->emu);
     free(s);
 }
@@ -48,30 +48,30 @@ static int sim_open(void **state, const dmd_config *cfg, sci_error *err)
 static int sim_identify(void *state, dmd_identity *id, sci_error *err)
 {
     sim_dmd *s = state;
-    int rc = dmd_identify(&s->inner, id, err);
+    int rc = dmd_identify(s->inner, id, err);
     if (rc == 0)
         strcpy(id->backend, "sim");
     return rc;
 }
 
-static int sim_upload(void *state, const sci_cube *m, sci_error *err) { return dmd_upload(&((sim_dmd *)state)->inner, m, err); }
+static int sim_upload(void *state, const sci_cube *m, sci_error *err) { return dmd_upload(((sim_dmd *)state)->inner, m, err); }
 static int sim_set_timing(void *state, const dmd_timing *t, sci_error *err)
 {
-    return dmd_set_timing(&((sim_dmd *)state)->inner, t, err);
+    return dmd_set_timing(((sim_dmd *)state)->inner, t, err);
 }
 
 static int sim_start(void *state, sci_error *err)
 {
     sim_dmd *s = state;
-    int rc = dmd_start(&s->inner, err);
+    int rc = dmd_start(s->inner, err);
     if (rc == 0)
         s->started_ns = sci_clock_mono_ns();
     return rc;
 }
 
-static int sim_stop(void *state, sci_error *err) { return dmd_stop(&((sim_dmd *)state)->inner, err); }
-static int sim_status(void *state, dmd_status *st, sci_error *err) { return dmd_status_get(&((sim_dmd *)state)->inner, st, err); }
-static int sim_poll(void *state, int timeout_ms, sci_error *err) { return dmd_poll(&((sim_dmd *)state)->inner, timeout_ms, err); }
+static int sim_stop(void *state, sci_error *err) { return dmd_stop(((sim_dmd *)state)->inner, err); }
+static int sim_status(void *state, dmd_status *st, sci_error *err) { return dmd_status_get(((sim_dmd *)state)->inner, st, err); }
+static int sim_poll(void *state, int timeout_ms, sci_error *err) { return dmd_poll(((sim_dmd *)state)->inner, timeout_ms, err); }
 
 const dmd_ops dmd_sim_ops = {
     .name = "sim",

@@ -4,12 +4,12 @@
  * dlpc900_emu, so the daemon cannot tell it from hardware, and adds what a simulator needs: which mask is on
  * the mirrors at a given time, and the mask itself.
  *
- *     dmd dev;
+ *     dmd *dev;
  *     dmd_config cfg = dmd_config_default();
  *     cfg.width = 256; cfg.height = 256;          // 0 = 1920×1080
  *     dmd_open(&dev, &dmd_sim_ops, &cfg, &err);
- *     dmd_upload(&dev, masks, &err); dmd_start(&dev, &err);
- *     int k = dmd_sim_displayed_at(&dev, t_ns);   // t_ns after start → mask index, -1 dark, -2 finished
+ *     dmd_upload(dev, masks, &err); dmd_start(dev, &err);
+ *     int k = dmd_sim_displayed_at(dev, t_ns);    // t_ns after start → mask index, -1 dark, -2 finished
  *
  * Timing model: internal timing (exposure then dark time per pattern, sequence repeated `passes` times or
  * forever). In external-trigger mode the simulator assumes each trigger arrives as the previous pattern's

@@ -23,7 +23,7 @@ static uint64_t seed;
 
 typedef struct fixture {
     dlpc900_emu *emu;
-    dmd dev;
+    dmd *dev;
     int events[8];
     int nevents;
     char last_serial[64];
@@ -55,7 +55,7 @@ static int setup(void **state)
 static int teardown(void **state)
 {
     fixture *f = *state;
-    dmd_close(&f->dev);
+    dmd_close(f->dev);
     dlpc900_emu_free(f->emu);
     free(f);
     return 0;
@@ -90,7 +90,7 @@ static void test_identity(void **state)
     fixture *f = *state;
     dmd_identity id;
     sci_error err = {0};
-    assert_int_equal(dmd_identify(&f->dev, &id, &err), 0);
+    assert_int_equal(dmd_identify(f->dev, &id, &err), 0);
     assert_string_equal(id.backend, "dlpc900");
     assert_string_equal(id.model, "DLP6500");
     assert_string_equal(id.serial, "EMU7");
@@ -106,8 +106,8 @@ static void test_upload_start_stop(void **state)
     fixture *f = *state;
     sci_error err = {0};
     sci_cube *c = random_masks(40, 1);
-    assert_int_equal(dmd_set_timing(&f->dev, &(dmd_timing){.exposure_us = 250, .dark_us = 10, .passes = 1}, &err), 0);
-    if (dmd_upload(&f->dev, c, &err))
+    assert_int_equal(dmd_set_timing(f->dev, &(dmd_timing){.exposure_us = 250, .dark_us = 10, .passes = 1}, &err), 0);
+    if (dmd_upload(f->dev, c, &err))
         fail_msg("upload: %s", err.msg);
     check_loaded(f, c);
     int nl;
@@ -119,21 +119,21 @@ static void test_upload_start_stop(void **state)
     uint32_t each[40];
     for (int j = 0; j < 40; j++)
         each[j] = 300 + 10 * (uint32_t)j;
-    assert_int_equal(dmd_set_timing(&f->dev, &(dmd_timing){.exposure_us = 250, .exposure_us_each = each,
+    assert_int_equal(dmd_set_timing(f->dev, &(dmd_timing){.exposure_us = 250, .exposure_us_each = each,
                                                             .trigger = DMD_TRIGGER_EXTERNAL, .passes = 0}, &err), 0);
     dlpc900_lut_entry e;
     assert_int_equal(dlpc900_emu_lut_entry(f->emu, 39, &e), 0);
     assert_int_equal(e.exposure_us, 690);
     assert_int_equal(e.wait_trigger, 1);
     check_loaded(f, c);
-    assert_int_equal(dmd_start(&f->dev, &err), 0);
+    assert_int_equal(dmd_start(f->dev, &err), 0);
     dmd_status st;
-    assert_int_equal(dmd_status_get(&f->dev, &st, &err), 0);
+    assert_int_equal(dmd_status_get(f->dev, &st, &err), 0);
     assert_true(st.connected);
     assert_true(st.running);
     assert_int_equal(st.loaded_masks, 40);
     assert_int_equal(st.error_code, 0);
-    assert_int_equal(dmd_stop(&f->dev, &err), 0);
+    assert_int_equal(dmd_stop(f->dev, &err), 0);
     assert_int_equal(dlpc900_emu_running(f->emu), 0);
     sci_cube_free(c);
 }
@@ -144,24 +144,24 @@ static void test_validation(void **state)
     sci_error err = {0};
     sci_cube *c;
     assert_int_equal(sci_cube_new(&c, W + 1, H, 2, NULL), 0);
-    assert_int_equal(dmd_upload(&f->dev, c, &err), SCI_ESHAPE);
+    assert_int_equal(dmd_upload(f->dev, c, &err), SCI_ESHAPE);
     assert_non_null(strstr(err.msg, "321×200"));
     sci_cube_free(c);
     c = random_masks(3, 2);
     c->data[5] = NAN;
-    assert_int_equal(dmd_upload(&f->dev, c, &err), SCI_ENONFINITE);
+    assert_int_equal(dmd_upload(f->dev, c, &err), SCI_ENONFINITE);
     assert_non_null(strstr(err.msg, "mask 0 pixel (5, 0)"));
     sci_cube_free(c);
     assert_int_equal(sci_cube_new(&c, W, H, 401, NULL), 0);
-    assert_int_equal(dmd_upload(&f->dev, c, &err), SCI_ESHAPE);
+    assert_int_equal(dmd_upload(f->dev, c, &err), SCI_ESHAPE);
     sci_cube_free(c);
-    assert_int_equal(dmd_start(&f->dev, &err), -EINVAL);
+    assert_int_equal(dmd_start(f->dev, &err), -EINVAL);
     assert_non_null(strstr(err.msg, "upload first"));
-    assert_int_equal(dmd_set_timing(&f->dev, &(dmd_timing){.exposure_us = 0}, &err), -EINVAL);
+    assert_int_equal(dmd_set_timing(f->dev, &(dmd_timing){.exposure_us = 0}, &err), -EINVAL);
     /* the device's own limit comes back as a device error with code and text */
     c = random_masks(2, 3);
-    assert_int_equal(dmd_set_timing(&f->dev, &(dmd_timing){.exposure_us = 60}, &err), 0);
-    assert_int_equal(dmd_upload(&f->dev, c, &err), SCI_EDEVICE);
+    assert_int_equal(dmd_set_timing(f->dev, &(dmd_timing){.exposure_us = 60}, &err), 0);
+    assert_int_equal(dmd_upload(f->dev, c, &err), SCI_EDEVICE);
     assert_non_null(strstr(err.msg, "error 14 (pattern exposure time out of range)"));
     assert_int_equal(dlpc900_emu_running(f->emu), 0);
     sci_cube_free(c);
@@ -174,38 +174,38 @@ static void test_unplug_replug(void **state)
     fixture *f = *state;
     sci_error err = {0};
     sci_cube *c = random_masks(24, 4);
-    assert_int_equal(dmd_set_timing(&f->dev, &(dmd_timing){.exposure_us = 500}, &err), 0);
+    assert_int_equal(dmd_set_timing(f->dev, &(dmd_timing){.exposure_us = 500}, &err), 0);
     dlpc900_emu_unplug_after(f->emu, 300);
-    assert_int_equal(dmd_upload(&f->dev, c, &err), -ENODEV);
+    assert_int_equal(dmd_upload(f->dev, c, &err), -ENODEV);
     assert_non_null(strstr(err.msg, "unplugged"));
     assert_int_equal(f->nevents, 1);
     assert_int_equal(f->events[0], DMD_EVENT_DISCONNECTED);
     assert_string_equal(f->last_serial, "EMU7");
     dmd_status st;
-    assert_int_equal(dmd_status_get(&f->dev, &st, &err), 0);
+    assert_int_equal(dmd_status_get(f->dev, &st, &err), 0);
     assert_false(st.connected);
     assert_non_null(strstr(st.error_text, "disconnected"));
-    assert_int_equal(dmd_start(&f->dev, &err), -ENODEV);
-    assert_int_equal(dmd_stop(&f->dev, &err), 0); /* stop is always safe */
-    assert_int_equal(dmd_poll(&f->dev, 0, &err), 0);
+    assert_int_equal(dmd_start(f->dev, &err), -ENODEV);
+    assert_int_equal(dmd_stop(f->dev, &err), 0); /* stop is always safe */
+    assert_int_equal(dmd_poll(f->dev, 0, &err), 0);
     assert_int_equal(f->nevents, 1);
 
     dlpc900_emu_replug(f->emu);
-    assert_int_equal(dmd_poll(&f->dev, 0, &err), 0);
+    assert_int_equal(dmd_poll(f->dev, 0, &err), 0);
     assert_int_equal(f->nevents, 2);
     assert_int_equal(f->events[1], DMD_EVENT_CONNECTED);
-    assert_int_equal(dmd_start(&f->dev, &err), -EINVAL); /* masks were lost with the power */
-    assert_int_equal(dmd_upload(&f->dev, c, &err), 0);
+    assert_int_equal(dmd_start(f->dev, &err), -EINVAL); /* masks were lost with the power */
+    assert_int_equal(dmd_upload(f->dev, c, &err), 0);
     check_loaded(f, c);
-    assert_int_equal(dmd_start(&f->dev, &err), 0);
+    assert_int_equal(dmd_start(f->dev, &err), 0);
     assert_int_equal(dlpc900_emu_running(f->emu), 1);
 
     /* unplug while idle is noticed by poll */
     dlpc900_emu_unplug_after(f->emu, 0);
-    assert_int_equal(dmd_poll(&f->dev, 0, &err), 0);
+    assert_int_equal(dmd_poll(f->dev, 0, &err), 0);
     assert_int_equal(f->nevents, 3);
     assert_int_equal(f->events[2], DMD_EVENT_DISCONNECTED);
-    assert_int_equal(dmd_poll(&f->dev, 0, &err), 0); /* still unplugged: no new event */
+    assert_int_equal(dmd_poll(f->dev, 0, &err), 0); /* still unplugged: no new event */
     assert_int_equal(f->nevents, 3);
     sci_cube_free(c);
 }

@@ -25,7 +25,7 @@
 typedef struct bench {
     sim_scene *scene;
     sci_cube *mask, *truth;
-    dmd dev;
+    dmd *dev;
     camera *cam;
     camera_sim *cs;
     sim_bench_source *src;
@@ -64,16 +64,16 @@ static void bench_open(bench *b, int reversed)
         for (int k = 0; k < N; k++)
             memcpy(sci_cube_frame(up, k), sci_cube_frame(b->mask, N - 1 - k), sizeof(float) * W * H);
     }
-    if (dmd_upload(&b->dev, up, &err) < 0)
+    if (dmd_upload(b->dev, up, &err) < 0)
         fail_msg("dmd_upload: %s", err.msg);
     if (up != b->mask)
         sci_cube_free(up);
     dmd_timing t = {.exposure_us = SLOT_US, .dark_us = 0, .trigger = DMD_TRIGGER_INTERNAL, .passes = 1};
-    if (dmd_set_timing(&b->dev, &t, &err) < 0)
+    if (dmd_set_timing(b->dev, &t, &err) < 0)
         fail_msg("dmd_set_timing: %s", err.msg);
 
     sim_bench_source_options so = {.slot_ns = SLOT_US * 1000LL, .steps_per_slot = 8, .counts_white = 4000};
-    assert_int_equal(sim_bench_source_new(&b->src, b->scene, &b->dev, &so, &err), 0);
+    assert_int_equal(sim_bench_source_new(&b->src, b->scene, b->dev, &so, &err), 0);
     b->co = (camera_sim_options){.trigger_latency_ns = 0, .source = sim_bench_source_fill, .source_arg = b->src};
     camera_config cc = camera_config_default();
     cc.width = W;
@@ -95,7 +95,7 @@ static void bench_close(bench *b)
 {
     camera_frame_release(&b->fr);
     camera_close(b->cam);
-    dmd_close(&b->dev);
+    dmd_close(b->dev);
     sim_bench_source_free(b->src);
     sci_cube_free(b->mask);
     sci_cube_free(b->truth);
@@ -105,9 +105,9 @@ static void bench_close(bench *b)
 /* Start the DMD sequence and trigger the camera `delay_slots` pattern slots after it. */
 static int shoot(bench *b, int delay_slots, int64_t timeout_ns, sci_error *err)
 {
-    if (dmd_start(&b->dev, err) < 0)
+    if (dmd_start(b->dev, err) < 0)
         fail_msg("dmd_start: %s", err->msg);
-    int64_t t0 = dmd_sim_started_ns(&b->dev);
+    int64_t t0 = dmd_sim_started_ns(b->dev);
     assert_true(t0 > 0);
     camera_sim_trigger(b->cs, t0 + (int64_t)delay_slots * SLOT_US * 1000);
     return camera_wait_frame(b->cam, timeout_ns, &b->fr, err);
@@ -186,7 +186,7 @@ static void test_late_and_missed_trigger_show(void **state)
     assert_true(d == 0);
     /* Missed trigger: the camera never exposes and the wait times out. */
     camera_sim_fault(b.cs, CAMERA_SIM_FAULT_STALL, 1);
-    dmd_stop(&b.dev, &err);
+    dmd_stop(b.dev, &err);
     int rc = shoot(&b, 0, 300000000LL, &err);
     printf("missed trigger: %s\n", err.msg);
     assert_int_equal(rc, -ETIMEDOUT);

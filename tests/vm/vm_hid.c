@@ -254,7 +254,7 @@ static void on_event(void *user, dmd_event ev, const char *serial)
     (void)serial;
 }
 
-static dmd g_dmd;
+static dmd *g_dmd;
 
 /* Blocky random masks (blocks of `block` mirrors, a few isolated mirrors flipped per mask so that pixel
  * exactness is checked at full resolution too). */
@@ -340,7 +340,7 @@ static void open_and_identify(void **state)
     sci_error err = {0};
     dmd_config cfg = dmd_config_default();
     cfg.serial = "NOT-THIS-ONE";
-    dmd other;
+    dmd *other;
     assert_int_equal(dmd_open(&other, &dmd_dlpc900_ops, &cfg, &err), -ENODEV);
     assert_non_null(strstr(err.msg, "NOT-THIS-ONE"));
     cfg.serial = SERIAL;
@@ -349,7 +349,7 @@ static void open_and_identify(void **state)
     if (dmd_open(&g_dmd, &dmd_dlpc900_ops, &cfg, &err) < 0)
         fail_msg("open: %s", err.msg);
     dmd_identity id;
-    assert_int_equal(dmd_identify(&g_dmd, &id, &err), 0);
+    assert_int_equal(dmd_identify(g_dmd, &id, &err), 0);
     assert_string_equal(id.backend, "dlpc900");
     assert_string_equal(id.model, "DLP6500");
     assert_string_equal(id.serial, SERIAL);
@@ -362,14 +362,14 @@ static void open_and_identify(void **state)
 static void upload_start_stop(void **state)
 {
     (void)state;
-    if (!g_dmd.ops)
+    if (!g_dmd)
         skip();
     sci_error err = {0};
     sci_cube *c = masks_new(26, 40, 1); /* 2 images: 24 + 2 masks */
-    assert_int_equal(dmd_set_timing(&g_dmd, &(dmd_timing){.exposure_us = 250, .dark_us = 20, .passes = 2}, &err), 0);
+    assert_int_equal(dmd_set_timing(g_dmd, &(dmd_timing){.exposure_us = 250, .dark_us = 20, .passes = 2}, &err), 0);
     long out0 = g.outputs;
     int64_t t0 = sci_clock_mono_ns();
-    if (dmd_upload(&g_dmd, c, &err) < 0)
+    if (dmd_upload(g_dmd, c, &err) < 0)
         fail_msg("upload: %s", err.msg);
     double s = sci_clock_s(t0, sci_clock_mono_ns());
     printf("# 26 masks (2 images) uploaded in %.2f s, %ld reports through hidraw/uhid\n", s, g.outputs - out0);
@@ -388,24 +388,24 @@ static void upload_start_stop(void **state)
     assert_int_equal(e.exposure_us, 250);
     assert_int_equal(refused, 0);
 
-    assert_int_equal(dmd_start(&g_dmd, &err), 0);
+    assert_int_equal(dmd_start(g_dmd, &err), 0);
     pthread_mutex_lock(&g.lock);
     int running = dlpc900_emu_running(g.emu);
     pthread_mutex_unlock(&g.lock);
     assert_int_equal(running, 1);
     dmd_status st;
-    assert_int_equal(dmd_status_get(&g_dmd, &st, &err), 0);
+    assert_int_equal(dmd_status_get(g_dmd, &st, &err), 0);
     assert_true(st.connected);
     assert_true(st.running);
     assert_int_equal(st.loaded_masks, 26);
     assert_int_equal(st.error_code, 0);
     assert_string_equal(st.error_text, "");
-    assert_int_equal(dmd_stop(&g_dmd, &err), 0);
+    assert_int_equal(dmd_stop(g_dmd, &err), 0);
     pthread_mutex_lock(&g.lock);
     running = dlpc900_emu_running(g.emu);
     pthread_mutex_unlock(&g.lock);
     assert_int_equal(running, 0);
-    assert_int_equal(dmd_status_get(&g_dmd, &st, &err), 0);
+    assert_int_equal(dmd_status_get(g_dmd, &st, &err), 0);
     assert_false(st.running);
     assert_int_equal(g.odd_sizes, 0);
     sci_cube_free(c);
@@ -417,20 +417,20 @@ static void upload_start_stop(void **state)
 static void larger_upload(void **state)
 {
     (void)state;
-    if (!g_dmd.ops)
+    if (!g_dmd)
         skip();
     sci_error err = {0};
     sci_cube *c = masks_new(8, 4, 2);
     long out0 = g.outputs;
     int64_t t0 = sci_clock_mono_ns();
-    if (dmd_upload(&g_dmd, c, &err) < 0)
+    if (dmd_upload(g_dmd, c, &err) < 0)
         fail_msg("upload: %s", err.msg);
     double s = sci_clock_s(t0, sci_clock_mono_ns());
     long reports = g.outputs - out0;
     printf("# 8 masks, 4-mirror blocks: %ld reports in %.2f s (%.0f reports/s)\n", reports, s, reports / s);
     check_device_masks(c);
-    assert_int_equal(dmd_start(&g_dmd, &err), 0);
-    assert_int_equal(dmd_stop(&g_dmd, &err), 0);
+    assert_int_equal(dmd_start(g_dmd, &err), 0);
+    assert_int_equal(dmd_stop(g_dmd, &err), 0);
     sci_cube_free(c);
 }
 
@@ -439,19 +439,19 @@ static void larger_upload(void **state)
 static void device_errors(void **state)
 {
     (void)state;
-    if (!g_dmd.ops)
+    if (!g_dmd)
         skip();
     sci_error err = {0};
     pthread_mutex_lock(&g.lock);
     dlpc900_emu_inject(g.emu, DLPC900_CMD_PATTERN_START, 1, DLPC900_EMU_FAULT_NACK, 7);
     pthread_mutex_unlock(&g.lock);
-    int rc = dmd_start(&g_dmd, &err); /* start sends stop (0x1A24 #0), then start (#1) */
+    int rc = dmd_start(g_dmd, &err); /* start sends stop (0x1A24 #0), then start (#1) */
     printf("# NACK: %s\n", err.msg);
     assert_int_equal(rc, SCI_EDEVICE);
     assert_non_null(strstr(err.msg, "0x1A24"));
     assert_non_null(strstr(err.msg, "error 7"));
     dmd_status st;
-    assert_int_equal(dmd_status_get(&g_dmd, &st, &err), 0);
+    assert_int_equal(dmd_status_get(g_dmd, &st, &err), 0);
     assert_true(st.connected);
     assert_false(st.running);
 
@@ -459,17 +459,17 @@ static void device_errors(void **state)
     dlpc900_emu_inject(g.emu, DLPC900_CMD_MAIN_STATUS, 0, DLPC900_EMU_FAULT_SILENT, 0);
     pthread_mutex_unlock(&g.lock);
     int64_t t0 = sci_clock_mono_ns();
-    rc = dmd_status_get(&g_dmd, &st, &err);
+    rc = dmd_status_get(g_dmd, &st, &err);
     double s = sci_clock_s(t0, sci_clock_mono_ns());
     printf("# silent: %d after %.2f s: %s\n", rc, s, err.msg);
     assert_int_equal(rc, -ETIMEDOUT);
     assert_non_null(strstr(err.msg, "0x1A0C"));
     assert_true(s >= 0.2);
 
-    assert_int_equal(dmd_start(&g_dmd, &err), 0);
-    assert_int_equal(dmd_status_get(&g_dmd, &st, &err), 0);
+    assert_int_equal(dmd_start(g_dmd, &err), 0);
+    assert_int_equal(dmd_status_get(g_dmd, &st, &err), 0);
     assert_true(st.running);
-    assert_int_equal(dmd_stop(&g_dmd, &err), 0);
+    assert_int_equal(dmd_stop(g_dmd, &err), 0);
 }
 
 /* Unplug: the hidraw node disappears; the next call fails with -ENODEV and DISCONNECTED. Replug (the controller
@@ -477,7 +477,7 @@ static void device_errors(void **state)
 static void unplug_replug(void **state)
 {
     (void)state;
-    if (!g_dmd.ops)
+    if (!g_dmd)
         skip();
     sci_error err = {0};
     int ev0 = g_events.n;
@@ -485,13 +485,13 @@ static void unplug_replug(void **state)
     pthread_mutex_lock(&g.lock);
     dlpc900_emu_unplug_after(g.emu, 0);
     pthread_mutex_unlock(&g.lock);
-    int rc = dmd_start(&g_dmd, &err);
+    int rc = dmd_start(g_dmd, &err);
     printf("# unplugged: %d %s\n", rc, err.msg);
     assert_int_equal(rc, -ENODEV);
     assert_int_equal(g_events.n, ev0 + 1);
     assert_int_equal(g_events.ev[ev0], DMD_EVENT_DISCONNECTED);
     dmd_status st;
-    assert_int_equal(dmd_status_get(&g_dmd, &st, &err), 0);
+    assert_int_equal(dmd_status_get(g_dmd, &st, &err), 0);
     assert_false(st.connected);
 
     pthread_mutex_lock(&g.lock);
@@ -500,18 +500,18 @@ static void unplug_replug(void **state)
     rc = vdev_plug(&g);
     if (rc < 0)
         fail_msg("replug: %s", strerror(-rc));
-    assert_int_equal(dmd_start(&g_dmd, &err), -EINVAL); /* re-opened, but blank */
+    assert_int_equal(dmd_start(g_dmd, &err), -EINVAL); /* re-opened, but blank */
     assert_int_equal(g_events.n, ev0 + 2);
     assert_int_equal(g_events.ev[ev0 + 1], DMD_EVENT_CONNECTED);
     assert_non_null(strstr(err.msg, "upload first"));
     sci_cube *c = masks_new(4, 60, 3);
-    if (dmd_upload(&g_dmd, c, &err) < 0)
+    if (dmd_upload(g_dmd, c, &err) < 0)
         fail_msg("upload after replug: %s", err.msg);
     check_device_masks(c);
-    assert_int_equal(dmd_start(&g_dmd, &err), 0);
-    assert_int_equal(dmd_status_get(&g_dmd, &st, &err), 0);
+    assert_int_equal(dmd_start(g_dmd, &err), 0);
+    assert_int_equal(dmd_status_get(g_dmd, &st, &err), 0);
     assert_true(st.connected && st.running);
-    assert_int_equal(dmd_stop(&g_dmd, &err), 0);
+    assert_int_equal(dmd_stop(g_dmd, &err), 0);
     sci_cube_free(c);
 }
 
@@ -549,7 +549,8 @@ int main(void)
         cmocka_unit_test(unplug_replug),
     };
     rc = cmocka_run_group_tests(tests, NULL, NULL);
-    dmd_close(&g_dmd);
+    dmd_close(g_dmd);
+    g_dmd = NULL;
     vdev_unplug(&g);
     printf("# uhid: %ld output reports, %ld input reports, %ld hidraw opens, emulator: %ld messages, %ld refused\n",
            g.outputs, g.inputs, g.opens, dlpc900_emu_messages(g.emu), dlpc900_emu_refused(g.emu));
