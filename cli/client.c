@@ -324,7 +324,11 @@ static void print_event(conn *c, const json_t *m)
             printf(", values divided by %g%s%s", json_number_value(json_object_get(d, "white")),
                    json_object_get(d, "scale_auto") ? ": " : "", str(d, "scale_auto"));
         printf("\n");
-    } else if (strcmp(ev, "recon.done") == 0)
+    } else if (strcmp(ev, "recon.checkpoint") == 0)
+        printf("job %lld: checkpoint at step %lld (%.1f MB)\n", job,
+               (long long)json_integer_value(json_object_get(d, "iter")),
+               json_number_value(json_object_get(d, "bytes")) / 1e6);
+    else if (strcmp(ev, "recon.done") == 0)
         printf("job %lld: %s of %s: PSNR %.2f dB in %.2f s -> %s\n", job, str(d, "method"), str(d, "capture"),
                json_number_value(json_object_get(d, "psnr")), json_number_value(json_object_get(d, "solve_s")),
                str(d, "dir"));

@@ -83,6 +83,7 @@ static void defaults(scicapd_config *c)
     default_curves(c->recon_curves, sizeof c->recon_curves);
     c->recon_auto = 0;
     c->workers = 2;
+    c->recon_checkpoint_every = 100; /* as scicap recon --checkpoint-every */
     c->capture_queue = 16;
     c->recon_queue = 16;
 }
@@ -458,7 +459,8 @@ static int parse_capture(const sci_json_doc *doc, const json_t *o, scicapd_confi
 
 static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
-    static const char *const keys[] = {"method", "preset", "auto", "workers", "threads", "curves", NULL};
+    static const char *const keys[] = {"method", "preset", "auto", "workers", "threads", "curves",
+                                       "checkpoint_every", NULL};
     /* every method of the table; the presets, then their deprecated aliases */
     static const char *const presets[] = {"fast", "balanced", "best", "default", "quality", NULL};
     const char *m = NULL;
@@ -479,7 +481,9 @@ static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config 
         snprintf(c->recon_preset, sizeof c->recon_preset, "%s", presets[p]);
     if ((rc = sci_json_get_bool(doc, o, "reconstruction", "auto", 0, &c->recon_auto, err)) < 0 ||
         (rc = get_int(doc, o, "reconstruction", "workers", 1, 16, &c->workers, err)) < 0 ||
-        (rc = get_int(doc, o, "reconstruction", "threads", 0, 256, &c->recon_threads, err)) < 0)
+        (rc = get_int(doc, o, "reconstruction", "threads", 0, 256, &c->recon_threads, err)) < 0 ||
+        (rc = get_int(doc, o, "reconstruction", "checkpoint_every", 0, 1000000, &c->recon_checkpoint_every,
+                      err)) < 0)
         return rc;
     const char *curves = NULL;
     if ((rc = sci_json_get_string(doc, o, "reconstruction", "curves", 0, &curves, err)) < 0)
@@ -626,7 +630,8 @@ json_t *scicapd_config_restart_keys(const scicapd_config *a, const scicapd_confi
         json_array_append_new(r, json_string("storage"));
     if (a->writers != b->writers)
         json_array_append_new(r, json_string("storage.writers"));
-    if (a->workers != b->workers || a->recon_threads != b->recon_threads)
+    if (a->workers != b->workers || a->recon_threads != b->recon_threads ||
+        a->recon_checkpoint_every != b->recon_checkpoint_every)
         json_array_append_new(r, json_string("reconstruction.workers"));
     return r;
 }
@@ -639,7 +644,7 @@ json_t *scicapd_config_to_json(const scicapd_config *c)
     for (int i = 0; i < c->mask_set_count; i++)
         json_array_append_new(sets, json_string(c->mask_sets[i].name));
     return json_pack("{s:s, s:{s:s, s:s, s:s, s:i, s:I}, s:{s:s, s:s, s:b, s:i, s:b}, s:{s:s, s:s, s:s}, s:s, s:o,"
-                     " s:{s:s, s:I, s:I, s:I, s:s}, s:{s:s, s:s, s:b, s:i, s:i}, s:{s:i, s:i}}",
+                     " s:{s:s, s:I, s:I, s:I, s:s}, s:{s:s, s:s, s:b, s:i, s:i, s:i}, s:{s:i, s:i}}",
                      "path", c->path, "control", "socket", c->socket_path, "mode", mode, "group", c->socket_group,
                      "max_clients", c->max_clients, "max_line_bytes", (json_int_t)c->max_line_bytes, "storage",
                      "root", c->storage_root, "runtime_dir", c->runtime_dir, "fsync", c->fsync, "writers",
@@ -650,5 +655,6 @@ json_t *scicapd_config_to_json(const scicapd_config *c)
                      (json_int_t)c->dark_us, "exposure_us", (json_int_t)c->exposure_us, "sync_mode",
                      sync_mode_name(c->sync_mode), "reconstruction", "method", c->recon_method, "preset",
                      c->recon_preset, "auto", c->recon_auto, "workers", c->workers, "threads", c->recon_threads,
+                     "checkpoint_every", c->recon_checkpoint_every,
                      "queues", "capture", c->capture_queue, "reconstruction", c->recon_queue);
 }

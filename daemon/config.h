@@ -100,6 +100,9 @@ typedef struct scicapd_config {
     int recon_auto;                       /* reconstruct every capture unless the request says otherwise */
     int workers;                          /* reconstruction workers, 1..16 (default 2) */
     int recon_threads;                    /* OpenMP threads per worker; 0 = the process's CPUs / workers, >= 1 */
+    int recon_checkpoint_every;           /* methods with checkpoints (NeRF): save one every this many steps, so
+                                             a run resumes after a crash (default 100; 0: only when the daemon
+                                             stops in order) */
     /* queues */
     int capture_queue, recon_queue;       /* bounded job queues: a full queue answers "busy" */
 } scicapd_config;

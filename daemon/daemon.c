@@ -574,7 +574,8 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
     if ((rc = scicapd_store_start(d->store, d->store_q, d->cfg->writers, on_stored, d, d->timing, err)) < 0)
         goto fail;
     scicapd_workers_env we = {.jobs = d->jobs, .mailbox = d->mailbox, .store = d->store, .in = d->recon_q,
-                              .timing = d->timing, .log = log};
+                              .timing = d->timing, .log = log,
+                              .checkpoint_every = d->cfg->recon_checkpoint_every};
     if ((rc = scicapd_workers_start(&d->workers, &we, d->cfg->workers, d->cfg->recon_threads, err)) < 0 ||
         (rc = scicapd_acquire_start(d->acq, err)) < 0)
         goto fail;

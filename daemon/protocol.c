@@ -163,17 +163,18 @@ json_t *scicapd_recon_spec_json(const scicapd_recon_spec *s)
     return j;
 }
 
-/* A budget: the most accurate measured setting whose predicted time fits (io/curves.h), for a problem of
- * `voxels`; `method` restricts the choice when the request named one. */
+/* A budget: the most accurate measured setting of any method whose predicted time fits (io/curves.h), for a
+ * problem of `voxels`, among the scenes of its kind (with a camera, where the NeRF methods were measured, or
+ * without); `method` restricts the choice when the request named one. */
 static int apply_budget(const scicapd_config *cfg, const sci_json_doc *doc, const char *path, double budget_s,
-                        const char *method, double voxels, scicapd_recon_spec *out, sci_error *err)
+                        const char *method, int has_camera, double voxels, scicapd_recon_spec *out, sci_error *err)
 {
     sci_curves *cv = NULL;
     sci_error e2 = {0};
     if (sci_curves_load(&cv, cfg->recon_curves, &e2) < 0)
         return sci_json_fail(doc, err, path, "no measured curves to choose from (%s); run make bench-report", e2.msg);
     sci_curve_choice ch;
-    int rc = sci_curves_pick(cv, method, 0, voxels, budget_s, &ch, &e2);
+    int rc = sci_curves_pick(cv, method, has_camera, voxels, budget_s, &ch, &e2);
     sci_curves_free(cv);
     if (rc < 0)
         return sci_json_fail(doc, err, path, "%s", e2.msg);
@@ -321,7 +322,8 @@ int scicapd_args_reconstruct(const scicapd_request *r, const scicapd_config *cfg
         return rc;
     if (rc == 1)
         return 0;
-    /* The capture's size, from its manifest: times scale with w·h·N. */
+    /* The capture's size, from its manifest: times scale with w·h·N; and whether it has a camera (a static
+     * scene: the NeRF methods' curves count too). */
     char path[SCICAPD_PATH_MAX + 96];
     snprintf(path, sizeof path, "%s/captures/%s/problem.json", cfg->storage_root, out->capture_id);
     json_t *man = json_load_file(path, 0, NULL);
@@ -329,12 +331,13 @@ int scicapd_args_reconstruct(const scicapd_request *r, const scicapd_config *cfg
                               (double)json_integer_value(json_object_get(man, "h")) *
                               (double)json_integer_value(json_object_get(man, "n"))
                         : 0;
+    int has_camera = man && json_is_object(json_object_get(man, "camera"));
     json_decref(man);
     if (!(voxels > 0))
         return sci_json_fail(r->doc, err, "args.capture", "capture \"%s\" not found (needed to size the budget)",
                              out->capture_id);
     const char *method = json_object_get(r->args, "method") ? out->spec.method->name : NULL;
-    return apply_budget(cfg, r->doc, "args.budget_s", budget, method, voxels, &out->spec, err);
+    return apply_budget(cfg, r->doc, "args.budget_s", budget, method, has_camera, voxels, &out->spec, err);
 }
 
 int scicapd_args_cancel(const scicapd_request *r, uint64_t *job, sci_error *err)

@@ -93,14 +93,104 @@ int scicapd_reconq_save(scicapd_store *st, scicapd_job *j, sci_error *err)
     return 0;
 }
 
+/* ROOT/recon-queue/r-<...>.ckpt for j's r-<...>.json (and the name alone in *name); -ENOENT when not persisted. */
+static int ckpt_path(scicapd_store *st, const scicapd_job *j, char *path, size_t n, char *name, size_t nn)
+{
+    size_t l = strlen(j->persisted);
+    if (l < 6)
+        return -ENOENT;
+    char dir[1100];
+    dir_of(st, dir, sizeof dir);
+    snprintf(name, nn, "%.*s.ckpt", (int)(l - 5), j->persisted);
+    snprintf(path, n, "%s/%s", dir, name);
+    return 0;
+}
+
 void scicapd_reconq_drop(scicapd_store *st, const scicapd_job *j)
 {
     if (!j->persisted[0])
         return;
-    char dir[1100], path[1300];
+    char dir[1100], path[1300], name[128];
     dir_of(st, dir, sizeof dir);
     snprintf(path, sizeof path, "%s/%s", dir, j->persisted);
     unlink(path);
+    if (ckpt_path(st, j, path, sizeof path, name, sizeof name) == 0)
+        unlink(path);
+}
+
+int scicapd_reconq_checkpoint_save(scicapd_store *st, const scicapd_job *j, const void *blob, size_t bytes,
+                                   sci_error *err)
+{
+    char dir[1100], path[1300], tmp[1400], name[128];
+    if (ckpt_path(st, j, path, sizeof path, name, sizeof name) < 0)
+        return sci_error_set(err, -ENOENT, "job %llu has no saved entry", (unsigned long long)j->id);
+    dir_of(st, dir, sizeof dir);
+    snprintf(tmp, sizeof tmp, "%s/.%s.tmp", dir, name); /* a dot and .tmp: removed at the next load */
+    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0640);
+    if (fd < 0)
+        return sci_error_set(err, -errno, "%s: %s", tmp, strerror(errno));
+    const unsigned char *p = blob;
+    size_t left = bytes;
+    int ok = 1;
+    while (ok && left > 0) {
+        ssize_t w = write(fd, p, left);
+        if (w < 0 && errno == EINTR)
+            continue;
+        ok = w > 0;
+        if (ok) {
+            p += w;
+            left -= (size_t)w;
+        }
+    }
+    if (ok && scicapd_store_fsync_on(st))
+        ok = fsync(fd) == 0;
+    int e = errno;
+    ok &= close(fd) == 0;
+    if (!ok || rename(tmp, path) != 0) {
+        e = ok ? errno : e;
+        unlink(tmp);
+        return sci_error_set(err, -e, "%s: cannot save the checkpoint: %s", path, strerror(e));
+    }
+    return 0;
+}
+
+int scicapd_reconq_checkpoint_load(scicapd_store *st, const scicapd_job *j, void **blob, size_t *bytes,
+                                   sci_error *err)
+{
+    char path[1300], name[128];
+    *blob = NULL;
+    *bytes = 0;
+    if (ckpt_path(st, j, path, sizeof path, name, sizeof name) < 0)
+        return 0;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+        return errno == ENOENT ? 0 : sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
+    struct stat sb;
+    unsigned char *buf = NULL;
+    int rc = 0;
+    if (fstat(fd, &sb) != 0 || sb.st_size <= 0 || !(buf = malloc((size_t)sb.st_size))) {
+        rc = sci_error_set(err, sb.st_size <= 0 ? SCI_EFORMAT : -ENOMEM, "%s: empty or unreadable", path);
+    } else {
+        size_t got = 0;
+        while (got < (size_t)sb.st_size) {
+            ssize_t r = read(fd, buf + got, (size_t)sb.st_size - got);
+            if (r < 0 && errno == EINTR)
+                continue;
+            if (r <= 0)
+                break;
+            got += (size_t)r;
+        }
+        if (got != (size_t)sb.st_size)
+            rc = sci_error_set(err, -EIO, "%s: short read", path);
+    }
+    close(fd);
+    if (rc < 0) {
+        free(buf);
+        return rc;
+    }
+    *blob = buf;
+    *bytes = (size_t)sb.st_size;
+    return 1;
 }
 
 /* Parse one file into *it. SCI_EFORMAT (or the resolver's code) with err positioned in the file. */
@@ -109,7 +199,7 @@ static int item_read(const char *path, scicapd_reconq_item *it, sci_error *err)
     FILE *f = fopen(path, "r");
     if (!f)
         return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
-    char buf[4096]; /* an entry is a few hundred bytes: anything larger is not ours */
+    char buf[16384]; /* an entry is a few hundred bytes (a NeRF method's, ~2 KB): anything larger is not ours */
     size_t len = fread(buf, 1, sizeof buf, f);
     int big = !feof(f);
     fclose(f);

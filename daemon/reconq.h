@@ -11,6 +11,10 @@
  *      "params": {"iters": 30, "lambda": 1, "tv_weight": 0.1, "tv_iters": 5, "accelerate": true},
  *      "budget": {"budget_s": 2, "predicted_s": 1.7, "expected_psnr_db": 29.1}}      (budget only when chosen so)
  *
+ * A method with checkpoints (recon/solver.h SOLVER_CHECKPOINTS: the NeRF methods) keeps its newest one beside
+ * its entry, r-<...>-<job id>.ckpt (the method's own blob, written every reconstruction.checkpoint_every steps
+ * and when the daemon stops): a resumed job continues from it instead of starting over. It goes with the entry.
+ *
  * A file is written beside and renamed (fsync'd with storage.fsync), so a crash leaves the old state or the
  * new, never half a file; a file that cannot be read back is renamed bad-<name> (kept for a person to look at)
  * and reported. Thread-safe: functions touch only the file of the job they are given.
@@ -36,8 +40,15 @@ typedef struct scicapd_reconq_item {
 /* Save reconstruct job j (its recon args and owner) and set j->persisted. Call before queueing j. -errno with
  * err naming the file. */
 int scicapd_reconq_save(scicapd_store *st, scicapd_job *j, sci_error *err);
-/* Remove j's file (no-op when j->persisted is empty or the file is gone). */
+/* Remove j's file and its checkpoint (no-op when j->persisted is empty or the files are gone). */
 void scicapd_reconq_drop(scicapd_store *st, const scicapd_job *j);
+/* Replace j's checkpoint with `bytes` bytes of blob (beside, then renamed). -ENOENT when j is not persisted (a
+ * job that would not be resumed needs none), -errno with err naming the file. */
+int scicapd_reconq_checkpoint_save(scicapd_store *st, const scicapd_job *j, const void *blob, size_t bytes,
+                                   sci_error *err);
+/* j's checkpoint, if any: 1 with *blob (caller frees) and *bytes, 0 when there is none, -errno on a read error. */
+int scicapd_reconq_checkpoint_load(scicapd_store *st, const scicapd_job *j, void **blob, size_t *bytes,
+                                   sci_error *err);
 /* Every saved job, oldest first: *items (caller frees with free()) and *n. Unreadable files are renamed and
  * logged, not returned. -ENOMEM, or -errno when the folder cannot be created or read. */
 int scicapd_reconq_load(scicapd_store *st, const sci_log *log, scicapd_reconq_item **items, int *n, sci_error *err);

@@ -67,6 +67,23 @@ static int stopped_by_daemon(scicapd_workers *w, scicapd_job *j)
     return atomic_load(&w->stop) || atomic_load(&j->cancel) == SCICAPD_CANCEL_SHUTDOWN;
 }
 
+/* A method's checkpoint (SOLVER_CHECKPOINTS): kept beside the job's saved entry for a resume after a stop or a
+ * crash. Not kept when a user canceled the job (its entry goes too); a failure to write costs the resume, not
+ * the run. */
+static int on_checkpoint(const void *blob, size_t bytes, int iter, void *user)
+{
+    run_ctx *c = user;
+    if (atomic_load(&c->job->cancel) == SCICAPD_CANCEL_USER && !atomic_load(&c->w->stop))
+        return 0;
+    sci_error e = {0};
+    if (scicapd_reconq_checkpoint_save(c->w->env.store, c->job, blob, bytes, &e) < 0) {
+        sci_log_write(c->w->env.log, SCI_LOG_WARNING, "job %llu: %s", (unsigned long long)c->job->id, e.msg);
+        return 0;
+    }
+    post(c->w, c->job, "recon.checkpoint", json_pack("{s:i, s:I}", "iter", iter, "bytes", (json_int_t)bytes));
+    return 0;
+}
+
 static void run(scicapd_workers *w, scicapd_job *j)
 {
     const scicapd_recon_args *ra = &j->recon;
@@ -77,8 +94,23 @@ static void run(scicapd_workers *w, scicapd_job *j)
     int k = 0, rc;
     sci_result r = {0};
     int64_t t0 = sci_clock_mono_ns();
+    /* a method with checkpoints continues from the newest one its job left (a resumed job) */
+    const int ckpt = (ra->spec.method->caps & SOLVER_CHECKPOINTS) && j->persisted[0];
+    void *resume = NULL;
+    size_t resume_bytes = 0;
+    if (ckpt && scicapd_reconq_checkpoint_load(w->env.store, j, &resume, &resume_bytes, &err) < 0) {
+        sci_log_write(w->env.log, SCI_LOG_WARNING, "job %llu: %s; starting over", (unsigned long long)j->id,
+                      err.msg);
+        err.msg[0] = '\0';
+    }
+    if (resume)
+        sci_log_write(w->env.log, SCI_LOG_NOTICE, "job %llu: %s of %s goes on from its checkpoint (%zu bytes)",
+                      (unsigned long long)j->id, method, ra->capture_id, resume_bytes);
     scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_RUNNING, NULL);
-    post(w, j, "recon.started", json_pack("{s:s, s:s}", "capture", ra->capture_id, "method", method));
+    json_t *started = json_pack("{s:s, s:s}", "capture", ra->capture_id, "method", method);
+    if (resume)
+        json_object_set_new(started, "resume_bytes", json_integer((json_int_t)resume_bytes));
+    post(w, j, "recon.started", started);
     scicapd_span sp;
     scicapd_span_begin(&sp);
     if ((rc = scicapd_store_capture_dir(w->env.store, ra->capture_id, dir, sizeof dir, &err)) < 0)
@@ -113,8 +145,26 @@ static void run(scicapd_workers *w, scicapd_job *j)
                             NULL, "metrics_every", &err);
         json_decref(every);
     }
-    const solver_io io = {.progress = on_progress, .user = &ctx};
+    solver_io io = {.progress = on_progress, .user = &ctx};
+    if (ckpt) {
+        io.checkpoint_fn = on_checkpoint;
+        io.checkpoint_user = &ctx;
+        io.checkpoint_every = w->env.checkpoint_every;
+        io.resume = resume;
+        io.resume_bytes = resume_bytes;
+    }
     rc = solver_run(ra->spec.method, pp[0], settings, &io, &r);
+    /* a checkpoint that does not fit this run (damaged, another version, or the last step's, taken just before a
+     * crash): the run starts over rather than fail */
+    if (rc < 0 && rc != SCI_ECANCELED && resume) {
+        sci_log_write(w->env.log, SCI_LOG_WARNING, "job %llu: checkpoint not used (%s); starting over",
+                      (unsigned long long)j->id, r.error.msg);
+        sci_result_free_contents(&r);
+        memset(&r, 0, sizeof r);
+        io.resume = NULL;
+        io.resume_bytes = 0;
+        rc = solver_run(ra->spec.method, pp[0], settings, &io, &r);
+    }
     double solve_s = sci_clock_s(ts, sci_clock_mono_ns());
     scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_SOLVE, &sp);
     if (rc < 0) {
@@ -152,6 +202,7 @@ static void run(scicapd_workers *w, scicapd_job *j)
     scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_DONE, NULL);
     sci_log_write(w->env.log, SCI_LOG_INFO, "job %llu: %s of %s done in %.2f s", (unsigned long long)j->id, method,
                   ra->capture_id, solve_s);
+    scicapd_reconq_drop(w->env.store, j); /* before the event: a client that sees it sees the queue without it */
     post(w, j, "recon.done", d);
 done:
     if (rc < 0) {
@@ -159,14 +210,15 @@ done:
         if (canceled && stopped_by_daemon(w, j))
             snprintf(err.msg, sizeof err.msg, "daemon stopping after %d iterations; resumed at the next start",
                      r.iters_done);
+        else
+            scicapd_reconq_drop(w->env.store, j);
         scicapd_job_set_state(w->env.jobs, j, canceled ? SCICAPD_JOB_CANCELED : SCICAPD_JOB_FAILED, err.msg);
         post(w, j, canceled ? "recon.canceled" : "recon.failed",
              json_pack("{s:s, s:s, s:s}", "capture", ra->capture_id, "method", method, "error", err.msg));
     }
-    if (rc >= 0 || !(rc == SCI_ECANCELED && stopped_by_daemon(w, j)))
-        scicapd_reconq_drop(w->env.store, j);
     sci_result_free_contents(&r);
     sci_problem_array_free(pp, k);
+    free(resume);
 }
 
 static void run_import(scicapd_workers *w, scicapd_job *j);

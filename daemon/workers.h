@@ -1,12 +1,14 @@
 /* daemon/workers.h — the reconstruction worker pool.
  *
  * Each worker pops a reconstruct job, reads the capture folder as a problem (io/problem_dir.h), runs the solver
- * (recon/gaptv.h, recon/admmtv.h) with a progress callback that updates the job, streams "recon.progress" events
+ * (any method of recon/solver.h, by name) with a progress callback that updates the job, streams "recon.progress" events
  * (iteration, PSNR when the truth is known, ETA; at most every 100 ms plus the last iteration) and stops at once
  * when the job is canceled or the pool is stopping. A finished run is written to <capture>/recon/<method>/
  * atomically (io/recon_store.h); a canceled or failed run writes nothing. A job that ends for good (done,
  * failed, canceled by a user) has its saved copy removed (daemon/reconq.h); one stopped by the daemon's own
- * stop keeps it, to be resumed at the next start.
+ * stop keeps it, to be resumed at the next start. A method with checkpoints (the NeRF methods) saves one beside
+ * that copy every env->checkpoint_every steps and when the daemon stops ("recon.checkpoint" event), and a resumed
+ * job continues from it (daemon/reconq.h); a checkpoint that does not fit the run is dropped and the run starts over.
  * The input is the problem the capture's writer handed over with the job (scicapd_job.problem) when there is one,
  * else the capture folder read back (requests, resumed jobs). Each stage's time is counted in env->timing.
  * Threads: `count` POSIX threads, each running OpenMP with `omp_threads` threads (0: the CPUs this process may
@@ -32,6 +34,7 @@ typedef struct scicapd_workers_env {
     scicapd_queue *in;    /* reconstruct jobs (references) */
     scicapd_timing *timing; /* recon_read, recon_solve, recon_write; may be NULL */
     const sci_log *log;
+    int checkpoint_every; /* steps between checkpoints of a method that has them (0: only at a daemon stop) */
 } scicapd_workers_env;
 
 int scicapd_workers_start(scicapd_workers **out, const scicapd_workers_env *env, int count, int omp_threads,

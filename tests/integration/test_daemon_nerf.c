@@ -1,0 +1,439 @@
+/* scicapd reconstructs with the NeRF methods (issue 16), through its real socket, on a tiny static3d scene with a
+ * camera imported as a capture (`scicap capture --from FOLDER`; the simulated bench's own captures are video2d,
+ * without a camera):
+ *   - rayformer and scinerf runs: progress events, periodic checkpoints (reconstruction.checkpoint_every), a
+ *     result folder with a finite PSNR, and no checkpoint left behind once done;
+ *   - a cancel mid-run: recon.canceled, nothing written, the saved entry and its checkpoint gone;
+ *   - a kill -9 mid-run: the restarted daemon resumes the job from its newest checkpoint (the trace holds only the
+ *     steps after it) and ends with frames bitwise equal to an uninterrupted run of the same settings (one thread:
+ *     the trainer is deterministic);
+ *   - a budget: with curves (hand-written here) in which rayformer wins for scenes with a camera, the budget
+ *     choice picks rayformer for this capture and gap-tv for a capture without a camera. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+#include <dirent.h>
+
+#include "daemon_harness.h"
+#include "io/image.h"
+#include "io/problem_dir.h"
+#include "tests/helpers/cli_child.h"
+#include "tests/helpers/nerf_scene.h"
+
+#define ITERS 30
+#define CKPT_EVERY 5
+
+static harness H;
+static char scicap[1024];
+static char curves_dir[] = "/tmp/scicapd-nerf-curves-XXXXXX";
+
+/* Hand-written curves (bench/results.csv's columns): on scenes with a camera, rayformer (a small setting) is more
+ * accurate than gap-tv within a few seconds; on scenes without one only gap-tv was measured. */
+static const char curves[] =
+    "scene,method,setting,psnr_db,psnr_peak1_db,ssim,wall_s,cpu_s,peak_rss_mib,pareto,recommended,threads,voxels,"
+    "camera\n"
+    "static3d,gap-tv,iters=50 tv_iters=5,15.0,15.5,0.4,0.5,0.5,100,1,0,1,131072,1\n"
+    "static3d,rayformer,preset=fast iters=20 patch=8 patches_per_step=2 samples=8 metrics_every=0 threads=1,"
+    "17.0,17.5,0.5,100,100,300,1,1,1,131072,1\n"
+    "drop40,gap-tv,iters=20 tv_iters=5,30.0,30.5,0.9,0.5,0.5,100,1,1,1,524288,0\n";
+static char cap_a[32], cap_b[32]; /* the same scene imported twice: runs to compare */
+
+/* Small and quick (as test_cli_recon_nerf's): two 8×8 windows per step, 8 samples, one thread (deterministic). */
+static json_t *small_params(const char *method, int iters)
+{
+    if (!strcmp(method, "rayformer"))
+        return json_pack("{s:i, s:i, s:i, s:i, s:i, s:i}", "iters", iters, "patch", 8, "patches_per_step", 2,
+                         "samples", 8, "metrics_every", 0, "threads", 1);
+    return json_pack("{s:i, s:i, s:i, s:i, s:i}", "iters", iters, "rays", 256, "samples", 8, "metrics_every", 0,
+                     "threads", 1);
+}
+
+static json_int_t reconstruct_small(hconn *c, const char *cap, const char *method, int iters)
+{
+    json_t *r = hconn_request(c, "reconstruct", json_pack("{s:s, s:s, s:s, s:o}", "capture", cap, "method", method,
+                                                          "preset", "fast", "params", small_params(method, iters)));
+    json_int_t id = json_integer_value(json_object_get(r, "job"));
+    json_decref(r);
+    assert_true(id > 0);
+    return id;
+}
+
+static int recon_exists(const harness *h, const char *cap, const char *method)
+{
+    char p[700];
+    snprintf(p, sizeof p, "%s/captures/%s/recon/%s/result.json", h->store, cap, method);
+    return access(p, F_OK) == 0;
+}
+
+static int wait_recon(const harness *h, const char *cap, const char *method, int timeout_ms)
+{
+    int64_t t0 = h_now_ms();
+    while (!recon_exists(h, cap, method)) {
+        if (h_now_ms() - t0 > timeout_ms)
+            return 0;
+        h_sleep_ms(50);
+    }
+    return 1;
+}
+
+static int resumed_count(hconn *c)
+{
+    json_t *r = hconn_request(c, "status", NULL);
+    json_t *n = json_object_get(json_object_get(r, "recovered"), "reconstructions_resumed");
+    int v = json_is_integer(n) ? (int)json_integer_value(n) : -1;
+    json_decref(r);
+    return v;
+}
+
+typedef struct followed {
+    int progress, first_iter, last_iter; /* recon.progress events and their iterations */
+    int checkpoints, last_ckpt;          /* recon.checkpoint events and the newest one's step */
+    int resumed;                         /* recon.started said it continues from a checkpoint */
+    json_t *end;                         /* the recon.done / .canceled / .failed event (or NULL on timeout) */
+} followed;
+
+/* Events of job `job` until it ends, or, when stop_ckpt > 0, until a checkpoint at step >= stop_ckpt. */
+static void follow(hconn *c, json_int_t job, int stop_ckpt, int timeout_ms, followed *f)
+{
+    memset(f, 0, sizeof *f);
+    f->first_iter = -1;
+    int64_t t0 = h_now_ms();
+    for (;;) {
+        int left = timeout_ms - (int)(h_now_ms() - t0);
+        json_t *m = left > 0 ? hconn_read(c, left) : NULL;
+        if (!m)
+            return;
+        const char *ev = json_string_value(json_object_get(m, "event"));
+        json_t *d = json_object_get(m, "data");
+        if (!ev || json_integer_value(json_object_get(m, "job")) != job) {
+            json_decref(m);
+            continue;
+        }
+        if (!strcmp(ev, "recon.progress")) {
+            int it = (int)json_integer_value(json_object_get(d, "iter"));
+            if (f->first_iter < 0)
+                f->first_iter = it;
+            assert_true(it > f->last_iter);
+            f->last_iter = it;
+            f->progress++;
+        } else if (!strcmp(ev, "recon.checkpoint")) {
+            f->checkpoints++;
+            f->last_ckpt = (int)json_integer_value(json_object_get(d, "iter"));
+            assert_true(json_integer_value(json_object_get(d, "bytes")) > 0);
+        } else if (!strcmp(ev, "recon.started")) {
+            f->resumed = json_object_get(d, "resume_bytes") != NULL;
+        } else if (!strcmp(ev, "recon.done") || !strcmp(ev, "recon.canceled") || !strcmp(ev, "recon.failed")) {
+            f->end = m;
+            return;
+        }
+        json_decref(m);
+        if (stop_ckpt > 0 && f->last_ckpt >= stop_ckpt)
+            return;
+    }
+}
+
+/* Files in the reconstruction queue's folder: entries (*.json) and checkpoints (*.ckpt). */
+static void queue_files(int *entries, int *ckpts)
+{
+    char p[512];
+    snprintf(p, sizeof p, "%s/recon-queue", H.store);
+    *entries = *ckpts = 0;
+    DIR *d = opendir(p);
+    if (!d)
+        return;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        size_t n = strlen(e->d_name);
+        if (e->d_name[0] == '.' || strncmp(e->d_name, "bad-", 4) == 0)
+            continue;
+        *entries += n > 5 && !strcmp(e->d_name + n - 5, ".json");
+        *ckpts += n > 5 && !strcmp(e->d_name + n - 5, ".ckpt");
+    }
+    closedir(d);
+}
+
+/* Data rows of captures/CAP/recon/METHOD/trace.csv (the header line not counted). */
+static int trace_rows(const char *cap, const char *method)
+{
+    char p[700], line[4096];
+    snprintf(p, sizeof p, "%s/captures/%s/recon/%s/trace.csv", H.store, cap, method);
+    FILE *f = fopen(p, "r");
+    if (!f)
+        fail_msg("%s: missing", p);
+    int n = -1;
+    while (fgets(line, sizeof line, f))
+        n++;
+    fclose(f);
+    return n;
+}
+
+static sci_cube *frames_of(const char *cap, const char *method)
+{
+    char p[700];
+    snprintf(p, sizeof p, "%s/captures/%s/recon/%s/frame.json", H.store, cap, method);
+    sci_cube *c = NULL;
+    sci_error err = {0};
+    if (sci_stack_read(p, &c, NULL, &err) < 0)
+        fail_msg("%s", err.msg);
+    return c;
+}
+
+/* `scicap capture --from DIR --wait`: the capture id it stored. */
+static void import_folder(const char *folder, char *id)
+{
+    cli_child c;
+    cli_child_run(&c, scicap, (const char *const[]){"capture", "--socket", H.sock, "--from", folder, "--wait", NULL},
+                  H.dir); /* its stdout and stderr go through files there */
+    if (cli_child_exit_code(&c) != 0)
+        fail_msg("scicap capture --from failed: %s%s", c.out, c.err);
+    const char *st = strstr(c.out, "stored ");
+    if (!st || sscanf(st, "stored %31s", id) != 1)
+        fail_msg("no capture id in: %s", c.out);
+    size_t n = strlen(id);
+    while (n > 0 && (id[n - 1] == ',' || id[n - 1] == ')' || id[n - 1] == ':'))
+        id[--n] = '\0';
+}
+
+static int group_setup(void **state)
+{
+    (void)state;
+    if (cli_child_program(scicap, sizeof scicap, "scicap") < 0)
+        return -1;
+    if (!mkdtemp(curves_dir))
+        return -1;
+    char cpath[300], config[600];
+    snprintf(cpath, sizeof cpath, "%s/results.csv", curves_dir);
+    FILE *cf = fopen(cpath, "w");
+    if (!cf)
+        return -1;
+    fputs(curves, cf);
+    fclose(cf);
+    snprintf(config, sizeof config,
+             "{\"reconstruction\": {\"workers\": 1, \"threads\": 1, \"checkpoint_every\": %d, \"curves\": \"%s\"}}\n",
+             CKPT_EVERY, cpath);
+    harness_start(&H, config, NULL);
+    /* the scene with a camera, as a problem folder, imported twice */
+    char folder[400];
+    snprintf(folder, sizeof folder, "%s/scene", H.dir);
+    sci_problem *p = nerf_tiny_problem(24, 5);
+    sci_error err = {0};
+    int rc = sci_problem_dir_write(folder, &p, 1, NULL, 0, &err);
+    sci_problem_free(p);
+    if (rc < 0)
+        fail_msg("%s", err.msg);
+    import_folder(folder, cap_a);
+    import_folder(folder, cap_b);
+    /* the capture kept its camera (what the NeRF methods need) */
+    char man[700];
+    snprintf(man, sizeof man, "%s/captures/%s/problem.json", H.store, cap_a);
+    json_t *m = json_load_file(man, 0, NULL);
+    int has_camera = m && json_is_object(json_object_get(m, "camera"));
+    json_decref(m);
+    print_message("  imported %s and %s (camera kept: %s)\n", cap_a, cap_b, has_camera ? "yes" : "no");
+    assert_true(has_camera);
+    return 0;
+}
+
+static int group_teardown(void **state)
+{
+    (void)state;
+    harness_stop(&H);
+    harness_cleanup(&H);
+    cli_child_remove_dir(curves_dir);
+    return 0;
+}
+
+static void run_method(const char *method)
+{
+    hconn c;
+    hconn_open(&c, &H);
+    int64_t t0 = h_now_ms();
+    json_int_t job = reconstruct_small(&c, cap_a, method, ITERS);
+    followed f;
+    follow(&c, job, 0, 300000, &f);
+    if (!f.end)
+        fail_msg("%s: no end event within 300 s", method);
+    const char *ev = json_string_value(json_object_get(f.end, "event"));
+    json_t *d = json_object_get(f.end, "data");
+    if (strcmp(ev, "recon.done") != 0)
+        fail_msg("%s: %s: %s", method, ev, json_string_value(json_object_get(d, "error")));
+    double psnr = json_real_value(json_object_get(d, "psnr"));
+    int entries, ckpts;
+    queue_files(&entries, &ckpts);
+    print_message("  %s, %d steps: %d progress events (last iter %d), %d checkpoints, %.2f dB, solve %.2f s, "
+                  "total %lld ms; queue files after: %d entries, %d checkpoints\n",
+                  method, ITERS, f.progress, f.last_iter, f.checkpoints, psnr,
+                  json_real_value(json_object_get(d, "solve_s")), (long long)(h_now_ms() - t0), entries, ckpts);
+    assert_int_equal(json_integer_value(json_object_get(d, "iters")), ITERS);
+    assert_true(f.progress >= 1);
+    assert_int_equal(f.last_iter, ITERS);
+    assert_int_equal(f.checkpoints, ITERS / CKPT_EVERY); /* every 5 steps; the last one is step 30 */
+    assert_int_equal(f.last_ckpt, ITERS);
+    assert_true(isfinite(psnr) && psnr > 0);
+    assert_true(recon_exists(&H, cap_a, method));
+    assert_int_equal(entries + ckpts, 0);
+    json_decref(f.end);
+    hconn_close(&c);
+}
+
+static void rayformer_run(void **state)
+{
+    (void)state;
+    run_method("rayformer");
+}
+
+static void scinerf_run(void **state)
+{
+    (void)state;
+    run_method("scinerf");
+}
+
+static void cancel_mid_run(void **state)
+{
+    (void)state;
+    hconn c;
+    hconn_open(&c, &H);
+    json_int_t job = reconstruct_small(&c, cap_b, "scinerf", 100000);
+    followed f;
+    follow(&c, job, 2 * CKPT_EVERY, 300000, &f); /* running, with checkpoints saved */
+    assert_true(f.last_ckpt >= 2 * CKPT_EVERY);
+    int entries, ckpts;
+    queue_files(&entries, &ckpts);
+    assert_int_equal(entries, 1);
+    assert_int_equal(ckpts, 1);
+    json_decref(hconn_request(&c, "cancel", json_pack("{s:I}", "job", job)));
+    followed g;
+    follow(&c, job, 0, 60000, &g);
+    if (!g.end)
+        fail_msg("no end event within 60 s of the cancel");
+    const char *ev = json_string_value(json_object_get(g.end, "event"));
+    queue_files(&entries, &ckpts);
+    print_message("  canceled after a checkpoint at step %d: %s (%s); queue files after: %d entries, %d "
+                  "checkpoints; result folder: %s\n", f.last_ckpt, ev,
+                  json_string_value(json_object_get(json_object_get(g.end, "data"), "error")), entries, ckpts,
+                  recon_exists(&H, cap_b, "scinerf") ? "yes" : "no");
+    assert_string_equal(ev, "recon.canceled");
+    assert_int_equal(entries + ckpts, 0);
+    assert_false(recon_exists(&H, cap_b, "scinerf"));
+    json_decref(g.end);
+    hconn_close(&c);
+}
+
+static void resume_after_kill9(void **state)
+{
+    (void)state;
+    hconn c;
+    hconn_open(&c, &H);
+    json_int_t job = reconstruct_small(&c, cap_b, "rayformer", ITERS);
+    followed f;
+    follow(&c, job, 2 * CKPT_EVERY, 300000, &f);
+    if (f.end)
+        fail_msg("the run ended before its second checkpoint: %s", json_dumps(f.end, JSON_COMPACT));
+    harness_kill9(&H);
+    hconn_close(&c);
+    int entries, ckpts;
+    queue_files(&entries, &ckpts);
+    assert_int_equal(entries, 1);
+    assert_int_equal(ckpts, 1);
+    harness_spawn(&H, NULL);
+    hconn_open(&c, &H);
+    int resumed = resumed_count(&c);
+    hconn_close(&c);
+    int ok = wait_recon(&H, cap_b, "rayformer", 300000);
+    int rows = ok ? trace_rows(cap_b, "rayformer") : -1;
+    /* the log says where it went on from */
+    char cmd[700];
+    snprintf(cmd, sizeof cmd, "grep -q 'goes on from its checkpoint' %s", H.log);
+    int logged = system(cmd) == 0;
+    queue_files(&entries, &ckpts);
+    print_message("  kill -9 after the checkpoint at step %d of %d: %d resumed at restart, done: %s, trace rows %d "
+                  "(steps run after the restart), log says resumed from a checkpoint: %s; queue files after: %d\n",
+                  f.last_ckpt, ITERS, resumed, ok ? "yes" : "no", rows, logged ? "yes" : "no", entries + ckpts);
+    assert_int_equal(resumed, 1);
+    assert_true(ok);
+    assert_true(logged);
+    assert_true(rows >= 1 && rows <= ITERS - f.last_ckpt);
+    assert_int_equal(entries + ckpts, 0);
+    /* resumed == uninterrupted: the same frames as capture A's run of the same settings (rayformer_run) */
+    sci_cube *a = frames_of(cap_a, "rayformer"), *b = frames_of(cap_b, "rayformer");
+    assert_int_equal(a->w * a->h * a->n, b->w * b->h * b->n);
+    size_t differ = 0;
+    for (size_t i = 0; i < (size_t)a->w * a->h * a->n; i++)
+        differ += a->data[i] != b->data[i];
+    print_message("  resumed vs uninterrupted frames: %zu of %zu values differ\n", differ,
+                  (size_t)a->w * a->h * a->n);
+    assert_int_equal(differ, 0);
+    sci_cube_free(a);
+    sci_cube_free(b);
+}
+
+/* The method of the reconstruction a budget chose, from its result.json (which records the budget). */
+static void budget_result(const char *cap, const char *method, double *budget_s)
+{
+    char p[700];
+    snprintf(p, sizeof p, "%s/captures/%s/recon/%s/result.json", H.store, cap, method);
+    json_t *r = json_load_file(p, 0, NULL);
+    if (!r)
+        fail_msg("%s: missing", p);
+    char *text = json_dumps(r, JSON_COMPACT);
+    json_t *b = json_object_get(json_object_get(json_object_get(r, "params"), "budget"), "budget_s");
+    if (!b)
+        fail_msg("%s has no budget: %s", p, text);
+    *budget_s = json_number_value(b);
+    free(text);
+    json_decref(r);
+}
+
+static void budget_picks_nerf(void **state)
+{
+    (void)state;
+    /* `scicap recon --capture ID --budget S` on the capture with a camera */
+    cli_child c;
+    cli_child_run(&c, scicap,
+                  (const char *const[]){"recon", "--socket", H.sock, "--capture", cap_a, "--budget", "5", "--wait",
+                                        NULL},
+                  H.dir);
+    print_message("  scicap recon --capture %s --budget 5: exit %d\n%s%s", cap_a, cli_child_exit_code(&c), c.out,
+                  c.err);
+    assert_int_equal(cli_child_exit_code(&c), 0);
+    double b = 0;
+    budget_result(cap_a, "rayformer", &b);
+    assert_true(b == 5);
+    /* a capture of the simulated bench (no camera): the same budget picks among the camera-less curves */
+    hconn h;
+    hconn_open(&h, &H);
+    json_decref(hconn_request(&h, "capture", json_pack("{s:b}", "reconstruct", 0)));
+    json_t *e = hconn_wait_event(&h, "capture.stored", 30000);
+    char cap[32];
+    snprintf(cap, sizeof cap, "%s", json_string_value(json_object_get(json_object_get(e, "data"), "capture")));
+    json_decref(e);
+    json_decref(hconn_wait_event(&h, "capture.done", 30000));
+    json_t *r = hconn_request(&h, "reconstruct", json_pack("{s:s, s:f}", "capture", cap, "budget_s", 5.0));
+    json_int_t job = json_integer_value(json_object_get(r, "job"));
+    json_decref(r);
+    followed f;
+    follow(&h, job, 0, 120000, &f);
+    assert_non_null(f.end);
+    const char *method = json_string_value(json_object_get(json_object_get(f.end, "data"), "method"));
+    print_message("  budget 5 s: %s (camera) -> rayformer; %s (simulated bench, no camera) -> %s (%s)\n", cap_a, cap,
+                  method, json_string_value(json_object_get(f.end, "event")));
+    assert_string_equal(json_string_value(json_object_get(f.end, "event")), "recon.done");
+    assert_string_equal(method, "gap-tv");
+    budget_result(cap, "gap-tv", &b);
+    json_decref(f.end);
+    hconn_close(&h);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(rayformer_run),
+        cmocka_unit_test(scinerf_run),
+        cmocka_unit_test(cancel_mid_run),
+        cmocka_unit_test(resume_after_kill9),
+        cmocka_unit_test(budget_picks_nerf),
+    };
+    return cmocka_run_group_tests(tests, group_setup, group_teardown);
+}
