@@ -78,7 +78,7 @@ static void defaults(scicapd_config *c)
     c->dark_us = 100;
     c->sync_mode = SYNC_MODE_HOST_MASTER;
     snprintf(c->recon_method, sizeof c->recon_method, "%s", solver_list(NULL)[0]->name); /* the table's first */
-    strcpy(c->recon_preset, "default");
+    strcpy(c->recon_preset, "balanced");
     snprintf(c->recon_curves, sizeof c->recon_curves, "%s/results.csv", SCICAP_DATADIR);
     default_curves(c->recon_curves, sizeof c->recon_curves);
     c->recon_auto = 0;
@@ -478,7 +478,7 @@ static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config 
     if ((rc = sci_json_get_enum(doc, o, "reconstruction", "preset", 0, presets, &p, err)) < 0)
         return rc;
     if (rc == 0)
-        snprintf(c->recon_preset, sizeof c->recon_preset, "%s", presets[p]);
+        snprintf(c->recon_preset, sizeof c->recon_preset, "%s", presets[p >= 3 ? p - 2 : p]); /* alias -> name */
     if ((rc = sci_json_get_bool(doc, o, "reconstruction", "auto", 0, &c->recon_auto, err)) < 0 ||
         (rc = get_int(doc, o, "reconstruction", "workers", 1, 16, &c->workers, err)) < 0 ||
         (rc = get_int(doc, o, "reconstruction", "threads", 0, 256, &c->recon_threads, err)) < 0 ||

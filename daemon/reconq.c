@@ -281,6 +281,15 @@ int scicapd_reconq_load(scicapd_store *st, const sci_log *log, scicapd_reconq_it
             continue;
         }
         size_t nl = strlen(e->d_name);
+        if (strncmp(e->d_name, "r-", 2) == 0 && nl > 5 && nl < 200 && strcmp(e->d_name + nl - 5, ".ckpt") == 0) {
+            /* a checkpoint outlives its entry only if a stop fell between their removals: it is of no use */
+            char entry[1400];
+            struct stat sb;
+            snprintf(entry, sizeof entry, "%s/%.*s.json", dir, (int)(nl - 5), e->d_name);
+            if (stat(entry, &sb) != 0 && errno == ENOENT)
+                unlink(path);
+            continue;
+        }
         if (strncmp(e->d_name, "r-", 2) != 0 || nl < 6 || strcmp(e->d_name + nl - 5, ".json") != 0 ||
             nl >= sizeof v->file)
             continue;

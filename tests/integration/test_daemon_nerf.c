@@ -337,6 +337,13 @@ static void resume_after_kill9(void **state)
     queue_files(&entries, &ckpts);
     assert_int_equal(entries, 1);
     assert_int_equal(ckpts, 1);
+    /* and a checkpoint whose entry is gone (a stop between their removals): removed at the start */
+    char orphan[600];
+    snprintf(orphan, sizeof orphan, "%s/recon-queue/r-00000000000000000001-999.ckpt", H.store);
+    FILE *o = fopen(orphan, "w");
+    assert_non_null(o);
+    fputs("stale", o);
+    fclose(o);
     harness_spawn(&H, NULL);
     hconn_open(&c, &H);
     int resumed = resumed_count(&c);
