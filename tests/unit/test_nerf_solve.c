@@ -138,6 +138,8 @@ static void test_ablation_ladder(void **state)
         sci_rayformer_params prm;
         small_params(&prm, 5);
         prm.patch = 4;
+        prm.patches_per_step = 8; /* 128 rays: windows that cover the 32 × 32 frames within the 30 steps (with 2,
+                                     the density head — no layer norm before it — moves only where windows fell) */
         prm.samples = 8;
         assert_int_equal(sci_rayformer_params_ablation(&prm, step, 0.01), 0);
         assert_int_equal(prm.patch_sampling, step >= 1);

@@ -100,12 +100,12 @@ static void test_presets(void **state)
         json_decref(jd), json_decref(jb);
         solver_settings_free(d), solver_settings_free(b);
     }
-    /* the rayformer presets as the code had them (1500 / 3000 / 4000 × 16 windows) */
+    /* the rayformer presets (1500 / 3000 / 4000 steps; best: 64 windows of 4 × 4) */
     sci_rayformer_params r;
     sci_rayformer_params_default(&r);
     solver_settings_preset(&sci_rayformer_solver, &r, SOLVER_PRESET_BEST);
     assert_int_equal(r.iters, 4000);
-    assert_int_equal(r.patches_per_step, 16);
+    assert_int_equal(r.patches_per_step, 64);
 }
 
 static void test_json(void **state)
@@ -158,12 +158,12 @@ static void test_json(void **state)
     sci_rayformer_params r;
     sci_rayformer_params_default(&r);
     json_t *rj = json_pack("{s:s, s:s, s:s, s:i, s:i}", "preset", "fast", "pose_mode", "per-frame", "ablation",
-                           "inter", "patch", 4, "table", 14);
+                           "inter", "patch", 8, "table", 14);
     assert_int_equal(solver_settings_from_json(&sci_rayformer_solver, &r, rj, NULL, "s", &err), 0);
     assert_int_equal(r.pose_mode, NERF_POSES_PER_FRAME);
     assert_true(r.patch_sampling && r.inter_ray && !r.intra_ray && r.tv_weight == 0);
-    assert_int_equal(r.patch, 4);
-    assert_int_equal(r.patches_per_step, 8 * 64 / 16);
+    assert_int_equal(r.patch, 8);
+    assert_int_equal(r.patches_per_step, 32 * 16 / 64); /* the fast preset's 32 windows of 4 × 4 */
     assert_int_equal(r.log2_table, 14);
     json_decref(rj);
     rj = json_pack("{s:s}", "pose_mode", "sideways");
