@@ -7,6 +7,7 @@
 #include <stdlib.h>
 
 #include "daemon/config.h"
+#include "daemon/import.h"
 #include "daemon/protocol.h"
 
 static scicapd_config *cfg;
@@ -42,6 +43,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         case SCICAPD_CMD_SIMULATE: {
             scicapd_simulate_args a;
             scicapd_args_simulate(&req, &a, &err);
+            break;
+        }
+        case SCICAPD_CMD_IMPORT: { /* no descriptors: every option is checked before any is needed */
+            scicapd_import_args *a = NULL;
+            scicapd_args_import(&req, cfg, NULL, 0, &a, &err);
+            scicapd_import_args_free(a);
             break;
         }
         default: scicapd_args_none(&req, &err); break;
