@@ -6,7 +6,7 @@
  *   - a cancel mid-run: recon.canceled, nothing written, the saved entry and its checkpoint gone;
  *   - a kill -9 mid-run: the restarted daemon resumes the job from its newest checkpoint (the trace holds only the
  *     steps after it) and ends with frames bitwise equal to an uninterrupted run of the same settings (one thread:
- *     the trainer is deterministic);
+ *     the trainer is deterministic); a SIGTERM mid-run: the same from the checkpoint taken as it stopped;
  *   - a budget: with curves (hand-written here) in which rayformer wins for scenes with a camera, the budget
  *     choice picks rayformer for this capture and gap-tv for a capture without a camera. */
 #include <setjmp.h>
@@ -376,6 +376,44 @@ static void resume_after_kill9(void **state)
     sci_cube_free(b);
 }
 
+/* An orderly stop (SIGTERM) mid-run: the run hands over a checkpoint at the step it stopped at, and the next start
+ * goes on from there (scinerf this time; capture B has no scinerf result: the cancel test wrote none). */
+static void resume_after_sigterm(void **state)
+{
+    (void)state;
+    hconn c;
+    hconn_open(&c, &H);
+    json_int_t job = reconstruct_small(&c, cap_b, "scinerf", ITERS);
+    followed f;
+    follow(&c, job, CKPT_EVERY, 300000, &f);
+    if (f.end)
+        fail_msg("the run ended before its first checkpoint: %s", json_dumps(f.end, JSON_COMPACT));
+    hconn_close(&c);
+    harness_stop(&H); /* SIGTERM; fails unless the daemon exits 0 */
+    harness_spawn(&H, NULL);
+    hconn_open(&c, &H);
+    int resumed = resumed_count(&c);
+    hconn_close(&c);
+    int ok = wait_recon(&H, cap_b, "scinerf", 300000);
+    int rows = ok ? trace_rows(cap_b, "scinerf") : -1;
+    int entries, ckpts;
+    queue_files(&entries, &ckpts);
+    sci_cube *a = ok ? frames_of(cap_a, "scinerf") : NULL, *b = ok ? frames_of(cap_b, "scinerf") : NULL;
+    size_t differ = 0, n = a ? (size_t)a->w * a->h * a->n : 0;
+    for (size_t i = 0; i < n; i++)
+        differ += a->data[i] != b->data[i];
+    print_message("  SIGTERM after the checkpoint at step %d of %d: %d resumed, done: %s, trace rows %d; frames vs "
+                  "uninterrupted: %zu of %zu differ; queue files after: %d\n", f.last_ckpt, ITERS, resumed,
+                  ok ? "yes" : "no", rows, differ, n, entries + ckpts);
+    assert_int_equal(resumed, 1);
+    assert_true(ok);
+    assert_true(rows >= 1 && rows <= ITERS - f.last_ckpt); /* went on from the stop's checkpoint, not step 0 */
+    assert_int_equal(differ, 0);
+    assert_int_equal(entries + ckpts, 0);
+    sci_cube_free(a);
+    sci_cube_free(b);
+}
+
 /* The method of the reconstruction a budget chose, from its result.json (which records the budget). */
 static void budget_result(const char *cap, const char *method, double *budget_s)
 {
@@ -440,6 +478,7 @@ int main(void)
         cmocka_unit_test(scinerf_run),
         cmocka_unit_test(cancel_mid_run),
         cmocka_unit_test(resume_after_kill9),
+        cmocka_unit_test(resume_after_sigterm),
         cmocka_unit_test(budget_picks_nerf),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
