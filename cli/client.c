@@ -417,10 +417,10 @@ static const struct { const char *name, *arg, *text; } opt_help[] = {
     {"pattern-us", "U", "DMD display time per mask, microseconds"},
     {"dark-us", "U", "DMD dark time after each mask, microseconds"},
     {"sync", "MODE", "host-master (the host triggers both) or dmd-master (the DMD triggers the camera)"},
-    {"recon", "[METHOD]", "queue a reconstruction of each snapshot: gap-tv (default) or admm-tv;\n"
-                          "                     '--recon METHOD' and '--recon=METHOD' both work"},
-    {"method", "M", "gap-tv or admm-tv"},
-    {"preset", "P", "fast, default or quality"},
+    {"recon", "[METHOD]", "queue a reconstruction of each snapshot ('--recon METHOD' and '--recon=METHOD' both\n"
+                          "                     work; default: the daemon's reconstruction.method); methods:"},
+    {"method", "M", "the method (the NeRF ones need a capture with a camera):"},
+    {"preset", "P", "fast, balanced or best (default and quality: deprecated aliases)"},
     {"wait", NULL, "wait for the job (and its reconstructions) to finish, with progress"},
     {"from", "FILE|DIR", "no bench: captures from a .mat or a problem folder, read by the daemon through\n"
                          "                     descriptors this command opens (your rights, not the daemon's)"},
@@ -464,7 +464,7 @@ static const client_cmd client_cmds[] = {
     {"reload", "scicap reload [--socket PATH] [--json]", "Reload the daemon's configuration (admin).", plain_opts},
     {"shutdown", "scicap shutdown [--socket PATH] [--json]", "Stop the daemon (admin).", plain_opts},
     {"reconstruct",
-     "scicap recon --capture ID [--method gap-tv|admm-tv] [--preset fast|default|quality] [--iters N] [--wait]\n"
+     "scicap recon --capture ID [--method M] [--preset fast|balanced|best] [--iters N] [--wait]\n"
      "       scicap recon --capture ID --budget SECONDS [--method M] [--wait]",
      "Ask the daemon to reconstruct one of its captures (files: scicap recon --help).", reconstruct_opts},
 };
@@ -486,7 +486,10 @@ static void usage(FILE *f, const client_cmd *cmd)
                 char left[48];
                 snprintf(left, sizeof left, "--%s%s%s", o->name, opt_help[i].arg ? " " : "",
                          opt_help[i].arg ? opt_help[i].arg : "");
-                fprintf(f, "  %-18s %s\n", left, opt_help[i].text);
+                char names[256] = "";
+                if (!strcmp(o->name, "method") || !strcmp(o->name, "recon")) /* the method table's, by name */
+                    solver_names_text(names, sizeof names, ", ");
+                fprintf(f, "  %-18s %s%s%s\n", left, opt_help[i].text, names[0] ? " " : "", names);
             }
     fprintf(f, "\nExit status: 0 success, 1 failure, 2 usage.\n");
 }
