@@ -485,6 +485,11 @@ static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config 
         (rc = get_int(doc, o, "reconstruction", "checkpoint_every", 0, 1000000, &c->recon_checkpoint_every,
                       err)) < 0)
         return rc;
+    const solver_ops *method = solver_find(c->recon_method);
+    if (c->recon_auto && method && (method->caps & SOLVER_NEEDS_CAMERA))
+        return sci_json_fail(doc, err, "reconstruction.auto", "every capture reconstructed with %s, which needs a "
+                             "camera that bench captures do not carry: choose another method, or auto false",
+                             method->name);
     const char *curves = NULL;
     if ((rc = sci_json_get_string(doc, o, "reconstruction", "curves", 0, &curves, err)) < 0)
         return rc;

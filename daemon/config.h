@@ -90,7 +90,7 @@ typedef struct scicapd_config {
     enum sync_mode sync_mode;
     double counts_per_unit;               /* uncalibrated scale: counts for "white" (0 = simulator's value) */
     /* reconstruction defaults */
-    char recon_method[16];                /* "gap-tv" */
+    char recon_method[16];                /* a method of recon/solver.h (default: the table's first) */
     char recon_preset[16];                /* "balanced" (fast|balanced|best; default|quality: aliases) */
     char recon_curves[SCICAPD_PATH_MAX];  /* measured accuracy-against-time curves (scicap bench CSV) used to
                                              honour a reconstruct request's budget_s; default

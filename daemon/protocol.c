@@ -268,7 +268,15 @@ int scicapd_args_capture(const scicapd_request *r, const scicapd_config *cfg, sc
         return sci_json_fail(r->doc, err, r->args && json_object_get(r->args, "pattern_us") ? "args.pattern_us" : "args",
                              "%d masks of %u+%u us last longer than 60 s", out->mask_set.frames, out->pattern_us,
                              out->dark_us);
-    return get_recon(r, r->args, "args", cfg, &out->recon, err);
+    if ((rc = get_recon(r, r->args, "args", cfg, &out->recon, err)) < 0)
+        return rc;
+    /* a bench snapshot carries no camera poses: a method that needs them would only fail once per snapshot */
+    if (out->reconstruct && (out->recon.method->caps & SOLVER_NEEDS_CAMERA))
+        return sci_json_fail(r->doc, err, json_object_get(r->args, "method") ? "args.method" : "args.reconstruct",
+                             "%s needs a camera (a static scene with poses), which a bench capture does not carry; "
+                             "reconstruct a problem folder imported with scicap capture --from instead",
+                             out->recon.method->name);
+    return 0;
 }
 
 int scicapd_args_calibrate(const scicapd_request *r, const scicapd_config *cfg, scicapd_calib_args *out,
@@ -320,10 +328,11 @@ int scicapd_args_reconstruct(const scicapd_request *r, const scicapd_config *cfg
     double budget = 0;
     if ((rc = sci_json_get_double(r->doc, r->args, "args", "budget_s", 0, 1e-6, 1e6, &budget, err)) < 0)
         return rc;
-    if (rc == 1)
+    const int no_budget = rc == 1, needs_camera = (out->spec.method->caps & SOLVER_NEEDS_CAMERA) != 0;
+    if (no_budget && !needs_camera)
         return 0;
     /* The capture's size, from its manifest: times scale with w·h·N; and whether it has a camera (a static
-     * scene: the NeRF methods' curves count too). */
+     * scene: the NeRF methods' curves count too, and only such a capture can be reconstructed by them). */
     char path[SCICAPD_PATH_MAX + 96];
     snprintf(path, sizeof path, "%s/captures/%s/problem.json", cfg->storage_root, out->capture_id);
     json_t *man = json_load_file(path, 0, NULL);
@@ -333,6 +342,13 @@ int scicapd_args_reconstruct(const scicapd_request *r, const scicapd_config *cfg
                         : 0;
     int has_camera = man && json_is_object(json_object_get(man, "camera"));
     json_decref(man);
+    if (no_budget) { /* refused now rather than failed by the worker (an unknown capture is the worker's to say) */
+        if (voxels > 0 && !has_camera)
+            return sci_json_fail(r->doc, err, "args.method", "%s needs a capture with a camera (a static scene, e.g. "
+                                 "a problem folder imported with scicap capture --from); capture \"%s\" has none",
+                                 out->spec.method->name, out->capture_id);
+        return 0;
+    }
     if (!(voxels > 0))
         return sci_json_fail(r->doc, err, "args.capture", "capture \"%s\" not found (needed to size the budget)",
                              out->capture_id);

@@ -455,6 +455,14 @@ static void budget_picks_nerf(void **state)
     snprintf(cap, sizeof cap, "%s", json_string_value(json_object_get(json_object_get(e, "data"), "capture")));
     json_decref(e);
     json_decref(hconn_wait_event(&h, "capture.done", 30000));
+    /* a NeRF method on it is refused at the request, with the reason */
+    json_t *m = hconn_call(&h, "reconstruct", json_pack("{s:s, s:s}", "capture", cap, "method", "rayformer"));
+    const char *code = json_string_value(json_object_get(json_object_get(m, "error"), "code"));
+    const char *msg = json_string_value(json_object_get(json_object_get(m, "error"), "message"));
+    print_message("  rayformer on %s: %s: %s\n", cap, code ? code : "accepted", msg ? msg : "");
+    assert_true(code && !strcmp(code, "bad_arguments") && msg && strstr(msg, "camera"));
+    json_decref(m);
+    hconn_expect_error(&h, "capture", json_pack("{s:b, s:s}", "reconstruct", 1, "method", "scinerf"), "bad_arguments");
     json_t *r = hconn_request(&h, "reconstruct", json_pack("{s:s, s:f}", "capture", cap, "budget_s", 5.0));
     json_int_t job = json_integer_value(json_object_get(r, "job"));
     json_decref(r);
@@ -471,6 +479,29 @@ static void budget_picks_nerf(void **state)
     hconn_close(&h);
 }
 
+/* A configuration that would reconstruct every bench capture with a NeRF method is refused at the start. */
+static void config_auto_nerf_refused(void **state)
+{
+    (void)state;
+    char cfg[400], cmd[2400], out[1024] = "";
+    snprintf(cfg, sizeof cfg, "%s/auto-nerf.json", curves_dir);
+    FILE *f = fopen(cfg, "w");
+    assert_non_null(f);
+    fputs("{\"reconstruction\": {\"method\": \"scinerf\", \"auto\": true}}\n", f);
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "%s --config %s --socket %s/x.sock --storage %s/st --runtime-dir %s/run --allow-root 2>&1",
+             H.bin, cfg, curves_dir, curves_dir, curves_dir);
+    FILE *p = popen(cmd, "r");
+    assert_non_null(p);
+    size_t n = fread(out, 1, sizeof out - 1, p);
+    out[n] = '\0';
+    int st = pclose(p);
+    print_message("  auto + scinerf: exit %d: %s", WIFEXITED(st) ? WEXITSTATUS(st) : -1, out);
+    assert_true(WIFEXITED(st) && WEXITSTATUS(st) != 0);
+    assert_non_null(strstr(out, "reconstruction.auto"));
+    assert_non_null(strstr(out, "camera"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -480,6 +511,7 @@ int main(void)
         cmocka_unit_test(resume_after_kill9),
         cmocka_unit_test(resume_after_sigterm),
         cmocka_unit_test(budget_picks_nerf),
+        cmocka_unit_test(config_auto_nerf_refused),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }
