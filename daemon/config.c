@@ -635,9 +635,10 @@ json_t *scicapd_config_restart_keys(const scicapd_config *a, const scicapd_confi
         json_array_append_new(r, json_string("storage"));
     if (a->writers != b->writers)
         json_array_append_new(r, json_string("storage.writers"));
-    if (a->workers != b->workers || a->recon_threads != b->recon_threads ||
-        a->recon_checkpoint_every != b->recon_checkpoint_every)
+    if (a->workers != b->workers || a->recon_threads != b->recon_threads)
         json_array_append_new(r, json_string("reconstruction.workers"));
+    if (a->recon_checkpoint_every != b->recon_checkpoint_every) /* the workers took it at the start */
+        json_array_append_new(r, json_string("reconstruction.checkpoint_every"));
     return r;
 }
 
