@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "io/source.h"
+#include "recon/solver.h"
 
 /* The value after --method/-m and --preset in the recon options, or dflt. */
 static const char *recon_opt(const batch *b, const char *longname, const char *shortname, const char *dflt)
@@ -170,7 +171,8 @@ int batch_slurm_submit(batch *b, const batch_slurm_opts *o, sci_error *err)
         return 0;
     }
     /* Resources: the method's measurements, scaled to the largest input of this submission. */
-    const char *method = recon_opt(b, "--method", "-m", "gap-tv"), *preset = recon_opt(b, "--preset", NULL, NULL);
+    /* no --method: scicap recon's default, the table's first row */
+    const char *method = recon_opt(b, "--method", "-m", solver_list(NULL)[0]->name), *preset = recon_opt(b, "--preset", NULL, NULL);
     estimate e;
     estimate_read(b, o ? o->results : NULL, method, preset, &e);
     double voxels = 0;

@@ -196,7 +196,7 @@ static PyObject *py_solve(PyObject *self, PyObject *args, PyObject *kw)
 {
     static char *kws[] = {"problem", "method", "settings", "progress", NULL};
     PyObject *prob_o, *progress = Py_None;
-    const char *name = "gap-tv", *text = NULL;
+    const char *name = solver_list(NULL)[0]->name, *text = NULL; /* the table's first row, as scicap recon */
     if (!PyArg_ParseTupleAndKeywords(args, kw, "O|sz$O:solve", kws, &prob_o, &name, &text, &progress))
         return NULL;
     if (progress != Py_None && !PyCallable_Check(progress))
