@@ -24,7 +24,13 @@
 #include <stdint.h>
 #include <string.h>
 
+/* clang before 16 exports a target_clones function as NAME.ifunc, which other files' calls do not link to
+ * (the fuzzers are built with clang): a single version there */
+#if defined(__clang__) && __clang_major__ < 16
+#define CLONES
+#else
 #define CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#endif
 #define INLINE static inline __attribute__((always_inline))
 
 /* The vector helpers are always inlined: the psABI warning about returning 64-byte vectors never applies. */

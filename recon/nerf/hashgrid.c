@@ -147,7 +147,13 @@ static inline __attribute__((always_inline)) void level_corners(const level *v, 
 /* Level-major loops: one level's table slice (at most T·F floats, 512 KiB for the RayFormer grid) stays in L2
  * while every point visits it; point-major order would sweep the whole table (8 MiB) per point. The order in
  * which points add into one gradient entry is still the point order, so results equal the point-major ones. */
+/* clang before 16 exports a target_clones function as NAME.ifunc, which other files' calls do not link to
+ * (the fuzzers are built with clang): a single version there */
+#if defined(__clang__) && __clang_major__ < 16
+#define CLONES
+#else
 #define CLONES __attribute__((target_clones("avx2", "default")))
+#endif
 
 /* One level of the forward: y[i·ldy + l·F + f] for every point. */
 CLONES static void level_forward(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y,
