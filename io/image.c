@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "io/gif.h"
 #include "io/oiio_shim.h"
 
 const char *sci_pixel_type_name(sci_pixel_type t)
@@ -124,6 +125,8 @@ int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_
     return write_frames(path, rgb, 3 * f, 3, type, scale, NULL, err);
 }
 
+void sci_image_exr_threads(int threads) { sci_oiio_exr_threads(threads); }
+
 /* The smallest f with ceil(w/f)·ceil(h/f) <= SCI_GIF_MAX_PIXELS and both sides <= 65535. */
 static int gif_factor(int w, int h)
 {
@@ -166,13 +169,14 @@ int sci_image_write_gif_opt(const char *path, const sci_cube *c, double scale, i
                 buf[(size_t)k * gfs + (size_t)gy * gw + gx] = (unsigned char)(v < 0 ? 0 : (v > 255 ? 255 : v));
             }
     }
-    char tmp[4096], msg[SCI_ERROR_MSG_MAX];
+    char tmp[4096];
     tmp_name(tmp, sizeof tmp, path);
-    int rc = sci_oiio_write_gif(tmp, buf, gw, gh, c->n, delay_ms, msg, sizeof msg);
+    sci_error gerr = {0};
+    int rc = sci_gif_write_grey(tmp, buf, gw, gh, c->n, delay_ms, &gerr);
     free(buf);
     if (factor)
         *factor = f;
-    return publish(tmp, path, rc, msg, err);
+    return publish(tmp, path, rc, gerr.msg, err);
 }
 
 static int mkdir_p(const char *dir, sci_error *err)

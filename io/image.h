@@ -53,10 +53,17 @@ int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type t
 int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_type type, double scale,
                         sci_error *err);
 
-/* Write an animated GIF preview of all frames (8-bit, value × scale clamped), `delay_ms` per frame.
+/* OpenEXR's process-wide compression pool (every EXR read and write in the process): threads > 0 sets its size,
+ * 0 one thread per core (OpenImageIO's default), -1 no pool: each file is compressed by the thread that writes it.
+ * A program that already writes several files in parallel (scicapd's writers and workers) gains nothing from
+ * the pool on few cores and pays its hand-offs: 256×256 float frames cost 4-7 ms of CPU each with it, 2.5 without. */
+void sci_image_exr_threads(int threads);
+
+/* Write an animated GIF preview of all frames (8-bit, value × scale clamped), `delay_ms` per frame, with one
+ * fixed 256-level grey palette (io/gif.h): every 8-bit value is kept exactly, and no palette is searched.
  * Frames above SCI_GIF_MAX_PIXELS (or wider or taller than GIF's 65535) are shrunk by the smallest integer factor
- * that fits, averaging factor×factor blocks: OpenImageIO 2.4's GIF writer crashes (SIGSEGV, no error) on frames
- * over 2^24 pixels (4096² works, 4200² does not), and a preview needs no more. *factor (may be NULL) receives the
+ * that fits, averaging factor×factor blocks: a preview needs no more (and OpenImageIO 2.4's GIF writer, used before
+ * io/gif.c, crashed with SIGSEGV on frames over 2^24 pixels). *factor (may be NULL) receives the
  * factor used (1: full size). */
 #define SCI_GIF_MAX_PIXELS (2048 * 2048)
 int sci_image_write_gif(const char *path, const sci_cube *c, double scale, int delay_ms, sci_error *err);

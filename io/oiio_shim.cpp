@@ -146,10 +146,16 @@ extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h,
             size_t l = std::strlen(s);
             return p.size() >= l && p.compare(p.size() - l, l, s) == 0;
         };
-        if (ends(".tif") || ends(".tiff"))
+        /* deflate level 1 everywhere: level 4-6 (the defaults) costs 2-4 times the CPU for 5-15 % fewer bytes on
+         * 256×256 frames, and reconstructed float frames hardly compress at any level */
+        if (ends(".tif") || ends(".tiff")) {
             spec.attribute("compression", "zip");
-        else if (ends(".exr"))
-            spec.attribute("compression", "zip");
+            spec.attribute("tiff:zipquality", 1);
+        } else if (ends(".exr")) {
+            spec.attribute("compression", "zip:1");
+        } else if (ends(".png")) {
+            spec.attribute("png:compressionLevel", 1);
+        }
         if (description && *description)
             spec.attribute("ImageDescription", description);
         if (!out->open(path, spec))
@@ -189,38 +195,11 @@ extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h,
     }
 }
 
-extern "C" int sci_oiio_write_gif(const char *path, const unsigned char *frames, int w, int h, int n, int delay_ms,
-                                  char *errbuf, size_t errlen)
+extern "C" void sci_oiio_exr_threads(int threads)
 {
     try {
-        auto out = ImageOutput::create(path);
-        if (!out || !out->supports("multiimage"))
-            return fail(errbuf, errlen, SCI_EFORMAT, std::string(path) + ": no animated GIF writer");
-        /* GIF wants RGB: replicate the grey channel. */
-        std::vector<ImageSpec> specs(n, ImageSpec(w, h, 3, TypeDesc::UINT8));
-        std::vector<unsigned char> rgb((size_t)w * h * 3);
-        for (auto &s : specs) {
-            s.attribute("FramesPerSecond", TypeRational, std::vector<int>{1000, delay_ms > 0 ? delay_ms : 100}.data());
-            s.attribute("oiio:LoopCount", 0);
-            s.attribute("oiio:Movie", 1);
-        }
-        if (!out->open(path, n, specs.data()))
-            return fail(errbuf, errlen, -EIO, std::string(path) + ": " + out->geterror());
-        for (int k = 0; k < n; k++) {
-            if (k > 0 && !out->open(path, specs[k], ImageOutput::AppendSubimage))
-                return fail(errbuf, errlen, -EIO, std::string(path) + ": " + out->geterror());
-            const unsigned char *g = frames + (size_t)k * w * h;
-            for (size_t i = 0; i < (size_t)w * h; i++)
-                rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = g[i];
-            if (!out->write_image(TypeDesc::UINT8, rgb.data()))
-                return fail(errbuf, errlen, -EIO, std::string(path) + ": " + out->geterror());
-        }
-        if (!out->close())
-            return fail(errbuf, errlen, -EIO, std::string(path) + ": " + out->geterror());
-        return 0;
-    } catch (const std::exception &e) {
-        return fail(errbuf, errlen, -EIO, std::string(path) + ": " + e.what());
+        OIIO::attribute("exr_threads", threads);
     } catch (...) {
-        return fail(errbuf, errlen, -EIO, std::string(path) + ": unknown C++ exception in OpenImageIO");
+        /* an attribute cannot fail in a way we could act on: the pool keeps its size */
     }
 }
