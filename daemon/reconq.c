@@ -253,6 +253,23 @@ out:
     return rc;
 }
 
+/* 1 when the job saved as `file` already published its output: <capture>/recon/<method>/result.json names this
+ * entry as the job that wrote it (daemon/workers.c). The daemon died between the publish and the removal of
+ * the entry; running it again would only redo the same work. */
+static int item_published(scicapd_store *st, const scicapd_reconq_item *it, const char *file)
+{
+    char dir[1100], path[1400];
+    sci_error e = {0};
+    if (scicapd_store_capture_dir(st, it->capture_id, dir, sizeof dir, &e) < 0)
+        return 0;
+    snprintf(path, sizeof path, "%s/recon/%s/result.json", dir, it->spec.method->name);
+    json_t *r = json_load_file(path, 0, NULL);
+    const char *by = json_string_value(json_object_get(json_object_get(r, "job"), "queue_entry"));
+    const int done = by && strcmp(by, file) == 0;
+    json_decref(r);
+    return done;
+}
+
 static int by_name(const void *a, const void *b)
 {
     return strcmp(((const scicapd_reconq_item *)a)->file, ((const scicapd_reconq_item *)b)->file);
@@ -312,6 +329,15 @@ int scicapd_reconq_load(scicapd_store *st, const sci_log *log, scicapd_reconq_it
             snprintf(bad, sizeof bad, "%s/bad-%s", dir, e->d_name);
             rename(path, bad);
             sci_log_write(log, SCI_LOG_ERR, "queued reconstruction not resumed: %s (kept as %s)", e2.msg, bad);
+            continue;
+        }
+        if (item_published(st, it, e->d_name)) {
+            char ckpt[1400];
+            unlink(path);
+            snprintf(ckpt, sizeof ckpt, "%s/%.*s.ckpt", dir, (int)(nl - 5), e->d_name);
+            unlink(ckpt);
+            sci_log_write(log, SCI_LOG_NOTICE, "queued reconstruction %s of %s was already published by the job "
+                          "saved as %s: not run again", it->spec.method->name, it->capture_id, e->d_name);
             continue;
         }
         snprintf(it->file, sizeof it->file, "%s", e->d_name);

@@ -15,6 +15,9 @@
  * its entry, r-<...>-<job id>.ckpt (the method's own blob, written every reconstruction.checkpoint_every steps
  * and when the daemon stops): a resumed job continues from it instead of starting over. It goes with the entry.
  *
+ * Completion is durable in the output itself: the result.json a job publishes names its entry, so an entry left
+ * behind by a crash after the publish is recognised at load (scicapd_reconq_load) and not run again.
+ *
  * A file is written beside and renamed (fsync'd with storage.fsync), so a crash leaves the old state or the
  * new, never half a file; a file that cannot be read back is renamed bad-<name> (kept for a person to look at)
  * and reported. Thread-safe: functions touch only the file of the job they are given.
@@ -50,7 +53,10 @@ int scicapd_reconq_checkpoint_save(scicapd_store *st, const scicapd_job *j, cons
 int scicapd_reconq_checkpoint_load(scicapd_store *st, const scicapd_job *j, void **blob, size_t *bytes,
                                    sci_error *err);
 /* Every saved job, oldest first: *items (caller frees with free()) and *n. Unreadable files are renamed and
- * logged, not returned. -ENOMEM, or -errno when the folder cannot be created or read. */
+ * logged, not returned. A job whose output is already published — <capture>/recon/<method>/result.json names its
+ * entry under "job"."queue_entry", written by daemon/workers.c — is complete: the daemon died between the publish
+ * and the removal of the entry. Its entry (and checkpoint) is removed and logged, not returned, so a kill -9 at
+ * that moment never runs a job twice. -ENOMEM, or -errno when the folder cannot be created or read. */
 int scicapd_reconq_load(scicapd_store *st, const sci_log *log, scicapd_reconq_item **items, int *n, sci_error *err);
 
 #endif

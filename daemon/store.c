@@ -22,6 +22,8 @@
  * most this many - 1 ids; a clean close writes the exact mark. */
 #define STORE_ID_BLOCK 16
 #define STORE_IDS_FILE "ids.json"
+/* Mask stacks verified this run (ROOT/mask_stacks/<hash>/ known to hold them): a mask set's snapshots hit it. */
+#define STORE_MASK_CACHE 4
 
 struct scicapd_store {
     char root[1024];
@@ -39,6 +41,12 @@ struct scicapd_store {
     scicapd_stored_fn on_stored;
     void *user;
     scicapd_timing *timing;  /* borrowed; may be NULL */
+    /* ROOT/mask_stacks/<hash>/ folders checked against these masks this run (under mu; oldest replaced) */
+    struct {
+        uint64_t hash;
+        sci_cube *mask;
+    } mask_cache[STORE_MASK_CACHE];
+    int mask_cache_next;
 };
 
 static int rm_cb(const char *p, const struct stat *sb, int flag, struct FTW *ftw)
@@ -233,13 +241,14 @@ int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, cons
     s->lock_fd = -1;
     pthread_mutex_init(&s->mu, NULL);
     atomic_init(&s->previews, 1);
-    char caps[1100], cals[1100], shown[1100];
+    char caps[1100], cals[1100], shown[1100], stacks[1100];
     snprintf(caps, sizeof caps, "%s/captures", root);
     snprintf(cals, sizeof cals, "%s/calibrations", root);
     snprintf(shown, sizeof shown, "%s/dmd_masks", root);
+    snprintf(stacks, sizeof stacks, "%s/mask_stacks", root);
     int rc;
     if ((rc = mkdir_p(caps, err)) < 0 || (rc = mkdir_p(cals, err)) < 0 || (rc = mkdir_p(shown, err)) < 0 ||
-        (rc = lock_root(s, err)) < 0) {
+        (rc = mkdir_p(stacks, err)) < 0 || (rc = lock_root(s, err)) < 0) {
         scicapd_store_close(s);
         return rc;
     }
@@ -250,6 +259,7 @@ int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, cons
     sweep(cals, "masks-", &maxk, NULL, &r.removed, 0);
     unsigned long unused = 0;
     sweep(shown, NULL, &unused, NULL, &r.removed, 0);
+    sweep(stacks, NULL, &unused, NULL, &r.removed, 0);
     if ((rc = ids_read(s, err)) < 0) {
         scicapd_store_close(s);
         return rc;
@@ -278,6 +288,8 @@ void scicapd_store_close(scicapd_store *s)
     }
     if (s->lock_fd >= 0)
         close(s->lock_fd); /* releases the flock */
+    for (int i = 0; i < STORE_MASK_CACHE; i++)
+        sci_cube_free(s->mask_cache[i].mask);
     pthread_mutex_destroy(&s->mu);
     free(s);
 }
@@ -391,11 +403,12 @@ static int link_all(const char *from, const char *to)
 static int write_shown_masks(scicapd_store *st, const sci_cube *m, const char *dir, sci_error *err)
 {
     char shared[1200], tmp[1300];
-    snprintf(shared, sizeof shared, "%s/dmd_masks/%016llx", st->root, (unsigned long long)masks_hash(m));
+    const unsigned long long hash = (unsigned long long)masks_hash(m);
+    snprintf(shared, sizeof shared, "%s/dmd_masks/%016llx", st->root, hash);
     struct stat sb;
     if (stat(shared, &sb) != 0) {
-        snprintf(tmp, sizeof tmp, "%s/dmd_masks/.%016llx.tmp-%d-%lx", st->root, (unsigned long long)masks_hash(m),
-                 (int)getpid(), (unsigned long)pthread_self());
+        snprintf(tmp, sizeof tmp, "%s/dmd_masks/.%016llx.tmp-%d-%lx", st->root, hash, (int)getpid(),
+                 (unsigned long)pthread_self());
         int rc;
         if ((rc = mkdir_p(tmp, err)) < 0 ||
             (rc = sci_stack_write(tmp, "dmd_mask", "png", m, SCI_PIXEL_U8, 255.0, NULL, err)) < 0) {
@@ -412,6 +425,70 @@ static int write_shown_masks(scicapd_store *st, const sci_cube *m, const char *d
     return sci_stack_write(dir, "dmd_mask", "png", m, SCI_PIXEL_U8, 255.0, NULL, err);
 }
 
+static int cube_same(const sci_cube *a, const sci_cube *b)
+{
+    return a->w == b->w && a->h == b->h && a->n == b->n &&
+           memcmp(a->data, b->data, sci_cube_count(a) * sizeof(float)) == 0;
+}
+
+/* The reconstruction's masks (mask.json, mask_*.exr, preview_mask_*.png) are the same for every snapshot of a
+ * mask set: written once to ROOT/mask_stacks/<hash>/ (atomically) and hard-linked into each capture folder
+ * (io/problem_dir.h, masks_from), which saves 8 EXR and 8 PNG encodings per 256×256×8 snapshot. A folder found
+ * on disk (an earlier run's, or another writer's) is read back and compared once per run before it is used, so a
+ * hash collision or a damaged folder is never linked; after that the masks in memory are compared (a memcmp).
+ * Into `path` the folder to link from; -1 when the masks must be written in the capture folder instead. */
+static int shared_mask_stack(scicapd_store *st, const sci_cube *m, char *path, size_t n)
+{
+    const uint64_t hash = masks_hash(m);
+    snprintf(path, n, "%s/mask_stacks/%016llx", st->root, (unsigned long long)hash);
+    pthread_mutex_lock(&st->mu);
+    int known = 0;
+    for (int i = 0; i < STORE_MASK_CACHE && !known; i++)
+        known = st->mask_cache[i].mask && st->mask_cache[i].hash == hash && cube_same(st->mask_cache[i].mask, m);
+    pthread_mutex_unlock(&st->mu);
+    if (known)
+        return 0;
+    sci_error err = {0};
+    struct stat sb;
+    if (stat(path, &sb) != 0) {
+        char tmp[1300];
+        snprintf(tmp, sizeof tmp, "%s/mask_stacks/.%016llx.tmp-%d-%lx", st->root, (unsigned long long)hash,
+                 (int)getpid(), (unsigned long)pthread_self());
+        if (sci_problem_dir_write_masks(tmp, m, &err) < 0) {
+            scicapd_remove_tree(tmp);
+            sci_log_write(st->log, SCI_LOG_WARNING, "%s (the masks are written in each capture folder)", err.msg);
+            return -1;
+        }
+        if (st->fsync_on)
+            nftw(tmp, fsync_cb, 16, FTW_PHYS);
+        if (rename(tmp, path) != 0) /* another writer got there first: checked below like any folder found */
+            scicapd_remove_tree(tmp);
+        else if (st->fsync_on)
+            fsync_path(path);
+    }
+    char side[1400];
+    snprintf(side, sizeof side, "%s/mask.json", path);
+    sci_cube *back = NULL;
+    int same = sci_stack_read(side, &back, NULL, &err) == 0 && cube_same(back, m);
+    sci_cube_free(back);
+    if (!same) {
+        sci_log_write(st->log, SCI_LOG_WARNING, "%s does not hold this capture's masks%s%s: they are written in each "
+                      "capture folder", path, err.msg[0] ? ": " : "", err.msg);
+        return -1;
+    }
+    sci_cube *copy = NULL;
+    if (sci_cube_clone(&copy, m, NULL) == 0) {
+        pthread_mutex_lock(&st->mu);
+        const int i = st->mask_cache_next;
+        st->mask_cache_next = (i + 1) % STORE_MASK_CACHE;
+        sci_cube_free(st->mask_cache[i].mask);
+        st->mask_cache[i].hash = hash;
+        st->mask_cache[i].mask = copy;
+        pthread_mutex_unlock(&st->mu);
+    }
+    return 0;
+}
+
 int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_error *err)
 {
     int rc;
@@ -425,7 +502,11 @@ int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_erro
     json_object_set_new(s->meta, "capture_id", json_string(s->capture_id));
     json_t *source = json_pack("{s:s, s:s}", "kind", "scicapd-capture", "capture_id", s->capture_id);
     sci_problem *p = s->problem;
-    rc = sci_problem_dir_write_opt(tmp, &p, 1, source, 0, atomic_load(&st->previews), err);
+    char masks[1200];
+    sci_problem_dir_opts o = {.previews = atomic_load(&st->previews)};
+    if (shared_mask_stack(st, p->mask, masks, sizeof masks) == 0)
+        o.masks_from = masks;
+    rc = sci_problem_dir_write_ex(tmp, &p, 1, source, &o, err);
     json_decref(source);
     if (rc < 0)
         goto fail;
@@ -573,6 +654,9 @@ static void *writer_main(void *arg)
 int scicapd_store_start(scicapd_store *st, scicapd_queue *q, int writers, scicapd_stored_fn on_stored, void *user,
                         scicapd_timing *timing, sci_error *err)
 {
+    /* the writers (and reconstruction workers) are the parallelism: OpenEXR's pool on top only adds hand-offs on
+     * few cores (256×256 float frame: 4-7 ms of CPU with it, 2.5 without; io/image.h) */
+    sci_image_exr_threads(-1);
     st->q = q;
     st->timing = timing;
     st->on_stored = on_stored;

@@ -9,6 +9,9 @@
  *     ROOT/calibrations/dark.json, masks-random8.json   which calibration is current (replaced atomically)
  *     ROOT/dmd_masks/<hash>/          the PNGs of one mask stack as shown on the DMD, written once and hard-linked
  *                                     into every capture folder that used it
+ *     ROOT/mask_stacks/<hash>/        the reconstruction's masks of a capture (mask.json, mask_*.exr,
+ *                                     preview_mask_*.png), written once per mask stack and hard-linked likewise
+ *                                     (checked against the masks once per run before the first link)
  *     ROOT/ids.json                   the capture/calibration id high-water mark (below)
  *     ROOT/recon-queue/r-*.json       reconstructions queued or running, resumed at start (daemon/reconq.h)
  *
@@ -99,7 +102,9 @@ int scicapd_store_load_calibration(scicapd_store *st, const char *key, sci_cube 
 /* The writer threads (1..16): each pops snapshots from q until it is closed and empty, writes each (its time
  * counted under SCICAPD_STAGE_STORE in `timing`, which may be NULL), then calls on_stored (on that writer
  * thread, so on_stored must be thread-safe) with rc and err; on_stored takes ownership of the snapshot. On
- * failure the threads already started keep running: call scicapd_store_stop. */
+ * failure the threads already started keep running: call scicapd_store_stop. Process-wide side effect: OpenEXR's
+ * compression pool is turned off (sci_image_exr_threads(-1)): each EXR is compressed by the thread writing it,
+ * which is then the whole of its cost in the stage's CPU time. */
 typedef void (*scicapd_stored_fn)(void *user, scicapd_snapshot *s, int rc, const sci_error *err);
 int scicapd_store_start(scicapd_store *st, scicapd_queue *q, int writers, scicapd_stored_fn on_stored, void *user,
                         scicapd_timing *timing, sci_error *err);

@@ -39,6 +39,9 @@ static json_t *camera_to_json(const sci_camera *c, sci_problem *const *problems,
                      "near", c->near_m, "far", c->far_m, "poses", poses);
 }
 
+static int problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                             const sci_problem_color *color, const sci_problem_dir_opts *opts, sci_error *err);
+
 int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                           int overwrite, sci_error *err)
 {
@@ -51,9 +54,62 @@ int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int
     return sci_problem_dir_write_color(dir, problems, k, source, NULL, overwrite, previews, err);
 }
 
+/* Mask previews on [0, 1] × 255, the scale every writer of a problem folder uses for them. */
+static int mask_previews_write(const char *dir, const sci_cube *mask, sci_error *err)
+{
+    char pv[4200];
+    int rc = 0;
+    for (int f = 0; f < mask->n && rc == 0; f++) {
+        snprintf(pv, sizeof pv, "%s/preview_mask_%03d.png", dir, f);
+        rc = sci_image_write(pv, mask, f, SCI_PIXEL_U8, 255.0, NULL, err);
+    }
+    return rc;
+}
+
+int sci_problem_dir_write_masks(const char *dir, const sci_cube *mask, sci_error *err)
+{
+    int rc = sci_stack_write(dir, "mask", "exr", mask, SCI_PIXEL_F32, 1.0, NULL, err);
+    return rc < 0 ? rc : mask_previews_write(dir, mask, err);
+}
+
+/* Hard-link the mask files of `from` (sci_problem_dir_write_masks) into `to`: 0, or -errno at the first file
+ * that cannot be linked (the caller then writes them all: `to` is its own temporary folder). */
+static int masks_link(const char *from, const char *to, int n, int previews)
+{
+    char a[4200], b[4200];
+    for (int f = -1; f < n; f++) {
+        for (int pv = 0; pv <= previews; pv++) {
+            if (f < 0 && pv) /* no preview of the sidecar */
+                continue;
+            const char *name = f < 0 ? "mask.json" : pv ? "preview_mask_%03d.png" : "mask_%03d.exr";
+            char file[64];
+            snprintf(file, sizeof file, name, f);
+            snprintf(a, sizeof a, "%s/%s", from, file);
+            snprintf(b, sizeof b, "%s/%s", to, file);
+            if (link(a, b) != 0)
+                return -errno;
+        }
+    }
+    return 0;
+}
+
 int sci_problem_dir_write_color(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                                 const sci_problem_color *color, int overwrite, int previews, sci_error *err)
 {
+    sci_problem_dir_opts o = {.overwrite = overwrite, .previews = previews};
+    return problem_dir_write(dir, problems, k, source, color, &o, err);
+}
+
+int sci_problem_dir_write_ex(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                             const sci_problem_dir_opts *opts, sci_error *err)
+{
+    return problem_dir_write(dir, problems, k, source, NULL, opts, err);
+}
+
+static int problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                             const sci_problem_color *color, const sci_problem_dir_opts *opts, sci_error *err)
+{
+    const int overwrite = opts->overwrite, previews = opts->previews;
     if (k < 1)
         return sci_error_set(err, -EINVAL, "%s: no problems to write", dir);
     const sci_problem *p0 = problems[0];
@@ -96,8 +152,13 @@ int sci_problem_dir_write_color(const char *dir, sci_problem *const *problems, i
         if (truth)
             memcpy(sci_cube_frame(truth, j * n), problems[j]->truth->data, fs * n * sizeof(float));
     }
-    if ((rc = sci_stack_write(tmp, "meas", "exr", meas, SCI_PIXEL_F32, 1.0, NULL, err)) < 0 ||
-        (rc = sci_stack_write(tmp, "mask", "exr", p0->mask, SCI_PIXEL_F32, 1.0, NULL, err)) < 0 ||
+    if ((rc = sci_stack_write(tmp, "meas", "exr", meas, SCI_PIXEL_F32, 1.0, NULL, err)) < 0)
+        goto out;
+    /* the masks: linked from a folder that holds them when the caller has one, else written here (a partial
+     * link is harmless: every write below goes to a temporary name and is renamed over it) */
+    const int masks_linked = opts->masks_from && masks_link(opts->masks_from, tmp, n, previews) == 0;
+    const int masks_previewed = masks_linked && previews;
+    if ((!masks_linked && (rc = sci_stack_write(tmp, "mask", "exr", p0->mask, SCI_PIXEL_F32, 1.0, NULL, err)) < 0) ||
         (truth && (rc = sci_stack_write(tmp, "truth", "exr", truth, SCI_PIXEL_F32, 1.0, NULL, err)) < 0) ||
         (rgb && (rc = sci_stack_write(tmp, "truth_rgb", "exr", rgb, SCI_PIXEL_F32, 1.0, NULL, err)) < 0))
         goto out;
@@ -110,10 +171,8 @@ int sci_problem_dir_write_color(const char *dir, sci_problem *const *problems, i
         snprintf(pv, sizeof pv, "%s/preview_meas_%03d.png", tmp, j);
         rc = sci_image_write(pv, meas, j, SCI_PIXEL_U8, hi > 0 ? 255.0 / hi : 1.0, NULL, err);
     }
-    for (int f = 0; previews && f < n && rc == 0; f++) {
-        snprintf(pv, sizeof pv, "%s/preview_mask_%03d.png", tmp, f);
-        rc = sci_image_write(pv, p0->mask, f, SCI_PIXEL_U8, 255.0, NULL, err);
-    }
+    if (previews && !masks_previewed && rc == 0)
+        rc = mask_previews_write(tmp, p0->mask, err);
     if (previews && rc == 0 && truth) {
         snprintf(pv, sizeof pv, "%s/preview_truth.gif", tmp);
         rc = sci_image_write_gif(pv, truth, 255.0 / p0->peak, 125, err);

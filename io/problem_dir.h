@@ -33,6 +33,23 @@ int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, 
 int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                               int overwrite, int previews, sci_error *err);
 
+/* What sci_problem_dir_write_ex does beyond sci_problem_dir_write_opt. */
+typedef struct sci_problem_dir_opts {
+    int overwrite;          /* replace an existing DIR (else -EEXIST) */
+    int previews;           /* write the preview_*.png / preview_truth.gif files */
+    /* A folder written by sci_problem_dir_write_masks with problems[0]'s masks (NULL: none): its mask.json,
+     * mask_*.exr (and preview_mask_*.png with previews) are hard-linked into DIR instead of written again — a
+     * folder per snapshot then costs no mask encoding. The caller vouches that the folder holds these masks; a
+     * link that fails (another file system, no hard links) falls back to writing the files. Borrowed. */
+    const char *masks_from;
+} sci_problem_dir_opts;
+int sci_problem_dir_write_ex(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                             const sci_problem_dir_opts *opts, sci_error *err);
+/* The mask files of a problem folder alone — mask.json, mask_*.exr and preview_mask_*.png, exactly as
+ * sci_problem_dir_write writes them — into `dir` (created if missing; files replaced atomically), for
+ * sci_problem_dir_opts.masks_from. */
+int sci_problem_dir_write_masks(const char *dir, const sci_cube *mask, sci_error *err);
+
 /* Colour (Bayer) problems: the problems hold the raw mosaic (meas, masks and the mosaicked truth, so every grey
  * tool still works on them); the manifest adds "cfa": "RGGB" (or BGGR, GRBG, GBRG) and, when known, "truth_rgb":
  * "truth_rgb.json", a stack of k·N RGB frames as 3·k·N planes (frame f's channel c at 3f + c, recon/bayer.h),

@@ -80,6 +80,12 @@ int sci_recon_store_write(const char *dir, const sci_problem *p, const sci_resul
 int sci_recon_store_write_opt(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
                               int overwrite, const volatile sig_atomic_t *stop, sci_error *err)
 {
+    return sci_recon_store_write_ex(dir, p, r, params, NULL, overwrite, stop, err);
+}
+
+int sci_recon_store_write_ex(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
+                             const json_t *extra, int overwrite, const volatile sig_atomic_t *stop, sci_error *err)
+{
     struct stat st;
     if (!r->frames)
         return sci_error_set(err, -EINVAL, "%s: no frames to write (%s)", dir,
@@ -112,6 +118,8 @@ int sci_recon_store_write_opt(const char *dir, const sci_problem *p, const sci_r
     }
     if (rc == 0) {
         json_t *s = sci_recon_summary(p, r, params);
+        if (extra)
+            json_object_update(s, (json_t *)extra);
         snprintf(path, sizeof path, "%s/result.json", tmp);
         if (json_dump_file(s, path, JSON_INDENT(2)) != 0)
             rc = sci_error_set(err, -EIO, "%s: cannot write", path);
