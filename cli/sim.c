@@ -11,7 +11,9 @@
 #include "cli/commands.h"
 #include "io/problem_dir.h"
 #include "recon/bayer.h"
+#include "sim/bench.h"
 #include "sim/default_scene.h"
+#include "sim/dmd_sim.h"
 #include "sim/simulate.h"
 
 static void usage(FILE *f)
@@ -30,12 +32,70 @@ static void usage(FILE *f)
             "      --seed S         override the scene's seed (masks, noise, textures)\n"
             "      --snapshots K    override the number of snapshots\n"
             "      --default        simulate the embedded default scene instead of a file\n"
+            "      --bench          measure each snapshot on the simulated bench (sim/bench.h: the sim DMD, 1 ms\n"
+            "                       per mask, trigger, camera with scicapd's simulator defaults: 6000 counts per\n"
+            "                       unit, dark level 200, read noise 2 counts) instead of the effects' model; the\n"
+            "                       measurement is (counts - dark) / counts per unit; grey scenes only\n"
             "  -j, --threads N      OpenMP threads (default: all cores)\n"
             "  -q, --quiet          no progress on stderr\n"
             "  -h, --help           this text\n"
             "\n"
             "Scale: truth and masks in [0, 1]; the measurement is the plain forward model sum(mask * frame) when no\n"
             "effects are listed (peak 1). Exit status: 0 ok, 1 failure, 2 usage.\n");
+}
+
+/* The scene as the options ask: a file or the embedded default, seed and snapshot count overridden. */
+static int load_scene(int use_default, const char *path, int have_seed, unsigned long long seed, int have_k,
+                      unsigned long long snapshots, sim_scene **out, sci_error *err)
+{
+    int rc = use_default ? sim_default_scene_load(out, err) : sim_scene_load_file(out, path, err);
+    if (rc == 0 && have_seed)
+        rc = sim_scene_set_seed(*out, seed, err);
+    if (rc == 0 && have_k)
+        rc = sim_scene_set_snapshots(*out, (int)snapshots, err);
+    if (rc < 0) {
+        sim_scene_free(*out);
+        *out = NULL;
+    }
+    return rc;
+}
+
+#define BENCH_PATTERN_US 1000
+
+/* Replace each problem's measurement by the simulated bench's snapshot of its masks (scene handed over). */
+static int measure_on_bench(sim_scene *scene, sci_problem **p, int k, json_t *record, sci_error *err)
+{
+    sim_bench_options o = sim_bench_options_default();
+    o.scene = scene;
+    o.seed = scene->seed;
+    sim_bench *b = NULL;
+    dmd *dev = NULL;
+    int rc = sim_bench_open(&b, &o, err);
+    if (rc < 0)
+        return rc;
+    dmd_config dc = dmd_config_default();
+    sim_bench_size(b, &dc.width, &dc.height); /* a mirror per pixel */
+    if ((rc = dmd_open(&dev, &dmd_sim_ops, &dc, err)) == 0) {
+        sim_bench_attach_dmd(b, dev);
+        for (int j = 0; rc == 0 && j < k; j++) {
+            sim_bench_set_snapshot(b, j);
+            rc = sim_bench_snapshot(b, p[j]->mask, BENCH_PATTERN_US, p[j]->meas, err);
+        }
+        sim_bench_attach_dmd(b, NULL);
+    }
+    if (rc == 0) {
+        const sim_bench_options *u = sim_bench_get_options(b);
+        json_object_set_new(record, "bench",
+                            json_pack("{s:s, s:i, s:f, s:f, s:f, s:I, s:s}", "model", "sim/bench.h", "pattern_us",
+                                      BENCH_PATTERN_US, "counts_per_unit", u->counts_per_unit, "dark_counts",
+                                      u->dark_counts, "read_noise_counts", u->read_noise, "dmd_latency_ns",
+                                      (json_int_t)u->dmd_latency_ns, "measurement",
+                                      "(counts - dark_counts) / counts_per_unit; effects on the measurement not "
+                                      "applied"));
+    }
+    dmd_close(dev);
+    sim_bench_close(b);
+    return rc;
 }
 
 typedef struct progress {
@@ -68,13 +128,14 @@ static int parse_ull(const char *s, const char *opt, unsigned long long hi, unsi
 int cli_sim_main(int argc, char **argv)
 {
     const char *out = NULL;
-    int force = 0, quiet = 0, use_default = 0, have_seed = 0, have_k = 0;
+    int force = 0, quiet = 0, use_default = 0, have_seed = 0, have_k = 0, bench = 0;
     unsigned long long seed = 0, snapshots = 0, threads = 0;
-    enum { OPT_SEED = 256, OPT_SNAPSHOTS, OPT_DEFAULT };
+    enum { OPT_SEED = 256, OPT_SNAPSHOTS, OPT_DEFAULT, OPT_BENCH };
     static const struct option longopts[] = {
         {"output", required_argument, 0, 'o'},     {"force", no_argument, 0, 'f'},
         {"seed", required_argument, 0, OPT_SEED},  {"snapshots", required_argument, 0, OPT_SNAPSHOTS},
         {"default", no_argument, 0, OPT_DEFAULT},  {"threads", required_argument, 0, 'j'},
+        {"bench", no_argument, 0, OPT_BENCH},
         {"quiet", no_argument, 0, 'q'},            {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0},
     };
@@ -86,6 +147,7 @@ int cli_sim_main(int argc, char **argv)
         case 'f': force = 1; break;
         case 'q': quiet = 1; break;
         case OPT_DEFAULT: use_default = 1; break;
+        case OPT_BENCH: bench = 1; break;
         case OPT_SEED:
             if (parse_ull(optarg, "--seed", 1ULL << 53, &seed) < 0)
                 return 2;
@@ -127,13 +189,15 @@ int cli_sim_main(int argc, char **argv)
     json_t *record = NULL;
     sci_cube **rgb = NULL;
     int k = 0, status = 1;
-    int rc = use_default ? sim_default_scene_load(&sc, &err) : sim_scene_load_file(&sc, argv[optind], &err);
+    const char *path = use_default ? NULL : argv[optind];
+    int rc = load_scene(use_default, path, have_seed, seed, have_k, snapshots, &sc, &err);
     if (rc < 0)
         goto fail;
-    if (have_seed && (rc = sim_scene_set_seed(sc, seed, &err)) < 0)
+    if (bench && sc->cfa) {
+        rc = sci_error_set(&err, -EINVAL, "--bench: the simulated bench's camera is grey; %s has a colour sensor",
+                           sc->name);
         goto fail;
-    if (have_k && (rc = sim_scene_set_snapshots(sc, (int)snapshots, &err)) < 0)
-        goto fail;
+    }
     if (!force && access(out, F_OK) == 0) {
         rc = sci_error_set(&err, -EEXIST, "%s exists (use --force to replace it)", out);
         goto fail;
@@ -149,6 +213,12 @@ int cli_sim_main(int argc, char **argv)
     if (!(record = sim_record_new(sc, &st))) {
         rc = sci_error_set(&err, -ENOMEM, "out of memory for the scene record");
         goto fail;
+    }
+    if (bench) {
+        sim_scene *again; /* the bench keeps a scene of its own */
+        if ((rc = load_scene(use_default, path, have_seed, seed, have_k, snapshots, &again, &err)) < 0 ||
+            (rc = measure_on_bench(again, p, k, record, &err)) < 0)
+            goto fail;
     }
     if (sc->cfa) {
         /* Colour: the problems are the raw mosaic; the RGB truth goes beside them for colour PSNR and previews. */
@@ -174,7 +244,8 @@ int cli_sim_main(int argc, char **argv)
             printf(" %s", sim_fx_name(e));
             any = 1;
         }
-    printf("%s (%.2f s)\n", any ? "" : " none", sci_clock_s(pr.t0_ns, sci_clock_mono_ns()));
+    printf("%s%s (%.2f s)\n", any ? "" : " none", bench ? ", measured on the simulated bench" : "",
+           sci_clock_s(pr.t0_ns, sci_clock_mono_ns()));
     status = 0;
     goto done;
 fail:

@@ -1,4 +1,4 @@
-/* daemon/acquire.c — the acquisition thread (see the header). */
+/* daemon/acquire.c — the acquisition thread and what its jobs share (see the header). */
 #include "daemon/acquire.h"
 
 #include <errno.h>
@@ -11,19 +11,12 @@
 #include <time.h>
 
 #include "base/clock.h"
+#include "daemon/calibrate.h"
+#include "daemon/capture.h"
 #include "daemon/devices.h"
 #include "drivers/capture.h"
 
-#define MAX_CALIB 64
 #define RETRY_NS 5000000000LL /* a device that failed to open is tried again this often while idle */
-
-typedef struct calib_entry {
-    char key[96];            /* "dark" or "masks-<set>" */
-    sci_cube *data;          /* dark counts, or measured masks */
-    json_t *record;
-    double counts_per_unit;  /* masks: white level */
-    int missing;             /* looked up in the store and not found */
-} calib_entry;
 
 typedef struct mask_cache {
     char name[SCICAPD_NAME_MAX];
@@ -34,8 +27,8 @@ typedef struct mask_cache {
 struct scicapd_acquire {
     scicapd_acquire_env env;
     scicapd_devices *dev;       /* DMD, camera, trigger per backend (daemon/devices.h) */
+    scicapd_calibs *calibs;     /* the calibrations in use (daemon/calibrate.h) */
     /* per job, from dev (valid while the thread runs a job: devices change only between jobs) */
-    scicapd_simbench *sim;      /* NULL on a real camera */
     dmd *dmd;
     camera *cam;
     trigger *trig;
@@ -57,12 +50,10 @@ struct scicapd_acquire {
     int timing_valid;
     mask_cache masks[8];
     int nmasks;
-    calib_entry calib[MAX_CALIB];
-    int ncalib;
     capture_snapshot *snap;
 };
 
-static void post(scicapd_acquire *a, const scicapd_job *j, const char *name, json_t *data)
+void scicapd_acquire_post(scicapd_acquire *a, const scicapd_job *j, const char *name, json_t *data)
 {
     scicapd_mailbox_post(a->env.mailbox, j ? j->client : 0, j ? (long)j->owner : SCICAPD_OWNER_ALL, 1,
                          scicapd_event(name, j ? j->id : 0, j ? j->request_id : NULL, data));
@@ -75,14 +66,8 @@ static void on_dmd_event(void *user, dmd_event ev, const char *serial)
     a->timing_valid = 0;
     sci_log_write(a->env.log, SCI_LOG_WARNING, "DMD %s %s", serial ? serial : "",
                   ev == DMD_EVENT_CONNECTED ? "connected" : "disconnected");
-    post(a, NULL, ev == DMD_EVENT_CONNECTED ? "device.connected" : "device.disconnected",
-         json_pack("{s:s, s:s}", "device", "dmd", "serial", serial ? serial : ""));
-}
-
-static void set_scale(scicapd_acquire *a, const scicapd_config *cfg)
-{
-    a->counts_per_unit = cfg->counts_per_unit > 0 ? cfg->counts_per_unit : cfg->sim_counts_per_unit;
-    a->dark_level = cfg->sim_dark_counts;
+    scicapd_acquire_post(a, NULL, ev == DMD_EVENT_CONNECTED ? "device.connected" : "device.disconnected",
+                         json_pack("{s:s, s:s}", "device", "dmd", "serial", serial ? serial : ""));
 }
 
 int scicapd_acquire_new(scicapd_acquire **out, const scicapd_config *cfg, const scicapd_acquire_env *env,
@@ -95,13 +80,13 @@ int scicapd_acquire_new(scicapd_acquire **out, const scicapd_config *cfg, const 
     }
     a->env = *env;
     pthread_mutex_init(&a->mu, NULL);
+    int rc = scicapd_calibs_new(&a->calibs, env->store, env->log, err);
     /* device errors do not fail the start: they are kept, shown and retried (daemon/devices.h) */
-    int rc = scicapd_devices_open(&a->dev, cfg, env->log, on_dmd_event, a, err);
-    if (rc < 0) {
+    if (rc < 0 || (rc = scicapd_devices_open(&a->dev, cfg, env->log, on_dmd_event, a, err)) < 0) {
         scicapd_acquire_free(a);
         return rc;
     }
-    set_scale(a, cfg);
+    scicapd_config_uncalibrated_scale(cfg, &a->counts_per_unit, &a->dark_level);
     atomic_store(&a->heartbeat_ns, sci_clock_mono_ns());
     *out = a;
     return 0;
@@ -128,10 +113,7 @@ void scicapd_acquire_free(scicapd_acquire *a)
     scicapd_config_free(a->pending);
     for (int i = 0; i < a->nmasks; i++)
         sci_cube_free(a->masks[i].masks);
-    for (int i = 0; i < a->ncalib; i++) {
-        sci_cube_free(a->calib[i].data);
-        json_decref(a->calib[i].record);
-    }
+    scicapd_calibs_free(a->calibs);
     capture_snapshot_release(a->snap);
     free(a->snap);
     pthread_mutex_destroy(&a->mu);
@@ -159,7 +141,7 @@ int scicapd_acquire_fault(scicapd_acquire *a, const scicapd_simulate_args *f, sc
     return rc;
 }
 
-static void apply_faults(scicapd_acquire *a)
+void scicapd_acquire_apply_faults(scicapd_acquire *a)
 {
     scicapd_simulate_args f[16];
     pthread_mutex_lock(&a->mu);
@@ -176,9 +158,32 @@ static void apply_faults(scicapd_acquire *a)
     }
 }
 
-/* ---- mask sets and calibrations ---- */
+const scicapd_acquire_env *scicapd_acquire_env_get(const scicapd_acquire *a) { return &a->env; }
+scicapd_devices *scicapd_acquire_devices(scicapd_acquire *a) { return a->dev; }
+scicapd_calibs *scicapd_acquire_calibs(scicapd_acquire *a) { return a->calibs; }
+int scicapd_acquire_canceled(scicapd_acquire *a, const scicapd_job *j)
+{
+    return atomic_load(&j->cancel) || atomic_load(&a->stop);
+}
+void scicapd_acquire_beat(scicapd_acquire *a) { atomic_store(&a->heartbeat_ns, sci_clock_mono_ns()); }
 
-static const sci_cube *mask_set_cube(scicapd_acquire *a, const scicapd_mask_set *ms, sci_error *err)
+void scicapd_acquire_injected_delay(scicapd_acquire *a)
+{
+    if (a->delay_ms > 0) {
+        struct timespec ts = {a->delay_ms / 1000, (a->delay_ms % 1000) * 1000000L};
+        nanosleep(&ts, NULL);
+    }
+}
+
+void scicapd_acquire_scale(const scicapd_acquire *a, double *counts_per_unit, double *dark_level)
+{
+    *counts_per_unit = a->counts_per_unit;
+    *dark_level = a->dark_level;
+}
+
+/* ---- mask sets ---- */
+
+const sci_cube *scicapd_acquire_mask_set(scicapd_acquire *a, const scicapd_mask_set *ms, sci_error *err)
 {
     for (int i = 0; i < a->nmasks; i++)
         if (memcmp(&a->masks[i].def, ms, sizeof *ms) == 0)
@@ -203,52 +208,9 @@ static const sci_cube *mask_set_cube(scicapd_acquire *a, const scicapd_mask_set 
     return m;
 }
 
-static calib_entry *calib_get(scicapd_acquire *a, const char *key)
-{
-    for (int i = 0; i < a->ncalib; i++)
-        if (strcmp(a->calib[i].key, key) == 0)
-            return a->calib[i].missing ? NULL : &a->calib[i];
-    if (a->ncalib == MAX_CALIB)
-        return NULL;
-    calib_entry *c = &a->calib[a->ncalib++];
-    memset(c, 0, sizeof *c);
-    snprintf(c->key, sizeof c->key, "%s", key);
-    sci_error err = {0};
-    if (scicapd_store_load_calibration(a->env.store, key, &c->data, &c->record, &err) < 0) {
-        if (err.code != -ENOENT)
-            sci_log_write(a->env.log, SCI_LOG_WARNING, "calibration %s: %s", key, err.msg);
-        c->missing = 1;
-        return NULL;
-    }
-    c->counts_per_unit = json_number_value(json_object_get(c->record, "counts_per_unit"));
-    return c;
-}
-
-static void calib_set(scicapd_acquire *a, const char *key, sci_cube *data, json_t *record, double cpu)
-{
-    calib_entry *c = NULL;
-    for (int i = 0; i < a->ncalib; i++)
-        if (strcmp(a->calib[i].key, key) == 0)
-            c = &a->calib[i];
-    if (!c && a->ncalib < MAX_CALIB)
-        c = &a->calib[a->ncalib++];
-    if (!c) {
-        sci_cube_free(data);
-        json_decref(record);
-        return;
-    }
-    sci_cube_free(c->data);
-    json_decref(c->record);
-    snprintf(c->key, sizeof c->key, "%s", key);
-    c->data = data;
-    c->record = record;
-    c->counts_per_unit = cpu;
-    c->missing = 0;
-}
-
 /* ---- one snapshot ---- */
 
-static int program(scicapd_acquire *a, const char *set_name, const sci_cube *masks, uint32_t pattern_us,
+int scicapd_acquire_program(scicapd_acquire *a, const char *set_name, const sci_cube *masks, uint32_t pattern_us,
                    uint32_t dark_us, enum sync_mode mode, sci_error *err)
 {
     int rc;
@@ -276,8 +238,7 @@ static int program(scicapd_acquire *a, const char *set_name, const sci_cube *mas
     return 0;
 }
 
-/* Arm, take one frame, stop. The frame is in a->snap. */
-static int take(scicapd_acquire *a, int n, uint32_t exposure_us, enum sync_mode mode, int dark, sci_error *err)
+int scicapd_acquire_take(scicapd_acquire *a, int n, uint32_t exposure_us, enum sync_mode mode, int dark, sci_error *err)
 {
     int rc;
     uint32_t e = exposure_us;
@@ -320,345 +281,21 @@ out:
     return rc;
 }
 
-static int frame_cube(const camera_frame *f, sci_cube **out, sci_error *err)
+void scicapd_acquire_forget_upload(scicapd_acquire *a) { a->uploaded[0] = '\0'; }
+const capture_snapshot *scicapd_acquire_shot(const scicapd_acquire *a) { return a->snap; }
+const dmd_identity *scicapd_acquire_dmd_identity(const scicapd_acquire *a) { return &a->dmd_id; }
+camera *scicapd_acquire_camera(scicapd_acquire *a) { return a->cam; }
+
+int scicapd_acquire_bind(scicapd_acquire *a, enum sync_mode mode, sci_error *err)
 {
-    int rc = sci_cube_new(out, (int)f->width, (int)f->height, 1, err);
+    int rc = scicapd_devices_prepare(a->dev, mode, err);
     if (rc < 0)
-        return rc;
-    size_t np = (size_t)f->width * f->height;
-    for (size_t i = 0; i < np; i++)
-        (*out)->data[i] = (float)f->data[i];
-    return 0;
-}
-
-static json_t *time_json(int64_t mono_ns)
-{
-    int64_t real = sci_clock_real_ns();
-    time_t s = (time_t)(real / 1000000000);
-    struct tm tm;
-    char iso[64];
-    gmtime_r(&s, &tm);
-    strftime(iso, sizeof iso, "%Y-%m-%dT%H:%M:%SZ", &tm);
-    return json_pack("{s:I, s:I, s:s}", "mono_ns", (json_int_t)mono_ns, "realtime_ns", (json_int_t)real, "utc", iso);
-}
-
-/* Build the stored snapshot from a->snap. */
-static int package(scicapd_acquire *a, scicapd_job *j, int index, const sci_cube *ideal, scicapd_snapshot **out,
-                   sci_error *err)
-{
-    const scicapd_capture_args *c = &j->capture;
-    scicapd_snapshot *s = calloc(1, sizeof *s);
-    sci_problem *p = calloc(1, sizeof *p);
-    int rc = -ENOMEM;
-    if (!s || !p) {
-        free(s);
-        free(p);
-        return sci_error_set(err, -ENOMEM, "acquire: out of memory");
-    }
-    s->problem = p;
-    s->index = index;
-    if ((rc = frame_cube(&a->snap->frame, &s->raw, err)) < 0 || (rc = sci_cube_clone(&s->dmd_masks, ideal, err)) < 0 ||
-        (rc = sci_cube_new(&p->meas, s->raw->w, s->raw->h, 1, err)) < 0)
-        goto fail;
-    char key[96];
-    snprintf(key, sizeof key, "masks-%s", c->mask_set.name);
-    calib_entry *dark = calib_get(a, "dark"), *cm = calib_get(a, key);
-    if (dark && !sci_cube_same_shape(dark->data, s->raw))
-        dark = NULL;
-    if (cm && (cm->data->w != s->raw->w || cm->data->h != s->raw->h || cm->data->n != ideal->n))
-        cm = NULL; /* measured masks are at the sensor's size, one per mask of the set */
-    double cpu = cm && cm->counts_per_unit > 0 ? cm->counts_per_unit : a->counts_per_unit;
-    double level = dark ? 0 : a->dark_level;
-    for (size_t i = 0; i < sci_cube_count(s->raw); i++)
-        p->meas->data[i] = (float)((s->raw->data[i] - (dark ? dark->data->data[i] : level)) / cpu);
-    if (cm)
-        rc = sci_cube_clone(&p->mask, cm->data, err);
-    else if (ideal->w == s->raw->w && ideal->h == s->raw->h)
-        rc = sci_cube_clone(&p->mask, ideal, err); /* a mirror per pixel: the DMD masks are the sensor's */
-    else if (a->sim)
-        rc = scicapd_simbench_crop(a->sim, ideal, &p->mask, err); /* the simulated camera's window */
-    else
-        rc = sci_error_set(err, SCI_ESHAPE, "the DMD is %d×%d and the camera %d×%d: without measured masks the "
-                           "snapshot cannot be reconstructed; run `scicap calibrate --masks --mask-set %s` first",
-                           ideal->w, ideal->h, s->raw->w, s->raw->h, c->mask_set.name);
-    if (rc < 0)
-        goto fail;
-    if (dark && (rc = sci_cube_clone(&s->dark, dark->data, err)) < 0)
-        goto fail;
-    if (a->sim) {
-        const sci_cube *t = scicapd_simbench_truth(a->sim, ideal->n, err);
-        if (!t || (rc = sci_cube_clone(&p->truth, t, err)) < 0) {
-            rc = err ? err->code : -EIO;
-            goto fail;
-        }
-    }
-    p->peak = 1;
-    json_t *cal = json_object();
-    if (dark)
-        json_object_set(cal, "dark", dark->record);
-    if (cm)
-        json_object_set(cal, "masks", cm->record);
-    json_object_set_new(cal, "kind", json_string(cm ? "measured-masks" : dark ? "dark-only" : "none"));
-    s->calibration = cal;
-    s->broken = a->snap->report.broken;
-    json_t *m = capture_snapshot_meta_json(a->snap);
-    if (!m) {
-        rc = sci_error_set(err, -ENOMEM, "acquire: out of memory");
-        goto fail;
-    }
-    json_object_set_new(m, "format", json_string("scicap-capture"));
-    json_object_set_new(m, "version", json_integer(1));
-    json_object_set_new(m, "software", json_pack("{s:s, s:s}", "name", "scicapd", "version", SCICAP_VERSION));
-    json_object_set_new(m, "job", json_integer((json_int_t)j->id));
-    json_object_set_new(m, "snapshot_index", json_integer(index));
-    json_object_set_new(m, "settings",
-                        json_pack("{s:s, s:i, s:I, s:I, s:I, s:s, s:f, s:f, s:s}", "mask_set", c->mask_set.name,
-                                  "mask_count", ideal->n, "pattern_us", (json_int_t)c->pattern_us, "dark_us",
-                                  (json_int_t)c->dark_us, "exposure_us", (json_int_t)camera_exposure_us(a->cam),
-                                  "sync_mode", sync_mode_name(c->sync), "counts_per_unit", cpu, "dark_level_counts",
-                                  level, "calibration", cm ? "measured-masks" : dark ? "dark-only" : "none"));
-    json_object_set_new(m, "devices", scicapd_acquire_devices_json(a));
-    json_t *ct = scicapd_devices_camera_trigger_json(a->dev);
-    if (ct)
-        json_object_set_new(m, "camera_trigger", ct); /* the software triggers the host sent, up to this frame */
-    json_object_set_new(m, "requested", json_pack("{s:I}", "mono_ns", (json_int_t)j->submitted_ns));
-    json_object_set_new(m, "captured", time_json(a->snap->start_ns));
-    if (a->sim)
-        json_object_set_new(m, "simulated", json_pack("{s:s}", "scene", scicapd_simbench_scene_name(a->sim)));
-    s->meta = m;
-    *out = s;
-    return 0;
-fail:
-    scicapd_snapshot_free(a->env.jobs, s);
-    return rc;
-}
-
-/* The devices for this job: all three open, or an error naming the one that is not. */
-static int bind_devices(scicapd_acquire *a, enum sync_mode mode, sci_error *err)
-{
-    int rc = scicapd_devices_ready(a->dev, err);
-    if (rc < 0 || (rc = scicapd_devices_check_sync(a->dev, mode, err)) < 0)
-        return rc;
-    a->sim = scicapd_devices_sim(a->dev);
-    /* the simulated camera free-runs in camera master, waits for its trigger otherwise */
-    if (a->sim && (rc = scicapd_simbench_set_free_run(a->sim, mode == SYNC_MODE_CAMERA_MASTER, err)) < 0)
         return rc;
     a->dmd = scicapd_devices_dmd(a->dev);
     a->cam = scicapd_devices_camera(a->dev);
     a->trig = scicapd_devices_trigger(a->dev);
     a->dmd_id = *scicapd_devices_dmd_identity(a->dev);
     return 0;
-}
-
-static void run_capture(scicapd_acquire *a, scicapd_job *j)
-{
-    const scicapd_capture_args *c = &j->capture;
-    sci_error err = {0};
-    scicapd_job_set_state(a->env.jobs, j, SCICAPD_JOB_RUNNING, NULL);
-    scicapd_job_set_progress(a->env.jobs, j, 0, c->count, NAN);
-    post(a, j, "capture.started", json_pack("{s:s, s:i}", "mask_set", c->mask_set.name, "count", c->count));
-    int rc = bind_devices(a, c->sync, &err);
-    const sci_cube *masks = rc < 0 ? NULL : mask_set_cube(a, &c->mask_set, &err);
-    rc = masks ? 0 : err.code;
-    uint32_t exposure = c->exposure_us ? c->exposure_us
-                                       : scicapd_auto_exposure_us(c->mask_set.frames, c->pattern_us, c->dark_us,
-                                                                  (uint32_t)(scicapd_devices_dmd_latency_ns(a->dev) / 1000));
-    int i;
-    for (i = 0; rc == 0 && i < c->count; i++) {
-        if (atomic_load(&j->cancel) || atomic_load(&a->stop))
-            break;
-        apply_faults(a);
-        scicapd_span sp;
-        scicapd_span_begin(&sp);
-        if ((rc = program(a, c->mask_set.name, masks, c->pattern_us, c->dark_us, c->sync, &err)) < 0 ||
-            (rc = take(a, masks->n, exposure, c->sync, 0, &err)) < 0)
-            break;
-        atomic_store(&a->heartbeat_ns, sci_clock_mono_ns());
-        char flags[160];
-        sync_flags_describe(a->snap->report.flags, flags, sizeof flags);
-        scicapd_snapshot *s = NULL;
-        if ((rc = package(a, j, i, masks, &s, &err)) < 0)
-            break;
-        scicapd_timing_add(a->env.timing, SCICAPD_STAGE_ACQUIRE, &sp);
-        post(a, j, "capture.snapshot", json_pack("{s:i, s:i, s:b, s:s, s:i, s:I}", "index", i, "count", c->count,
-                                                 "broken", s->broken, "sync", flags, "inside", a->snap->report.inside,
-                                                 "offset_ns", (json_int_t)a->snap->report.offset_ns));
-        if (s->broken)
-            sci_log_write(a->env.log, SCI_LOG_WARNING, "job %llu snapshot %d: broken sync (%s), stored flagged",
-                          (unsigned long long)j->id, i, flags);
-        if (a->delay_ms > 0) {
-            struct timespec ts = {a->delay_ms / 1000, (a->delay_ms % 1000) * 1000000L};
-            nanosleep(&ts, NULL);
-        }
-        s->job = scicapd_jobs_find(a->env.jobs, j->id); /* the writer's reference */
-        /* ids in acquisition order, whichever writer stores it; durable before the snapshot goes on */
-        if ((rc = scicapd_store_reserve_id(a->env.store, s, &err)) < 0) {
-            scicapd_snapshot_free(a->env.jobs, s);
-            break;
-        }
-        if (scicapd_queue_push_wait(a->env.out, s) < 0) {
-            scicapd_snapshot_free(a->env.jobs, s);
-            rc = sci_error_set(&err, -EPIPE, "storage writer stopped");
-            break;
-        }
-    }
-    if (rc < 0) {
-        sci_log_write(a->env.log, SCI_LOG_ERR, "job %llu: snapshot %d: %s", (unsigned long long)j->id, i, err.msg);
-        scicapd_job_set_state(a->env.jobs, j, SCICAPD_JOB_FAILED, err.msg);
-        post(a, j, "capture.failed", json_pack("{s:i, s:s, s:s}", "index", i, "error", err.msg, "code",
-                                               sci_strerror(rc)));
-    } else if (i < c->count) {
-        scicapd_job_set_state(a->env.jobs, j, SCICAPD_JOB_CANCELED, "canceled");
-        post(a, j, "capture.canceled", json_pack("{s:i}", "acquired", i));
-    }
-}
-
-static int average(scicapd_acquire *a, int n, int frames, uint32_t exposure, int dark, sci_cube *acc,
-                   sci_error *err)
-{
-    memset(acc->data, 0, sci_cube_count(acc) * sizeof(float));
-    for (int f = 0; f < frames; f++) {
-        int rc = take(a, n, exposure, SYNC_MODE_HOST_MASTER, dark, err);
-        if (rc < 0)
-            return rc;
-        const camera_frame *fr = &a->snap->frame;
-        if ((int)fr->width != acc->w || (int)fr->height != acc->h)
-            return sci_error_set(err, SCI_ESHAPE, "calibration: frame %ux%u, expected %dx%d", fr->width, fr->height,
-                                 acc->w, acc->h);
-        for (size_t i = 0; i < sci_cube_frame_size(acc); i++)
-            acc->data[i] += (float)fr->data[i] / (float)frames;
-    }
-    return 0;
-}
-
-static void run_calibrate(scicapd_acquire *a, scicapd_job *j)
-{
-    const scicapd_calib_args *c = &j->calib;
-    sci_error err = {0};
-    scicapd_job_set_state(a->env.jobs, j, SCICAPD_JOB_RUNNING, NULL);
-    int rc = 0;
-    json_t *rec = NULL;
-    sci_cube *acc = NULL, *result = NULL;
-    camera_format cf;
-    uint32_t lat = (uint32_t)(scicapd_devices_dmd_latency_ns(a->dev) / 1000);
-    const sci_cube *masks = NULL;
-    if ((rc = bind_devices(a, SYNC_MODE_HOST_MASTER, &err)) < 0)
-        goto done;
-    camera_format_get(a->cam, &cf);
-    if (!(masks = mask_set_cube(a, &c->mask_set, &err))) {
-        rc = err.code;
-        goto done;
-    }
-    if ((rc = sci_cube_new(&acc, (int)cf.width, (int)cf.height, 1, &err)) < 0)
-        goto done;
-    if (c->kind == SCICAPD_CALIB_DARK) {
-        /* The DMD is not started: no light reaches the sensor through the masks. */
-        uint32_t e = c->exposure_us ? c->exposure_us
-                                    : scicapd_auto_exposure_us(masks->n, c->pattern_us, c->dark_us, lat);
-        post(a, j, "calibrate.started", json_pack("{s:s, s:i}", "kind", "dark", "frames", c->average));
-        if ((rc = program(a, c->mask_set.name, masks, c->pattern_us, c->dark_us, SYNC_MODE_HOST_MASTER, &err)) < 0 ||
-            (rc = average(a, masks->n, c->average, e, 1, acc, &err)) < 0)
-            goto done;
-        double mean = 0;
-        for (size_t i = 0; i < sci_cube_count(acc); i++)
-            mean += acc->data[i];
-        mean /= (double)sci_cube_count(acc);
-        rec = json_pack("{s:s, s:I, s:i, s:f, s:o}", "kind", "dark", "exposure_us", (json_int_t)e, "frames",
-                        c->average, "mean_counts", mean, "time", time_json(sci_clock_mono_ns()));
-        json_t *final = NULL;
-        if ((rc = scicapd_store_write_calibration(a->env.store, "dark", acc, rec, &final, &err)) < 0)
-            goto done;
-        calib_set(a, "dark", acc, json_incref(final), 0);
-        acc = NULL;
-        json_decref(rec);
-        rec = final;
-    } else {
-        /* Each mask alone on a white target; white level from the pixels the mask opens. */
-        calib_entry *dark = calib_get(a, "dark");
-        if (dark && !sci_cube_same_shape(dark->data, acc))
-            dark = NULL;
-        if ((rc = sci_cube_new(&result, acc->w, acc->h, masks->n, &err)) < 0)
-            goto done;
-        uint32_t e = c->exposure_us ? c->exposure_us : scicapd_auto_exposure_us(1, c->pattern_us, c->dark_us, lat);
-        post(a, j, "calibrate.started", json_pack("{s:s, s:s, s:i}", "kind", "masks", "mask_set", c->mask_set.name,
-                                                   "masks", masks->n));
-        sci_cube *one;
-        if ((rc = sci_cube_new(&one, masks->w, masks->h, 1, &err)) < 0)
-            goto done;
-        if (a->sim)
-            scicapd_simbench_set_target(a->sim, SCICAPD_TARGET_WHITE);
-        else
-            sci_log_write(a->env.log, SCI_LOG_NOTICE, "calibrate masks: expecting a uniform white target in front "
-                          "of the camera");
-        double white_sum = 0, white_n = 0;
-        for (int k = 0; k < masks->n && rc == 0; k++) {
-            if (atomic_load(&j->cancel) || atomic_load(&a->stop)) {
-                rc = SCI_ECANCELED;
-                sci_error_set(&err, rc, "canceled");
-                break;
-            }
-            memcpy(one->data, sci_cube_frame(masks, k), sci_cube_frame_size(one) * sizeof(float));
-            a->uploaded[0] = '\0';
-            char tag[80];
-            snprintf(tag, sizeof tag, ".calib-%d", k);
-            if ((rc = program(a, tag, one, c->pattern_us, c->dark_us, SYNC_MODE_HOST_MASTER, &err)) < 0 ||
-                (rc = average(a, 1, c->average, e, 0, acc, &err)) < 0)
-                break;
-            float *dst = sci_cube_frame(result, k);
-            /* the white level from the pixels the mask opens: known when a mirror maps to a pixel, else the
-             * pixels brighter than half the brightest */
-            const float *ideal = masks->w == acc->w && masks->h == acc->h ? sci_cube_frame(masks, k) : NULL;
-            float hi = 0;
-            for (size_t i = 0; i < sci_cube_frame_size(acc); i++) {
-                dst[i] = acc->data[i] - (dark ? dark->data->data[i] : (float)a->dark_level);
-                hi = dst[i] > hi ? dst[i] : hi;
-            }
-            for (size_t i = 0; i < sci_cube_frame_size(acc); i++)
-                if (ideal ? ideal[i] >= 0.5f : dst[i] > 0.5f * hi) {
-                    white_sum += dst[i];
-                    white_n++;
-                }
-            scicapd_job_set_progress(a->env.jobs, j, k + 1, masks->n, NAN);
-            post(a, j, "calibrate.progress", json_pack("{s:i, s:i}", "mask", k + 1, "of", masks->n));
-        }
-        if (a->sim)
-            scicapd_simbench_set_target(a->sim, SCICAPD_TARGET_SCENE);
-        a->uploaded[0] = '\0';
-        sci_cube_free(one);
-        if (rc < 0)
-            goto done;
-        double white = white_n > 0 ? white_sum / white_n : 0;
-        if (!(white > 1)) {
-            rc = sci_error_set(&err, SCI_EDEVICE, "calibration: no light on the white target (mean %.1f counts)", white);
-            goto done;
-        }
-        for (size_t i = 0; i < sci_cube_count(result); i++)
-            result->data[i] /= (float)white;
-        rec = json_pack("{s:s, s:s, s:i, s:f, s:I, s:i, s:b, s:o}", "kind", "masks", "mask_set", c->mask_set.name,
-                        "masks", masks->n, "counts_per_unit", white, "exposure_us", (json_int_t)e, "frames",
-                        c->average, "dark_subtracted", dark != NULL, "time", time_json(sci_clock_mono_ns()));
-        char key[96];
-        snprintf(key, sizeof key, "masks-%s", c->mask_set.name);
-        json_t *final = NULL;
-        if ((rc = scicapd_store_write_calibration(a->env.store, key, result, rec, &final, &err)) < 0)
-            goto done;
-        calib_set(a, key, result, json_incref(final), white);
-        result = NULL;
-        json_decref(rec);
-        rec = final;
-    }
-done:
-    if (rc < 0) {
-        scicapd_job_set_state(a->env.jobs, j, rc == SCI_ECANCELED ? SCICAPD_JOB_CANCELED : SCICAPD_JOB_FAILED, err.msg);
-        post(a, j, rc == SCI_ECANCELED ? "calibrate.canceled" : "calibrate.failed", json_pack("{s:s}", "error", err.msg));
-    } else {
-        scicapd_job_add_output(a->env.jobs, j, json_string_value(json_object_get(rec, "id")));
-        scicapd_job_set_state(a->env.jobs, j, SCICAPD_JOB_DONE, NULL);
-        post(a, j, "calibrate.done", json_incref(rec));
-    }
-    json_decref(rec);
-    sci_cube_free(acc);
-    sci_cube_free(result);
 }
 
 static void forget_masks(scicapd_acquire *a)
@@ -680,7 +317,7 @@ static void apply_config(scicapd_acquire *a)
     if (!c)
         return;
     sci_error err = {0};
-    set_scale(a, c);
+    scicapd_config_uncalibrated_scale(c, &a->counts_per_unit, &a->dark_level);
     if (scicapd_devices_differ(a->dev, c)) {
         forget_masks(a); /* the DMD may have another size */
         if (scicapd_devices_reconfigure(a->dev, c, &err) < 0)
@@ -697,7 +334,7 @@ static void *acquire_main(void *arg)
     while (!atomic_load(&a->stop)) {
         atomic_store(&a->heartbeat_ns, sci_clock_mono_ns());
         scicapd_job *j = scicapd_queue_pop(a->env.in, 200000000);
-        apply_faults(a);
+        scicapd_acquire_apply_faults(a);
         apply_config(a);
         sci_error err = {0};
         scicapd_devices_retry(a->dev, RETRY_NS, 0);
@@ -708,12 +345,12 @@ static void *acquire_main(void *arg)
             continue;
         if (atomic_load(&j->cancel)) {
             scicapd_job_set_state(a->env.jobs, j, SCICAPD_JOB_CANCELED, "canceled before it started");
-            post(a, j, j->kind == SCICAPD_JOB_CAPTURE ? "capture.canceled" : "calibrate.canceled",
-                 json_pack("{s:i}", "acquired", 0));
+            scicapd_acquire_post(a, j, j->kind == SCICAPD_JOB_CAPTURE ? "capture.canceled" : "calibrate.canceled",
+                                 json_pack("{s:i}", "acquired", 0));
         } else if (j->kind == SCICAPD_JOB_CAPTURE) {
-            run_capture(a, j);
+            scicapd_capture_run(a, j);
         } else {
-            run_calibrate(a, j);
+            scicapd_calibrate_run(a, j);
         }
         scicapd_job_unref(a->env.jobs, j);
     }
@@ -721,8 +358,8 @@ static void *acquire_main(void *arg)
     scicapd_job *j;
     while ((j = scicapd_queue_take(a->env.in))) {
         scicapd_job_set_state(a->env.jobs, j, SCICAPD_JOB_CANCELED, "daemon stopping");
-        post(a, j, j->kind == SCICAPD_JOB_CAPTURE ? "capture.canceled" : "calibrate.canceled",
-             json_pack("{s:s}", "reason", "daemon stopping"));
+        scicapd_acquire_post(a, j, j->kind == SCICAPD_JOB_CAPTURE ? "capture.canceled" : "calibrate.canceled",
+                             json_pack("{s:s}", "reason", "daemon stopping"));
         scicapd_job_unref(a->env.jobs, j);
     }
     return NULL;

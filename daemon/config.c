@@ -1,7 +1,6 @@
 /* daemon/config.c — parse and validate scicapd.json (docs/config.md). */
 #include "daemon/config.h"
 
-#include <assert.h>
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -208,10 +207,22 @@ static int parse_storage(const sci_json_doc *doc, const json_t *o, scicapd_confi
     return 0;
 }
 
+/* Is `name` a backend of this kind? The device tables say (daemon/backends.h), so a new backend needs no edit
+ * here. */
+static int backend_known(const char *kind, const char *name, sci_error *err)
+{
+    scicapd_camera_backend cb;
+    if (strcmp(kind, "camera") == 0)
+        return scicapd_camera_backend_get(name, &cb, err);
+    if (strcmp(kind, "trigger") == 0)
+        return scicapd_trigger_backend_find(name, err) ? 0 : SCI_ECONFIG;
+    return scicapd_dmd_backend_find(name, err) ? 0 : SCI_ECONFIG;
+}
+
 /* "dmd": {"backend": "sim", "serial": "..."}; "camera"/"trigger": {"backend": ..., backend keys...}. `strip`
  * names the daemon's own keys, left out of the copy in *rest. */
-static int parse_device(const sci_json_doc *doc, const json_t *dev, const char *name, const char *const *backends,
-                        char *backend, size_t bn, const char *const *strip, json_t **rest, sci_error *err)
+static int parse_device(const sci_json_doc *doc, const json_t *dev, const char *name, char *backend, size_t bn,
+                        const char *const *strip, json_t **rest, sci_error *err)
 {
     const json_t *o;
     char path[64];
@@ -219,11 +230,16 @@ static int parse_device(const sci_json_doc *doc, const json_t *dev, const char *
     if (rc < 0 || !o)
         return rc;
     snprintf(path, sizeof path, "devices.%s", name);
-    int idx = 0;
-    if ((rc = sci_json_get_enum(doc, o, path, "backend", 0, backends, &idx, err)) < 0)
+    char value[16];
+    if ((rc = get_str(doc, o, path, "backend", value, sizeof value, err)) < 0)
         return rc;
-    if (rc == 0)
-        snprintf(backend, bn, "%s", backends[idx]);
+    if (rc == 0) {
+        sci_error e2 = {0};
+        char bpath[80];
+        if (backend_known(name, value, &e2) < 0)
+            return sci_json_fail(doc, err, sci_json_path_key(bpath, sizeof bpath, path, "backend"), "%s", e2.msg);
+        snprintf(backend, bn, "%s", value);
+    }
     if (rest) {
         json_t *copy = json_deep_copy(o);
         if (!copy)
@@ -263,7 +279,7 @@ static int parse_dmd(const sci_json_doc *doc, const json_t *d, scicapd_config *c
         (rc = get_u32(doc, d, "devices.dmd", "trigger_delay_us", 0, 65535, &c->dmd_trigger_delay_us, err)) < 0 ||
         (rc = sci_json_get_bool(doc, d, "devices.dmd", "trigger_falling", 0, &c->dmd_trigger_falling, err)) < 0)
         return rc;
-    if (strcmp(c->dmd_backend, "dlpc900") != 0) {
+    if (!scicapd_dmd_is_dlpc900(scicapd_dmd_backend_find(c->dmd_backend, NULL))) {
         static const char *const hw[] = {"emulator", "timeout_ms", "trigger_delay_us", "trigger_falling", NULL};
         for (int i = 0; hw[i]; i++)
             if (json_object_get(d, hw[i])) {
@@ -278,16 +294,13 @@ static int parse_dmd(const sci_json_doc *doc, const json_t *d, scicapd_config *c
 static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
     static const char *const keys[] = {"dmd", "camera", "trigger", NULL};
-    static const char *const dmds[] = {"sim", "dlpc900", NULL};
-    static const char *const cams[] = {"sim", "v4l2", "aravis", NULL};
-    static const char *const trigs[] = {"sim", "gpiod", NULL};
     static const char *const cam_strip[] = {"readout_us", "usb", NULL};
     int rc;
     if ((rc = sci_json_check_keys(doc, o, "devices", keys, err)) < 0 ||
-        (rc = parse_device(doc, o, "dmd", dmds, c->dmd_backend, sizeof c->dmd_backend, NULL, NULL, err)) < 0 ||
-        (rc = parse_device(doc, o, "camera", cams, c->camera_backend, sizeof c->camera_backend, cam_strip,
+        (rc = parse_device(doc, o, "dmd", c->dmd_backend, sizeof c->dmd_backend, NULL, NULL, err)) < 0 ||
+        (rc = parse_device(doc, o, "camera", c->camera_backend, sizeof c->camera_backend, cam_strip,
                            &c->camera_json, err)) < 0 ||
-        (rc = parse_device(doc, o, "trigger", trigs, c->trigger_backend, sizeof c->trigger_backend, NULL,
+        (rc = parse_device(doc, o, "trigger", c->trigger_backend, sizeof c->trigger_backend, NULL,
                            &c->trigger_json, err)) < 0)
         return rc;
     const json_t *d = json_object_get(o, "dmd");
@@ -314,25 +327,29 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
             return sci_json_fail(doc, err, "devices.camera.usb", "needs \"vendor\" and \"product\" (lsusb: "
                                  "ID vendor:product)");
     }
-    int sim_cam = strcmp(c->camera_backend, "sim") == 0, sim_trig = strcmp(c->trigger_backend, "sim") == 0;
-    if (sim_cam && c->camera_json && json_object_size(c->camera_json) > 0)
-        return sci_json_fail(doc, err, "devices.camera", "the sim camera takes no settings besides \"backend\" "
-                             "(its size is the scene's)");
-    if (sim_trig && c->trigger_json && json_object_size(c->trigger_json) > 0)
-        return sci_json_fail(doc, err, "devices.trigger", "the sim trigger takes no settings besides \"backend\"");
-    /* The drivers' own validation, at load time, so that a typo is found by --check-config and by reload. */
+    /* names checked by parse_device against the same tables */
+    scicapd_camera_backend b;
     sci_error e2 = {0};
+    if (scicapd_camera_backend_get(c->camera_backend, &b, &e2) < 0)
+        return sci_json_fail(doc, err, "devices.camera.backend", "%s", e2.msg);
+    const trigger_ops *tops = scicapd_trigger_backend_find(c->trigger_backend, NULL);
+    int sim_cam = b.simulated, sim_trig = scicapd_trigger_simulated(tops);
+    if (!b.parse && c->camera_json && json_object_size(c->camera_json) > 0)
+        return sci_json_fail(doc, err, "devices.camera", "the %s camera takes no settings besides \"backend\" "
+                             "(its size is the scene's)", c->camera_backend);
+    if (sim_trig && c->trigger_json && json_object_size(c->trigger_json) > 0)
+        return sci_json_fail(doc, err, "devices.trigger", "the %s trigger takes no settings besides \"backend\"",
+                             c->trigger_backend);
+    /* The drivers' own validation, at load time, so that a typo is found by --check-config and by reload. */
     int fake_cam = 0;
-    if (!sim_cam) {
-        const scicapd_camera_backend *b = scicapd_camera_backend_find(c->camera_backend);
+    if (b.parse) {
         camera_config cc;
         scicapd_camera_opts opts;
-        assert(b); /* cams[] above lists only backends of the table, and "sim" */
-        if (b->parse(c->camera_json, "devices.camera", &cc, &opts, &e2) < 0)
+        if (b.parse(c->camera_json, "devices.camera", &cc, &opts, &e2) < 0)
             return driver_fail(doc, &e2, err);
         if (!cc.device && !cc.card && !cc.bus_info)
-            return sci_json_fail(doc, err, "devices.camera", "%s", b->locate_hint);
-        fake_cam = scicapd_camera_is_fake(b, &cc);
+            return sci_json_fail(doc, err, "devices.camera", "%s", b.locate_hint);
+        fake_cam = scicapd_camera_is_fake(&b, &cc);
     }
     /* Aravis's fake camera lives inside the daemon's process: no wire reaches it either way, so besides a gpiod
      * trigger it may run with the simulated one (tests and dry runs of the GenICam path, docs/config.md). */
@@ -594,6 +611,12 @@ const scicapd_mask_set *scicapd_config_mask_set(const scicapd_config *c, const c
 
 /* json_equal says 0 when either side is NULL: two absent objects are equal here. */
 static int same_json(const json_t *a, const json_t *b) { return (!a && !b) || (a && b && json_equal(a, b)); }
+
+void scicapd_config_uncalibrated_scale(const scicapd_config *c, double *counts_per_unit, double *dark_level)
+{
+    *counts_per_unit = c->counts_per_unit > 0 ? c->counts_per_unit : c->sim_counts_per_unit;
+    *dark_level = c->sim_dark_counts;
+}
 
 int scicapd_config_devices_differ(const scicapd_config *a, const scicapd_config *b)
 {

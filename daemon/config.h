@@ -118,6 +118,9 @@ void scicapd_config_free(scicapd_config *c);
 int scicapd_config_copy(scicapd_config **out, const scicapd_config *c, sci_error *err);
 /* 1 when a and b open the devices differently (devices or simulator sections). */
 int scicapd_config_devices_differ(const scicapd_config *a, const scicapd_config *b);
+/* The scale of a snapshot without measured masks: capture.counts_per_unit, or the simulator's when that is 0;
+ * the dark level without a dark calibration: the simulator's dark_counts (counts). */
+void scicapd_config_uncalibrated_scale(const scicapd_config *c, double *counts_per_unit, double *dark_level);
 
 /* The mask set called `name`, or NULL. Borrowed from c. */
 const scicapd_mask_set *scicapd_config_mask_set(const scicapd_config *c, const char *name);

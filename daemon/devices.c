@@ -11,27 +11,20 @@
 #include "base/clock.h"
 #include "daemon/backends.h"
 #include "daemon/swtrigger.h"
-#include "drivers/backends.h"
 #include "drivers/dlpc900_emu.h"
-#include "sim/camera_sim.h"
+#include "sim/bench.h"
 #include "sim/dmd_sim.h"
 #include "sim/trigger_sim.h"
 
 enum { DEV_DMD, DEV_CAMERA, DEV_TRIGGER, DEV_COUNT };
 static const char *const dev_names[DEV_COUNT] = {"dmd", "camera", "trigger"};
 
-/* The backends of the layer above drivers: the daemon knows both layers, so it adds sim/'s simulated devices to
- * the drivers' own when it looks a configured backend up by name (drivers/backends.h). */
-static const dmd_ops *const sim_dmds[] = {&dmd_sim_ops, NULL};
-static const camera_ops *const sim_cameras[] = {&camera_sim_ops, NULL};
-static const trigger_ops *const sim_triggers[] = {&trigger_sim_ops, NULL};
-
 struct scicapd_devices {
     scicapd_config *cfg;       /* owned copy: what the devices were opened with */
     const sci_log *log;
     dmd_event_fn on_event;
     void *user;
-    scicapd_simbench *sim;     /* camera and trigger simulated */
+    sim_bench *sim;            /* camera and trigger simulated (sim/bench.h) */
     dlpc900_emu *emu;          /* dlpc900 backend with "emulator": true */
     dmd *dmd_dev;              /* NULL while closed */
     int dmd_open;
@@ -148,14 +141,16 @@ static void open_camera(scicapd_devices *d)
 {
     const scicapd_config *c = d->cfg;
     sci_error e = {0};
-    const scicapd_camera_backend *b = scicapd_camera_backend_find(c->camera_backend);
+    scicapd_camera_backend b;
     camera_config cc;
     scicapd_camera_opts opts; /* cc.backend_options points here: alive until camera_open returns */
     camera *cam = NULL;
-    int rc = b ? b->parse(c->camera_json, "devices.camera", &cc, &opts, &e)
-               : sci_error_set(&e, -ENOTSUP, "no camera backend \"%s\"", c->camera_backend);
+    int rc = scicapd_camera_backend_get(c->camera_backend, &b, &e);
     if (rc == 0)
-        rc = camera_open(&cam, b->ops, &cc, &e);
+        rc = b.parse ? b.parse(c->camera_json, "devices.camera", &cc, &opts, &e)
+                     : sci_error_set(&e, -ENOTSUP, "the %s camera is opened with the simulated bench", b.ops->name);
+    if (rc == 0)
+        rc = camera_open(&cam, b.ops, &cc, &e);
     if (rc == 0 && (rc = camera_start(cam, &e)) < 0)
         camera_close(cam);
     if (rc < 0) {
@@ -163,7 +158,7 @@ static void open_camera(scicapd_devices *d)
         return;
     }
     d->cam = cam;
-    d->cam_software = scicapd_camera_software_trigger(b, &opts);
+    d->cam_software = scicapd_camera_software_trigger(&b, &opts);
     d->error[DEV_CAMERA][0] = '\0';
 }
 
@@ -181,10 +176,10 @@ static void open_trigger(scicapd_devices *d)
         set_error(d, DEV_TRIGGER, "waiting for the camera (its software trigger is fired with each pulse)");
         return;
     }
-    const trigger_ops *ops = trigger_backend_find(c->trigger_backend, sim_triggers, &e);
+    const trigger_ops *ops = scicapd_trigger_backend_find(c->trigger_backend, &e);
     if (!ops)
         rc = e.code;
-    else if (ops == &trigger_sim_ops) {
+    else if (scicapd_trigger_simulated(ops)) {
         trigger_sim_options so = {.seed = c->sim_seed};
         trigger_config tc = trigger_config_default();
         tc.chip = "sim-gpiochip";
@@ -221,9 +216,17 @@ static void open_bench(scicapd_devices *d)
 {
     const scicapd_config *c = d->cfg;
     sci_error e = {0};
-    /* the simulated camera comes with the simulated bench (daemon/simbench.h), which also opens the trigger */
-    if (camera_backend_find(c->camera_backend, sim_cameras, NULL) == &camera_sim_ops) {
-        if (!d->sim && scicapd_simbench_open(&d->sim, c, &e) < 0) {
+    /* the simulated camera comes with the simulated bench (sim/bench.h), which also opens the trigger */
+    scicapd_camera_backend cb;
+    if (scicapd_camera_backend_get(c->camera_backend, &cb, NULL) == 0 && cb.simulated) {
+        sim_bench_options o = sim_bench_options_default();
+        o.scene_path = c->scene_path;
+        o.seed = c->sim_seed;
+        o.dmd_latency_ns = (int64_t)c->sim_dmd_latency_us * 1000;
+        o.counts_per_unit = c->sim_counts_per_unit;
+        o.dark_counts = c->sim_dark_counts;
+        o.read_noise = c->sim_read_noise;
+        if (!d->sim && sim_bench_open(&d->sim, &o, &e) < 0) {
             set_error(d, DEV_CAMERA, e.msg);
             set_error(d, DEV_TRIGGER, e.msg);
             return;
@@ -252,7 +255,7 @@ static void open_dmd(scicapd_devices *d)
     dc.log = d->log;
     int w = 0, h = 0, rc;
     if (d->sim)
-        scicapd_simbench_size(d->sim, &w, &h); /* emulated mirrors: one per simulated pixel */
+        sim_bench_size(d->sim, &w, &h); /* emulated mirrors: one per simulated pixel */
     else if (d->cam) {
         /* an emulated DMD before a real camera: one mirror per pixel too, so that the masks it shows are the
          * reconstruction's (a real DMD has its own size: calibrate then, docs/config.md) */
@@ -261,14 +264,14 @@ static void open_dmd(scicapd_devices *d)
         w = (int)cf.width;
         h = (int)cf.height;
     }
-    const dmd_ops *ops = dmd_backend_find(c->dmd_backend, sim_dmds, &e);
+    const dmd_ops *ops = scicapd_dmd_backend_find(c->dmd_backend, &e);
     if (!ops) {
         set_error(d, DEV_DMD, e.msg);
         return;
     }
     dc.width = w; /* the simulated DMD's size; a DLPC900 has its own */
     dc.height = h;
-    if (ops == &dmd_dlpc900_ops && c->dmd_emulator) {
+    if (scicapd_dmd_is_dlpc900(ops) && c->dmd_emulator) {
         if (!d->emu) {
             dlpc900_emu_config ec = {.serial = dc.serial ? dc.serial : "EMU0001", .width = w, .height = h};
             if ((rc = dlpc900_emu_new(&d->emu, &ec, &e)) < 0) {
@@ -303,14 +306,14 @@ static void open_missing(scicapd_devices *d)
     open_bench(d);
     open_dmd(d);
     if (d->sim)
-        scicapd_simbench_attach_dmd(d->sim, d->dmd_open ? d->dmd_dev : NULL);
+        sim_bench_attach_dmd(d->sim, d->dmd_open ? d->dmd_dev : NULL);
     publish(d);
 }
 
 static void close_all(scicapd_devices *d)
 {
     if (d->sim)
-        scicapd_simbench_attach_dmd(d->sim, NULL);
+        sim_bench_attach_dmd(d->sim, NULL);
     dmd_close(d->dmd_dev);
     d->dmd_dev = NULL;
     d->dmd_open = 0;
@@ -319,7 +322,7 @@ static void close_all(scicapd_devices *d)
     atomic_store(&d->can_bench_faults, 0);
     dlpc900_emu_free(d->emu); /* after the dmd that talks to it */
     d->emu = NULL;
-    scicapd_simbench_close(d->sim);
+    sim_bench_close(d->sim);
     d->sim = NULL;
     trigger_close(d->trig); /* first: a software-trigger wrapper borrows the camera */
     d->trig = NULL;
@@ -412,25 +415,24 @@ dmd *scicapd_devices_dmd(scicapd_devices *d)
 {
     if (!d->dmd_open)
         return NULL;
-    return d->sim ? scicapd_simbench_dmd(d->sim) : d->dmd_dev;
+    return d->sim ? sim_bench_dmd(d->sim) : d->dmd_dev;
 }
 
-camera *scicapd_devices_camera(scicapd_devices *d) { return d->sim ? scicapd_simbench_camera(d->sim) : d->cam; }
-trigger *scicapd_devices_trigger(scicapd_devices *d) { return d->sim ? scicapd_simbench_trigger(d->sim) : d->trig; }
+camera *scicapd_devices_camera(scicapd_devices *d) { return d->sim ? sim_bench_camera(d->sim) : d->cam; }
+trigger *scicapd_devices_trigger(scicapd_devices *d) { return d->sim ? sim_bench_trigger(d->sim) : d->trig; }
 const dmd_identity *scicapd_devices_dmd_identity(const scicapd_devices *d) { return d->dmd_open ? &d->dmd_id : NULL; }
-scicapd_simbench *scicapd_devices_sim(scicapd_devices *d) { return d->sim; }
 
 int64_t scicapd_devices_dmd_latency_ns(const scicapd_devices *d)
 {
     if (d->sim)
-        return scicapd_simbench_dmd_latency_ns(d->sim);
+        return sim_bench_get_options(d->sim)->dmd_latency_ns;
     /* a real bench: the DLPC900 starts its first pattern TRIG_IN_1 delay after the edge */
     return (int64_t)(d->cfg->dmd_trigger_delay_us ? d->cfg->dmd_trigger_delay_us : 105) * 1000;
 }
 
 int64_t scicapd_devices_readout_ns(const scicapd_devices *d)
 {
-    return d->sim ? 100000 : (int64_t)d->cfg->camera_readout_us * 1000;
+    return d->sim ? sim_bench_get_options(d->sim)->readout_ns : (int64_t)d->cfg->camera_readout_us * 1000;
 }
 
 void scicapd_devices_timing_defaults(const scicapd_devices *d, dmd_timing *t)
@@ -464,17 +466,17 @@ void scicapd_devices_fault_apply(scicapd_devices *d, scicapd_fault fault, long n
         break;
     case SCICAPD_FAULT_CAMERA_STALL:
         if (d->sim)
-            scicapd_simbench_camera_stall(d->sim, (int)n);
+            sim_bench_camera_stall(d->sim, (int)n);
         break;
     case SCICAPD_FAULT_TRIGGER_MISS:
         if (d->sim)
-            scicapd_simbench_trigger_miss(d->sim, (int)n);
+            sim_bench_trigger_miss(d->sim, (int)n);
         break;
     default: break;
     }
 }
 
-int scicapd_devices_check_sync(const scicapd_devices *d, enum sync_mode mode, sci_error *err)
+static int check_sync(const scicapd_devices *d, enum sync_mode mode, sci_error *err)
 {
     if (!d->cam_software || mode == SYNC_MODE_HOST_MASTER)
         return 0;
@@ -486,12 +488,54 @@ int scicapd_devices_check_sync(const scicapd_devices *d, enum sync_mode mode, sc
                          d->cfg->camera_backend, sync_mode_name(mode));
 }
 
-json_t *scicapd_devices_camera_trigger_json(scicapd_devices *d)
+int scicapd_devices_prepare(scicapd_devices *d, enum sync_mode mode, sci_error *err)
+{
+    int rc = scicapd_devices_ready(d, err);
+    if (rc < 0 || (rc = check_sync(d, mode, err)) < 0)
+        return rc;
+    /* the simulated camera free-runs in camera master, waits for its trigger otherwise */
+    return d->sim ? sim_bench_set_free_run(d->sim, mode == SYNC_MODE_CAMERA_MASTER, err) : 0;
+}
+
+int scicapd_devices_camera_masks(const scicapd_devices *d, const sci_cube *dmd_masks, int cam_w, int cam_h,
+                                 sci_cube **out, sci_error *err)
+{
+    int rc;
+    if (dmd_masks->w == cam_w && dmd_masks->h == cam_h)
+        rc = sci_cube_clone(out, dmd_masks, err); /* a mirror per pixel: the DMD masks are the sensor's */
+    else if (d->sim)
+        rc = sim_bench_crop(d->sim, dmd_masks, out, err); /* the simulated camera's window */
+    else
+        return 0;
+    return rc < 0 ? rc : 1;
+}
+
+int scicapd_devices_truth(scicapd_devices *d, int n, sci_cube **out, sci_error *err)
+{
+    if (!d->sim)
+        return 0;
+    const sci_cube *t = sim_bench_truth(d->sim, n, err);
+    int rc = t ? sci_cube_clone(out, t, err) : err ? err->code : -EIO;
+    return rc < 0 ? rc : 1;
+}
+
+void scicapd_devices_white_target(scicapd_devices *d, int on)
+{
+    if (d->sim)
+        sim_bench_set_target(d->sim, on ? SIM_BENCH_TARGET_WHITE : SIM_BENCH_TARGET_SCENE);
+    else if (on)
+        sci_log_write(d->log, SCI_LOG_NOTICE, "calibrate masks: expecting a uniform white target in front of the "
+                      "camera");
+}
+
+void scicapd_devices_snapshot_meta(scicapd_devices *d, json_t *meta)
 {
     uint64_t sent;
     int64_t last;
-    if (!d->cam_software || scicapd_swtrigger_stats(d->trig, &sent, &last) < 0)
-        return NULL;
-    return json_pack("{s:s, s:I, s:I}", "mode", "software", "sent", (json_int_t)sent, "last_sent_ns",
-                     (json_int_t)last);
+    /* the software triggers the host sent, up to this frame */
+    if (d->cam_software && scicapd_swtrigger_stats(d->trig, &sent, &last) == 0)
+        json_object_set_new(meta, "camera_trigger", json_pack("{s:s, s:I, s:I}", "mode", "software", "sent",
+                                                              (json_int_t)sent, "last_sent_ns", (json_int_t)last));
+    if (d->sim)
+        json_object_set_new(meta, "simulated", json_pack("{s:s}", "scene", sim_bench_scene_name(d->sim)));
 }

@@ -2,8 +2,9 @@
  *
  *     DMD      "sim" (sim/dmd_sim.h: the dlpc900 backend on an emulator) or "dlpc900" (drivers/dmd_dlpc900.c over
  *              USB HID, or over the in-process DLPC900 emulator with "emulator": true)
- *     camera   "sim" (the simulated bench, daemon/simbench.h), or a backend of daemon/backends.h's table: "v4l2"
- *              (drivers/camera_v4l2.h), "aravis" (drivers/camera_aravis.h, GenICam)
+ *     camera   "sim" (the simulated bench, sim/bench.h), or a backend of drivers/backends.h: "v4l2"
+ *              (drivers/camera_v4l2.h), "aravis" (drivers/camera_aravis.h, GenICam); daemon/backends.h says how
+ *              each one's settings are parsed
  *     trigger  "sim" (the simulated bench) or "gpiod" (drivers/trigger_gpiod.h)
  *
  * Camera and trigger are both simulated or both real (the config refuses a mix: the trigger output starts the
@@ -19,6 +20,10 @@
  * `devices` and `status`, and returned by scicapd_devices_ready to every capture; scicapd_devices_retry re-opens
  * what is missing (every few seconds while idle, and at once after a reload).
  *
+ * This file is the one place of the daemon that knows a simulated device from a real one: what the acquisition
+ * needs of the difference it asks here in the devices' terms (scicapd_devices_prepare for a sync mode, the masks
+ * the camera sees, the scene's truth when one is known, the white target, per-snapshot metadata).
+ *
  * Threads: everything except scicapd_devices_json, _dmd_connected and _fault_supported is called by the
  * acquisition thread only (the device handles are not thread-safe). Those three are safe from any thread.
  */
@@ -28,10 +33,10 @@
 #include <jansson.h>
 #include <stdint.h>
 
+#include "base/cube.h"
 #include "base/log.h"
 #include "daemon/config.h"
 #include "daemon/protocol.h"
-#include "daemon/simbench.h"
 #include "drivers/camera.h"
 #include "drivers/dmd.h"
 #include "drivers/trigger.h"
@@ -53,14 +58,17 @@ int scicapd_devices_reconfigure(scicapd_devices *d, const scicapd_config *cfg, s
 int scicapd_devices_retry(scicapd_devices *d, int64_t period_ns, int force);
 /* 0 when all three are open; else -ENODEV with "camera (v4l2): not connected: <its open error>". */
 int scicapd_devices_ready(scicapd_devices *d, sci_error *err);
+/* Before a job in sync mode `mode`: the devices are ready (as above), the camera can be run that way (-EINVAL
+ * with the reason otherwise: a camera in software-trigger mode needs host master), and set up for it (the
+ * simulated camera free-runs in camera master and waits for its trigger otherwise: its handle may change, so
+ * take scicapd_devices_camera afterwards). */
+int scicapd_devices_prepare(scicapd_devices *d, enum sync_mode mode, sci_error *err);
 
 /* Handles (borrowed, valid until the next reconfigure/retry/close; NULL when that device is not open). */
 dmd *scicapd_devices_dmd(scicapd_devices *d);
 camera *scicapd_devices_camera(scicapd_devices *d);
 trigger *scicapd_devices_trigger(scicapd_devices *d);
 const dmd_identity *scicapd_devices_dmd_identity(const scicapd_devices *d);
-/* The simulated bench when camera and trigger are simulated (truth, white target, faults), else NULL. */
-scicapd_simbench *scicapd_devices_sim(scicapd_devices *d);
 /* Start (pulse or DMD start) to first pattern: the simulator's latency, or the DLPC900 trigger delay. */
 int64_t scicapd_devices_dmd_latency_ns(const scicapd_devices *d);
 /* Exposure end to frame timestamp, for the exposure window when no strobe is wired. */
@@ -68,12 +76,22 @@ int64_t scicapd_devices_readout_ns(const scicapd_devices *d);
 /* What the DMD needs in its dmd_timing beyond exposure/dark/trigger mode (DLPC900 trigger-in settings). */
 void scicapd_devices_timing_defaults(const scicapd_devices *d, dmd_timing *t);
 
-/* 0 when the camera can be started the way `mode` needs; -EINVAL with the reason otherwise (a camera in software
- * trigger mode needs host master). */
-int scicapd_devices_check_sync(const scicapd_devices *d, enum sync_mode mode, sci_error *err);
-/* For meta.json: {"mode": "software", "sent": software triggers sent since the camera opened, "last_sent_ns":
- * CLOCK_MONOTONIC just before the last one}, or NULL when the camera is not in software-trigger mode. New ref. */
-json_t *scicapd_devices_camera_trigger_json(scicapd_devices *d);
+/* The masks as the camera sees them, from masks at the DMD's size, when the optics are known without a
+ * calibration: a mirror per pixel (same size: a copy), or the simulated bench's central window. 1 with *out a new
+ * cube at the camera's size (cam_w × cam_h); 0 when they are not known (measured masks are needed: scicap
+ * calibrate --masks); negative on error. */
+int scicapd_devices_camera_masks(const scicapd_devices *d, const sci_cube *dmd_masks, int cam_w, int cam_h,
+                                 sci_cube **out, sci_error *err);
+/* The frames the camera sees for n masks, when the devices know them (the simulated bench's scene: frames
+ * 0..n-1): 1 with *out a new cube; 0 when unknown (a real scene); negative on error. */
+int scicapd_devices_truth(scicapd_devices *d, int n, sci_cube **out, sci_error *err);
+/* A uniform white target in front of the camera (on) or the scene again (off), for mask calibration: the simulated
+ * bench switches its target; a real bench cannot, so the log asks the operator for one. */
+void scicapd_devices_white_target(scicapd_devices *d, int on);
+/* What the devices add to a snapshot's meta.json: "camera_trigger" ({"mode": "software", "sent": software
+ * triggers sent since the camera opened, "last_sent_ns": CLOCK_MONOTONIC just before the last one}) when the
+ * camera is in software-trigger mode, "simulated" ({"scene": name}) on the simulated bench. */
+void scicapd_devices_snapshot_meta(scicapd_devices *d, json_t *meta);
 
 /* Mark the DMD (dis)connected after a hotplug event (the acquisition thread's event callback calls this). */
 void scicapd_devices_dmd_event(scicapd_devices *d, dmd_event ev);

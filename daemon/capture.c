@@ -1,0 +1,79 @@
+/* daemon/capture.c — capture jobs (see the header). */
+#include "daemon/capture.h"
+
+#include <errno.h>
+#include <math.h>
+
+#include "daemon/package.h"
+
+void scicapd_capture_run(scicapd_acquire *a, scicapd_job *j)
+{
+    const scicapd_capture_args *c = &j->capture;
+    const scicapd_acquire_env *env = scicapd_acquire_env_get(a);
+    scicapd_devices *dev = scicapd_acquire_devices(a);
+    sci_error err = {0};
+    scicapd_job_set_state(env->jobs, j, SCICAPD_JOB_RUNNING, NULL);
+    scicapd_job_set_progress(env->jobs, j, 0, c->count, NAN);
+    scicapd_acquire_post(a, j, "capture.started",
+                         json_pack("{s:s, s:i}", "mask_set", c->mask_set.name, "count", c->count));
+    int rc = scicapd_acquire_bind(a, c->sync, &err);
+    const sci_cube *masks = rc < 0 ? NULL : scicapd_acquire_mask_set(a, &c->mask_set, &err);
+    rc = masks ? 0 : err.code;
+    uint32_t lat_us = (uint32_t)(scicapd_devices_dmd_latency_ns(dev) / 1000);
+    uint32_t exposure = c->exposure_us ? c->exposure_us
+                                       : scicapd_auto_exposure_us(c->mask_set.frames, c->pattern_us, c->dark_us,
+                                                                  lat_us);
+    int i;
+    for (i = 0; rc == 0 && i < c->count; i++) {
+        if (scicapd_acquire_canceled(a, j))
+            break;
+        scicapd_acquire_apply_faults(a);
+        scicapd_span sp;
+        scicapd_span_begin(&sp);
+        if ((rc = scicapd_acquire_program(a, c->mask_set.name, masks, c->pattern_us, c->dark_us, c->sync,
+                                          &err)) < 0 ||
+            (rc = scicapd_acquire_take(a, masks->n, exposure, c->sync, 0, &err)) < 0)
+            break;
+        scicapd_acquire_beat(a);
+        const capture_snapshot *shot = scicapd_acquire_shot(a);
+        char flags[160];
+        sync_flags_describe(shot->report.flags, flags, sizeof flags);
+        scicapd_package_in pin = {.jobs = env->jobs, .job = j, .index = i, .dmd_masks = masks, .shot = shot,
+                                  .calibs = scicapd_acquire_calibs(a), .dev = dev,
+                                  .exposure_us = camera_exposure_us(scicapd_acquire_camera(a))};
+        scicapd_acquire_scale(a, &pin.counts_per_unit, &pin.dark_level);
+        scicapd_snapshot *s = NULL;
+        if ((rc = scicapd_package_snapshot(&pin, &s, &err)) < 0)
+            break;
+        scicapd_timing_add(env->timing, SCICAPD_STAGE_ACQUIRE, &sp);
+        scicapd_acquire_post(a, j, "capture.snapshot",
+                             json_pack("{s:i, s:i, s:b, s:s, s:i, s:I}", "index", i, "count", c->count, "broken",
+                                       s->broken, "sync", flags, "inside", shot->report.inside, "offset_ns",
+                                       (json_int_t)shot->report.offset_ns));
+        if (s->broken)
+            sci_log_write(env->log, SCI_LOG_WARNING, "job %llu snapshot %d: broken sync (%s), stored flagged",
+                          (unsigned long long)j->id, i, flags);
+        scicapd_acquire_injected_delay(a);
+        s->job = scicapd_jobs_find(env->jobs, j->id); /* the writer's reference */
+        /* ids in acquisition order, whichever writer stores it; durable before the snapshot goes on */
+        if ((rc = scicapd_store_reserve_id(env->store, s, &err)) < 0) {
+            scicapd_snapshot_free(env->jobs, s);
+            break;
+        }
+        if (scicapd_queue_push_wait(env->out, s) < 0) {
+            scicapd_snapshot_free(env->jobs, s);
+            rc = sci_error_set(&err, -EPIPE, "storage writer stopped");
+            break;
+        }
+    }
+    if (rc < 0) {
+        sci_log_write(env->log, SCI_LOG_ERR, "job %llu: snapshot %d: %s", (unsigned long long)j->id, i, err.msg);
+        scicapd_job_set_state(env->jobs, j, SCICAPD_JOB_FAILED, err.msg);
+        scicapd_acquire_post(a, j, "capture.failed", json_pack("{s:i, s:s, s:s}", "index", i, "error", err.msg,
+                                                                "code", sci_strerror(rc)));
+    } else if (i < c->count) {
+        scicapd_job_set_state(env->jobs, j, SCICAPD_JOB_CANCELED, "canceled");
+        scicapd_acquire_post(a, j, "capture.canceled", json_pack("{s:i}", "acquired", i));
+    }
+}
+
