@@ -1,15 +1,21 @@
 /* bench_daemon — scicapd on the simulated bench (256×256×8, embedded default scene), through its socket, for
  * three storage settings (storage.writers 1 and 2 with previews, 2 without previews; reconstruction workers and
  * threads at their defaults):
- *   1. sustained snapshots per second for a 40-snapshot capture job, without and with a GAP-TV reconstruction
- *      (fast preset) requested for every snapshot; with reconstructions, the rate at which they were done too,
- *      and how many were refused (none since the reconstruction queue applies back-pressure: the bench fails
+ *   1. sustained snapshots per second for a 40-snapshot capture job (--snapshots), without and with a GAP-TV
+ *      reconstruction (fast preset) requested for every snapshot; with reconstructions, the rate at which they
+ *      were done too, and how many were refused (none since the reconstruction queue applies back-pressure: the bench fails
  *      if any is);
  *   2. daemon CPU time per snapshot over each run (/proc/<pid>/stat utime + stime), and where it went: the
  *      daemon's per-stage counters (status "timing": acquire, store, recon read/solve/write, thread CPU);
  *   3. latency from the capture request to the "capture.stored" event, one snapshot at a time (median, p90).
  * Storage is a temporary folder with fsync on (the service default). Writes bench/results/daemon.md with the
- * 1-minute load average beside every figure (2 shared cores: figures are noisy). */
+ * 1-minute load average beside every figure (2 shared cores: figures are noisy).
+ *
+ *     bench_daemon [--snapshots N] [--latency N] [--settings writers1,writers2,writers2-nopreviews] [--out FILE|-]
+ *
+ * --snapshots: per sustained run (default 40); --latency: single captures timed (default 15); --settings: which
+ * columns (default all three); --out: the table's file (default bench/results/daemon.md, "-": none) — a quick
+ * check that the bench works (--snapshots 4 --latency 3 --out -) then records nothing. */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -211,8 +217,13 @@ typedef struct setting {
     int ok;
 } setting;
 
+typedef struct bench_opts {
+    int snapshots, latency;
+    const char *settings, *out;
+} bench_opts;
+
 /* One daemon with `config` (JSON text), measured; 0 on success. */
-static int measure(setting *st, const char *bin, const char *dir)
+static int measure(setting *st, const char *bin, const char *dir, const bench_opts *bo)
 {
     char sockp[200], store[200], run[200], logp[200], cfgp[200];
     snprintf(sockp, sizeof sockp, "%s/control.sock", dir);
@@ -255,12 +266,13 @@ static int measure(setting *st, const char *bin, const char *dir)
     /* warm-up: masks generated and uploaded, scene rendered */
     send_req("{\"v\":1,\"id\":0,\"cmd\":\"capture\"}\n");
     json_decref(wait_event("capture.done", 60000));
-    if (sustained(pid, 40, 0, &st->plain) < 0 || sustained(pid, 40, 1, &st->with_recon) < 0) {
+    if (sustained(pid, bo->snapshots, 0, &st->plain) < 0 || sustained(pid, bo->snapshots, 1, &st->with_recon) < 0) {
         fprintf(stderr, "bench_daemon: run failed (log %s)\n", logp);
         goto out;
     }
-    enum { LAT = 15 };
-    double lat[LAT];
+    enum { LAT_MAX = 100 };
+    const int LAT = bo->latency;
+    double lat[LAT_MAX];
     for (int i = 0; i < LAT; i++) {
         int64_t t0 = sci_clock_mono_ns();
         send_req("{\"v\":1,\"id\":2,\"cmd\":\"capture\"}\n");
@@ -299,8 +311,32 @@ out:
     return status;
 }
 
-int main(void)
+static int usage(void)
 {
+    fprintf(stderr, "usage: bench_daemon [--snapshots N (2..1000)] [--latency N (1..100)] [--settings a,b,...] "
+                    "[--out FILE|-]\n");
+    return 2;
+}
+
+int main(int argc, char **argv)
+{
+    bench_opts bo = {.snapshots = 40, .latency = 15, .settings = NULL, .out = "bench/results/daemon.md"};
+    for (int i = 1; i < argc; i++) {
+        if (i + 1 >= argc)
+            return usage();
+        if (!strcmp(argv[i], "--snapshots"))
+            bo.snapshots = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--latency"))
+            bo.latency = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--settings"))
+            bo.settings = argv[++i];
+        else if (!strcmp(argv[i], "--out"))
+            bo.out = argv[++i];
+        else
+            return usage();
+    }
+    if (bo.snapshots < 2 || bo.snapshots > 1000 || bo.latency < 1 || bo.latency > 100)
+        return usage();
     char self[1024], bin[1200], dir[] = "/tmp/scicap-bench-daemon-XXXXXX";
     ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
     if (n <= 0)
@@ -318,8 +354,25 @@ int main(void)
     double load0[3] = {0}, load1[3] = {0};
     getloadavg(load0, 3);
     int status = 0;
+    int chosen[NS], nchosen = 0;
+    for (int i = 0; i < NS; i++) {
+        chosen[i] = 1;
+        if (bo.settings) { /* a name in the comma list, whole */
+            const size_t l = strlen(s[i].name);
+            const char *p = bo.settings;
+            chosen[i] = 0;
+            while ((p = strstr(p, s[i].name))) {
+                if ((p == bo.settings || p[-1] == ',') && (p[l] == ',' || p[l] == '\0'))
+                    chosen[i] = 1;
+                p += l;
+            }
+        }
+        nchosen += chosen[i];
+    }
+    if (!nchosen)
+        return usage();
     for (int i = 0; i < NS; i++)
-        if (measure(&s[i], bin, dir) < 0)
+        if (chosen[i] && measure(&s[i], bin, dir, &bo) < 0)
             status = 1;
     getloadavg(load1, 3);
     printf("load average before %.2f, after %.2f (1 min)\n", load0[0], load1[0]);
@@ -328,9 +381,13 @@ int main(void)
             fprintf(stderr, "bench_daemon: %s: %d reconstructions refused\n", s[i].name, s[i].with_recon.rejected);
             status = 1;
         }
-    if (status == 0) {
-        mkdir("bench/results", 0755);
-        FILE *f = fopen("bench/results/daemon.md", "w");
+    if (status == 0 && nchosen < NS && strcmp(bo.out, "-") != 0)
+        printf("bench_daemon: %d of %d settings measured: %s not written (the table has every column)\n", nchosen,
+               NS, bo.out);
+    if (status == 0 && nchosen == NS && strcmp(bo.out, "-") != 0) {
+        if (!strcmp(bo.out, "bench/results/daemon.md"))
+            mkdir("bench/results", 0755);
+        FILE *f = fopen(bo.out, "w");
         if (f) {
             fprintf(f, "| scicapd, simulated bench 256×256×8, fsync on, 2 shared cores (load: 1-min average at the "
                        "end of each run; %.1f before, %.1f after) | writers 1 | writers 2 (default) | writers 2, no "
@@ -343,11 +400,11 @@ int main(void)
             for (int i = 0; i < NS; i++)
                 fprintf(f, " %.1f / %.1f (load %.1f) |", s[i].with_recon.per_s, s[i].with_recon.recon_per_s,
                         s[i].with_recon.load);
-            fprintf(f, "\n| of those 40: reconstructed / refused |");
+            fprintf(f, "\n| of those %d: reconstructed / refused |", bo.snapshots);
             for (int i = 0; i < NS; i++)
                 fprintf(f, " %d / %d |", s[i].with_recon.recons, s[i].with_recon.rejected);
-            fprintf(f, "\n| per snapshot with reconstruction, CPU ms of the stage's thread (OpenEXR compresses on "
-                       "its own pool threads, not counted): acquire / store / recon read / solve / write |");
+            fprintf(f, "\n| per snapshot with reconstruction, CPU ms of the stage's thread (OpenEXR's pool is off in "
+                       "scicapd: compression is counted): acquire / store / recon read / solve / write |");
             for (int i = 0; i < NS; i++) {
                 const double *c = s[i].with_recon.stage_cpu_ms;
                 fprintf(f, " %.0f / %.0f / %.0f / %.0f / %.0f |", c[0], c[1], c[2], c[3], c[4]);

@@ -2,9 +2,10 @@
  *
  * Each stage (acquire, store, recon_read, recon_solve, recon_write) accumulates how many times it ran, its wall
  * time and the CPU time of the thread that ran it (CLOCK_THREAD_CPUTIME_ID: the stage's own cost, not the other
- * threads' that shared the cores meanwhile; work a library hands to its own threads, such as OpenEXR's
- * compression pool, is not in it). Reading two clocks costs well under a microsecond, so the counters
- * stay on in production; `scicap status --json` shows them under "timing" and bench/bench_daemon reports them.
+ * threads' that shared the cores meanwhile). Work a library hands to its own threads would not be in it; OpenEXR's
+ * compression pool was such work until scicapd_store_start turned the pool off, so EXR compression is now counted
+ * in the stage that writes. Reading two clocks costs well under a microsecond, so the counters stay on in
+ * production; `scicap status --json` shows them under "timing" and bench/bench_daemon reports them.
  *
  *     scicapd_span sp;
  *     scicapd_span_begin(&sp);
