@@ -82,7 +82,7 @@ static int publish(const char *tmp, const char *path, int rc, const char *msg, s
 /* One image from `channels` frames of `c` starting at `k0` (1: grey, 3: RGB), interleaved per pixel, scaled,
  * and for integer types rounded and clamped; written to a temporary name and renamed. */
 static int write_frames(const char *path, const sci_cube *c, int k0, int channels, sci_pixel_type type, double scale,
-                        const char *description, sci_error *err)
+                        const char *description, int uncompressed, sci_error *err)
 {
     if (!sci_pixel_type_name(type))
         return sci_error_set(err, -EINVAL, "%s: invalid pixel type", path);
@@ -104,7 +104,7 @@ static int write_frames(const char *path, const sci_cube *c, int k0, int channel
     }
     char tmp[4096], msg[SCI_ERROR_MSG_MAX];
     tmp_name(tmp, sizeof tmp, path);
-    int rc = sci_oiio_write(tmp, buf, c->w, c->h, channels, (int)type, description, msg, sizeof msg);
+    int rc = sci_oiio_write_ex(tmp, buf, c->w, c->h, channels, (int)type, description, uncompressed, msg, sizeof msg);
     free(buf);
     return publish(tmp, path, rc, msg, err);
 }
@@ -114,7 +114,7 @@ int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type t
 {
     if (k < 0 || k >= c->n)
         return sci_error_set(err, -EINVAL, "%s: frame %d out of range (cube has %d)", path, k, c->n);
-    return write_frames(path, c, k, 1, type, scale, description, err);
+    return write_frames(path, c, k, 1, type, scale, description, 0, err);
 }
 
 int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_type type, double scale,
@@ -122,7 +122,7 @@ int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_
 {
     if (f < 0 || 3 * f + 2 >= rgb->n)
         return sci_error_set(err, -EINVAL, "%s: RGB frame %d out of range (cube has %d channels)", path, f, rgb->n);
-    return write_frames(path, rgb, 3 * f, 3, type, scale, NULL, err);
+    return write_frames(path, rgb, 3 * f, 3, type, scale, NULL, 0, err);
 }
 
 void sci_image_exr_threads(int threads) { sci_oiio_exr_threads(threads); }
@@ -199,6 +199,12 @@ static int mkdir_p(const char *dir, sci_error *err)
 int sci_stack_write(const char *dir, const char *stem, const char *ext, const sci_cube *c, sci_pixel_type type,
                     double scale, const json_t *provenance, sci_error *err)
 {
+    return sci_stack_write_ex(dir, stem, ext, c, type, scale, provenance, 0, err);
+}
+
+int sci_stack_write_ex(const char *dir, const char *stem, const char *ext, const sci_cube *c, sci_pixel_type type,
+                       double scale, const json_t *provenance, int uncompressed, sci_error *err)
+{
     int rc = mkdir_p(dir, err);
     if (rc < 0)
         return rc;
@@ -207,7 +213,10 @@ int sci_stack_write(const char *dir, const char *stem, const char *ext, const sc
     for (int k = 0; k < c->n && rc == 0; k++) {
         snprintf(name, sizeof name, "%s_%03d.%s", stem, k, ext);
         snprintf(path, sizeof path, "%s/%s", dir, name);
-        rc = sci_image_write(path, c, k, type, scale, NULL, err);
+        if (k < 0 || k >= c->n)
+            rc = sci_error_set(err, -EINVAL, "%s: frame %d out of range", path, k);
+        else
+            rc = write_frames(path, c, k, 1, type, scale, NULL, uncompressed, err);
         json_array_append_new(files, json_string(name));
     }
     if (rc < 0) {

@@ -75,6 +75,11 @@ int sci_image_write_gif_opt(const char *path, const sci_cube *c, double scale, i
  * sidecar. */
 int sci_stack_write(const char *dir, const char *stem, const char *ext, const sci_cube *c, sci_pixel_type type,
                     double scale, const json_t *provenance, sci_error *err);
+/* Same; uncompressed = 1 stores EXR/TIFF frames without compression. For float frames whose low mantissa bits
+ * are noise (a solver's output), deflate saves ~2 % of the bytes for 5-6 ms of CPU per 256×256 frame (measured on
+ * GAP-TV frames: 261 KB zip against 267 KB raw); compressible frames (masks, rendered truth) keep the default. */
+int sci_stack_write_ex(const char *dir, const char *stem, const char *ext, const sci_cube *c, sci_pixel_type type,
+                       double scale, const json_t *provenance, int uncompressed, sci_error *err);
 
 /* Read a stack from its sidecar path (<dir>/<stem>.json): checks every frame's size against the sidecar and
  * returns values divided by the sidecar's scale. *provenance (may be NULL) receives a new reference the caller

@@ -128,6 +128,12 @@ extern "C" int sci_oiio_probe(const char *path, int *w, int *h, char *errbuf, si
 extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h, int channels, int pixel_type,
                               const char *description, char *errbuf, size_t errlen)
 {
+    return sci_oiio_write_ex(path, data, w, h, channels, pixel_type, description, 0, errbuf, errlen);
+}
+
+extern "C" int sci_oiio_write_ex(const char *path, const float *data, int w, int h, int channels, int pixel_type,
+                                 const char *description, int uncompressed, char *errbuf, size_t errlen)
+{
     try {
         TypeDesc t = pixel_type == 0 ? TypeDesc::UINT8
                      : pixel_type == 1 ? TypeDesc::UINT16
@@ -149,10 +155,10 @@ extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h,
         /* deflate level 1 everywhere: level 4-6 (the defaults) costs 2-4 times the CPU for 5-15 % fewer bytes on
          * 256×256 frames, and reconstructed float frames hardly compress at any level */
         if (ends(".tif") || ends(".tiff")) {
-            spec.attribute("compression", "zip");
+            spec.attribute("compression", uncompressed ? "none" : "zip");
             spec.attribute("tiff:zipquality", 1);
         } else if (ends(".exr")) {
-            spec.attribute("compression", "zip:1");
+            spec.attribute("compression", uncompressed ? "none" : "zip:1");
         } else if (ends(".png")) {
             spec.attribute("png:compressionLevel", 1);
         }

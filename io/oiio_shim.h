@@ -29,6 +29,9 @@ int sci_oiio_probe(const char *path, int *w, int *h, char *errbuf, size_t errlen
  * temporary name and renames. */
 int sci_oiio_write(const char *path, const float *data, int w, int h, int channels, int pixel_type,
                    const char *description, char *errbuf, size_t errlen);
+/* Same; uncompressed = 1 stores the pixels without compression (EXR and TIFF; PNG is always deflated). */
+int sci_oiio_write_ex(const char *path, const float *data, int w, int h, int channels, int pixel_type,
+                      const char *description, int uncompressed, char *errbuf, size_t errlen);
 
 /* OpenEXR's process-wide compression pool: threads > 0 sets its size, 0 lets it use every core, -1 turns it off
  * (each file compressed on the thread that writes it). Affects every EXR read and write in the process. */

@@ -1,6 +1,7 @@
 /* io/recon_store.h — write one reconstruction to a folder, as `scicap recon` and the daemon's recon/<method>/ do:
  *
- *     DIR/frame_000.exr ...   the N frames, float32 EXR, on the problem's scale (+ frame.json sidecar)
+ *     DIR/frame_000.exr ...   the N frames, float32 EXR (uncompressed: they compress by 2 %), on the problem's
+ *                             scale (+ frame.json sidecar)
  *     DIR/preview_000.png ... 8-bit previews, value/peak·255 clamped
  *     DIR/preview.gif         animated preview of the N frames
  *     DIR/trace.csv           the solver trace (iteration, wall and CPU time, residual, PSNR, SSIM)
