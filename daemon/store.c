@@ -22,8 +22,11 @@
  * most this many - 1 ids; a clean close writes the exact mark. */
 #define STORE_ID_BLOCK 16
 #define STORE_IDS_FILE "ids.json"
-/* Mask stacks verified this run (ROOT/mask_stacks/<hash>/ known to hold them): a mask set's snapshots hit it. */
-#define STORE_MASK_CACHE 4
+/* Mask stacks whose shared folder is known this run, per kind: a mask set's snapshots hit it. Stacks above
+ * STORE_MASK_CACHE_BYTES (a large DMD's) are not kept: hashed each time, as before the cache. */
+#define STORE_MASK_CACHE 2
+#define STORE_MASK_CACHE_BYTES (64u << 20)
+enum { STORE_SHOWN, STORE_STACK };
 
 struct scicapd_store {
     char root[1024];
@@ -41,11 +44,13 @@ struct scicapd_store {
     scicapd_stored_fn on_stored;
     void *user;
     scicapd_timing *timing;  /* borrowed; may be NULL */
-    /* ROOT/mask_stacks/<hash>/ folders checked against these masks this run (under mu; oldest replaced) */
+    /* mask stacks whose shared folder is known this run (under mu; oldest replaced): kind STORE_SHOWN for
+     * ROOT/dmd_masks/<hash>, STORE_STACK for ROOT/mask_stacks/<hash> (checked against the masks) */
     struct {
+        int kind;
         uint64_t hash;
         sci_cube *mask;
-    } mask_cache[STORE_MASK_CACHE];
+    } mask_cache[2 * STORE_MASK_CACHE];
     int mask_cache_next;
 };
 
@@ -288,7 +293,7 @@ void scicapd_store_close(scicapd_store *s)
     }
     if (s->lock_fd >= 0)
         close(s->lock_fd); /* releases the flock */
-    for (int i = 0; i < STORE_MASK_CACHE; i++)
+    for (int i = 0; i < 2 * STORE_MASK_CACHE; i++)
         sci_cube_free(s->mask_cache[i].mask);
     pthread_mutex_destroy(&s->mu);
     free(s);
@@ -396,6 +401,42 @@ static int link_all(const char *from, const char *to)
     return rc;
 }
 
+static int cube_same(const sci_cube *a, const sci_cube *b)
+{
+    return a->w == b->w && a->h == b->h && a->n == b->n &&
+           memcmp(a->data, b->data, sci_cube_count(a) * sizeof(float)) == 0;
+}
+
+/* The hash of a mask stack of `kind` whose shared folder is known this run: 1 and *hash, else 0. The masks in
+ * memory are compared (a memcmp), where hashing them byte by byte costs ten times that. */
+static int mask_cache_find(scicapd_store *st, int kind, const sci_cube *m, uint64_t *hash)
+{
+    int found = 0;
+    pthread_mutex_lock(&st->mu);
+    for (int i = 0; i < 2 * STORE_MASK_CACHE && !found; i++)
+        if (st->mask_cache[i].mask && st->mask_cache[i].kind == kind && cube_same(st->mask_cache[i].mask, m)) {
+            *hash = st->mask_cache[i].hash;
+            found = 1;
+        }
+    pthread_mutex_unlock(&st->mu);
+    return found;
+}
+
+static void mask_cache_put(scicapd_store *st, int kind, const sci_cube *m, uint64_t hash)
+{
+    sci_cube *copy = NULL;
+    if (sci_cube_count(m) * sizeof(float) > STORE_MASK_CACHE_BYTES || sci_cube_clone(&copy, m, NULL) < 0)
+        return; /* only a cache */
+    pthread_mutex_lock(&st->mu);
+    const int i = st->mask_cache_next;
+    st->mask_cache_next = (i + 1) % (2 * STORE_MASK_CACHE);
+    sci_cube_free(st->mask_cache[i].mask);
+    st->mask_cache[i].kind = kind;
+    st->mask_cache[i].hash = hash;
+    st->mask_cache[i].mask = copy;
+    pthread_mutex_unlock(&st->mu);
+}
+
 /* The masks shown on the DMD (dmd_mask_*.png + dmd_mask.json) are the same for every snapshot of a mask set:
  * written once to ROOT/dmd_masks/<hash>/ (atomically) and hard-linked into each capture folder (~45 ms of PNG
  * encoding saved per 256×256×8 snapshot). Files are never modified in place, so sharing inodes is safe; a
@@ -403,10 +444,14 @@ static int link_all(const char *from, const char *to)
 static int write_shown_masks(scicapd_store *st, const sci_cube *m, const char *dir, sci_error *err)
 {
     char shared[1200], tmp[1300];
-    const unsigned long long hash = (unsigned long long)masks_hash(m);
+    uint64_t h64;
+    const int known = mask_cache_find(st, STORE_SHOWN, m, &h64);
+    if (!known)
+        h64 = masks_hash(m);
+    const unsigned long long hash = (unsigned long long)h64;
     snprintf(shared, sizeof shared, "%s/dmd_masks/%016llx", st->root, hash);
     struct stat sb;
-    if (stat(shared, &sb) != 0) {
+    if (!known && stat(shared, &sb) != 0) {
         snprintf(tmp, sizeof tmp, "%s/dmd_masks/.%016llx.tmp-%d-%lx", st->root, hash, (int)getpid(),
                  (unsigned long)pthread_self());
         int rc;
@@ -420,15 +465,12 @@ static int write_shown_masks(scicapd_store *st, const sci_cube *m, const char *d
         if (rename(tmp, shared) != 0) /* another writer got there first: theirs is the same */
             scicapd_remove_tree(tmp);
     }
-    if (link_all(shared, dir) == 0)
+    if (link_all(shared, dir) == 0) {
+        if (!known)
+            mask_cache_put(st, STORE_SHOWN, m, h64);
         return 0;
+    }
     return sci_stack_write(dir, "dmd_mask", "png", m, SCI_PIXEL_U8, 255.0, NULL, err);
-}
-
-static int cube_same(const sci_cube *a, const sci_cube *b)
-{
-    return a->w == b->w && a->h == b->h && a->n == b->n &&
-           memcmp(a->data, b->data, sci_cube_count(a) * sizeof(float)) == 0;
 }
 
 /* The reconstruction's masks (mask.json, mask_*.exr, preview_mask_*.png) are the same for every snapshot of a
@@ -439,15 +481,13 @@ static int cube_same(const sci_cube *a, const sci_cube *b)
  * Into `path` the folder to link from; -1 when the masks must be written in the capture folder instead. */
 static int shared_mask_stack(scicapd_store *st, const sci_cube *m, char *path, size_t n)
 {
-    const uint64_t hash = masks_hash(m);
-    snprintf(path, n, "%s/mask_stacks/%016llx", st->root, (unsigned long long)hash);
-    pthread_mutex_lock(&st->mu);
-    int known = 0;
-    for (int i = 0; i < STORE_MASK_CACHE && !known; i++)
-        known = st->mask_cache[i].mask && st->mask_cache[i].hash == hash && cube_same(st->mask_cache[i].mask, m);
-    pthread_mutex_unlock(&st->mu);
-    if (known)
+    uint64_t hash;
+    if (mask_cache_find(st, STORE_STACK, m, &hash)) {
+        snprintf(path, n, "%s/mask_stacks/%016llx", st->root, (unsigned long long)hash);
         return 0;
+    }
+    hash = masks_hash(m);
+    snprintf(path, n, "%s/mask_stacks/%016llx", st->root, (unsigned long long)hash);
     sci_error err = {0};
     struct stat sb;
     if (stat(path, &sb) != 0) {
@@ -476,16 +516,7 @@ static int shared_mask_stack(scicapd_store *st, const sci_cube *m, char *path, s
                       "capture folder", path, err.msg[0] ? ": " : "", err.msg);
         return -1;
     }
-    sci_cube *copy = NULL;
-    if (sci_cube_clone(&copy, m, NULL) == 0) {
-        pthread_mutex_lock(&st->mu);
-        const int i = st->mask_cache_next;
-        st->mask_cache_next = (i + 1) % STORE_MASK_CACHE;
-        sci_cube_free(st->mask_cache[i].mask);
-        st->mask_cache[i].hash = hash;
-        st->mask_cache[i].mask = copy;
-        pthread_mutex_unlock(&st->mu);
-    }
+    mask_cache_put(st, STORE_STACK, m, hash);
     return 0;
 }
 

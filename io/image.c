@@ -152,7 +152,15 @@ int sci_image_write_gif_opt(const char *path, const sci_cube *c, double scale, i
     unsigned char *buf = malloc(gfs * (size_t)c->n);
     if (!buf)
         return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
-    for (int k = 0; k < c->n; k++) {
+    for (int k = 0; k < c->n && f == 1; k++) { /* full size: one pixel each, no block loops */
+        const float *src = sci_cube_frame(c, k);
+        unsigned char *dst = buf + (size_t)k * gfs;
+        for (size_t i = 0; i < gfs; i++) {
+            const double v = isnan(src[i]) ? 0 : nearbyint((double)src[i] * scale);
+            dst[i] = (unsigned char)(v < 0 ? 0 : (v > 255 ? 255 : v));
+        }
+    }
+    for (int k = 0; k < c->n && f > 1; k++) {
         const float *src = sci_cube_frame(c, k);
         for (int gy = 0; gy < gh; gy++)
             for (int gx = 0; gx < gw; gx++) {
