@@ -9,7 +9,7 @@
 #include <stdint.h>
 #include <cmocka.h>
 
-#include "tests/integration/daemon_harness.h"
+#include "tests/helpers/daemon_child.h"
 
 /* Two scenes of 256×256×8 without a camera; times in seconds of solver time. */
 static const char curves[] =
@@ -24,11 +24,7 @@ static const char curves[] =
 
 static json_t *result_params(const harness *h, const char *cap, const char *method)
 {
-    char path[800];
-    snprintf(path, sizeof path, "%s/captures/%s/recon/%s/result.json", h->store, cap, method);
-    json_t *r = json_load_file(path, 0, NULL);
-    if (!r)
-        fail_msg("no %s", path);
+    json_t *r = daemon_child_result(h, cap, method);
     json_t *p = json_incref(json_object_get(r, "params"));
     json_decref(r);
     return p;
@@ -50,11 +46,8 @@ static void budget_picks_from_curves(void **state)
     harness_spawn(&h, NULL);
     hconn c;
     hconn_open(&c, &h);
-    json_decref(hconn_request(&c, "capture", json_pack("{s:b}", "reconstruct", 0)));
-    json_t *st = hconn_wait_event(&c, "capture.stored", 20000);
     char cap[64];
-    snprintf(cap, sizeof cap, "%s", json_string_value(json_object_get(json_object_get(st, "data"), "capture")));
-    json_decref(st);
+    daemon_child_capture(&c, cap, sizeof cap, 20000);
 
     /* 0.1 s: gap-tv 50 iterations (30.5 dB mean, 0.06 s) fits; admm-tv (0.45 s) does not. */
     json_decref(hconn_request(&c, "reconstruct", json_pack("{s:s, s:f}", "capture", cap, "budget_s", 0.1)));
@@ -83,17 +76,7 @@ static void budget_picks_from_curves(void **state)
     assert_non_null(strstr(msg, "budget_s"));
     json_decref(m);
     hconn_close(&c);
-    harness_stop(&h);
-    harness_cleanup(&h);
-}
-
-static char *stored_capture(hconn *c, char *id, size_t n)
-{
-    json_decref(hconn_request(c, "capture", json_pack("{s:b}", "reconstruct", 0)));
-    json_t *st = hconn_wait_event(c, "capture.stored", 20000);
-    snprintf(id, n, "%s", json_string_value(json_object_get(json_object_get(st, "data"), "capture")));
-    json_decref(st);
-    return id;
+    daemon_child_teardown(&h);
 }
 
 /* No curves in the config: $SCICAP_DATADIR/results.csv wins over the installed file (here: the hand-written
@@ -114,15 +97,14 @@ static void budget_curves_from_env_datadir(void **state)
     harness_spawn(&h, envv);
     hconn c;
     hconn_open(&c, &h);
-    stored_capture(&c, cap, sizeof cap);
+    daemon_child_capture(&c, cap, sizeof cap, 20000);
     json_decref(hconn_request(&c, "reconstruct", json_pack("{s:s, s:f}", "capture", cap, "budget_s", 0.1)));
     json_decref(hconn_wait_event(&c, "recon.done", 60000));
     json_t *p = result_params(&h, cap, "gap-tv");
     assert_int_equal(json_integer_value(json_object_get(p, "iters")), 50);
     json_decref(p);
     hconn_close(&c);
-    harness_stop(&h);
-    harness_cleanup(&h);
+    daemon_child_teardown(&h);
 }
 
 /* The binary run from the build tree, nothing installed where $SCICAP_DATADIR points: the daemon falls back to
@@ -147,7 +129,7 @@ static void budget_curves_from_build_tree(void **state)
     harness_spawn(&h, envv);
     hconn c;
     hconn_open(&c, &h);
-    stored_capture(&c, cap, sizeof cap);
+    daemon_child_capture(&c, cap, sizeof cap, 20000);
     json_decref(hconn_request(&c, "reconstruct", json_pack("{s:s, s:f}", "capture", cap, "budget_s", 5.0)));
     json_t *e = hconn_wait_event(&c, "recon.done", 60000);
     const char *method = json_string_value(json_object_get(json_object_get(e, "data"), "method"));
@@ -177,8 +159,7 @@ static void budget_curves_from_build_tree(void **state)
         fail_msg("no row '%s' in %s", want, tree_csv);
     json_decref(p);
     hconn_close(&c);
-    harness_stop(&h);
-    harness_cleanup(&h);
+    daemon_child_teardown(&h);
 }
 
 int main(void)

@@ -12,7 +12,7 @@
 #include <cmocka.h>
 #include <jansson.h>
 
-#include "daemon_harness.h"
+#include "tests/helpers/daemon_child.h"
 #include "tests/helpers/cli_child.h"
 
 static harness H;
@@ -122,20 +122,8 @@ static void test_devices_table_and_json(void **state)
     json_decref(j);
 }
 
-static int setup(void **state)
-{
-    if (cli_child_program(scicap, sizeof scicap, "scicap") < 0)
-        return -1;
-    harness_start(&H, NULL, NULL);
-    return 0;
-}
-
-static int teardown(void **state)
-{
-    harness_stop(&H);
-    harness_cleanup(&H);
-    return 0;
-}
+static int setup(void **state) { return daemon_child_setup(&H, scicap, sizeof scicap, NULL); }
+static int teardown(void **state) { return daemon_child_teardown(&H); }
 
 int main(void)
 {

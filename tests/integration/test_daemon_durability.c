@@ -13,7 +13,7 @@
 #include <cmocka.h>
 #include <dirent.h>
 
-#include "tests/integration/daemon_harness.h"
+#include "tests/helpers/daemon_child.h"
 
 /* File-static, so that a failed test's daemon is stopped and its folder removed by the teardown. */
 static harness H;
@@ -104,8 +104,7 @@ static void ids_not_reused_after_kill9(void **state)
     assert_false(left[0]);
     assert_true(next > highest);
     hconn_close(&c);
-    harness_stop(&H);
-    harness_cleanup(&H);
+    daemon_child_teardown(&H);
 }
 
 static void ids_not_reused_after_delete(void **state)
@@ -129,8 +128,7 @@ static void ids_not_reused_after_delete(void **state)
     assert_true(next > newest);
     assert_int_equal(next, newest + 1); /* a clean stop leaves no gap */
     hconn_close(&c);
-    harness_stop(&H);
-    harness_cleanup(&H);
+    daemon_child_teardown(&H);
 }
 
 /* A second scicapd on the same storage root (its own socket) while the first captures: refused before it
@@ -180,30 +178,10 @@ static void second_daemon_on_same_storage_refused(void **state)
     assert_true(said);
     assert_int_equal(done, 12);
     hconn_close(&c);
-    harness_stop(&H);
-    harness_cleanup(&H);
+    daemon_child_teardown(&H);
 }
 
 /* ---- reconstruction queue ---- */
-
-static int recon_exists(const harness *h, const char *cap, const char *method)
-{
-    char p[700];
-    snprintf(p, sizeof p, "%s/captures/%s/recon/%s/result.json", h->store, cap, method);
-    struct stat st;
-    return stat(p, &st) == 0;
-}
-
-static int wait_recon(const harness *h, const char *cap, const char *method, int timeout_ms)
-{
-    int64_t t0 = h_now_ms();
-    while (!recon_exists(h, cap, method)) {
-        if (h_now_ms() - t0 > timeout_ms)
-            return 0;
-        h_sleep_ms(50);
-    }
-    return 1;
-}
 
 /* Queue a reconstruction; returns its job id. */
 static json_int_t reconstruct(hconn *c, const char *cap, const char *method, int iters)
@@ -235,15 +213,6 @@ static void cancel_recon_of(hconn *c, const char *cap)
     json_decref(hconn_request(c, "cancel", json_pack("{s:I}", "job", id)));
 }
 
-static int resumed_count(hconn *c)
-{
-    json_t *r = hconn_request(c, "status", NULL);
-    json_t *n = json_object_get(json_object_get(r, "recovered"), "reconstructions_resumed");
-    int v = json_is_integer(n) ? (int)json_integer_value(n) : -1;
-    json_decref(r);
-    return v;
-}
-
 static void queued_reconstructions_resumed(void **state)
 {
     (void)state;
@@ -269,12 +238,12 @@ static void queued_reconstructions_resumed(void **state)
     hconn_close(&c);
     harness_spawn(&H, NULL);
     hconn_open(&c, &H);
-    int n1 = resumed_count(&c);
+    int n1 = daemon_child_resumed(&c);
     printf("  kill -9 with 1 running + 2 queued: %d resumed at restart\n", n1);
     assert_int_equal(n1, 3);
     cancel_recon_of(&c, cap[0]); /* the long one came back too: let the others through */
     int64_t t0 = h_now_ms();
-    int ok1 = wait_recon(&H, cap[1], "gap-tv", 30000) && wait_recon(&H, cap[2], "gap-tv", 30000);
+    int ok1 = daemon_child_wait_recon(&H, cap[1], "gap-tv", 30000) && daemon_child_wait_recon(&H, cap[2], "gap-tv", 30000);
     printf("  the queued ones reconstructed after the restart: %s (%lld ms)\n", ok1 ? "yes" : "no",
            (long long)(h_now_ms() - t0));
     assert_true(ok1);
@@ -286,23 +255,22 @@ static void queued_reconstructions_resumed(void **state)
     harness_stop(&H);
     harness_spawn(&H, NULL);
     hconn_open(&c, &H);
-    int n2 = resumed_count(&c);
+    int n2 = daemon_child_resumed(&c);
     cancel_recon_of(&c, cap[0]);
-    int ok2 = wait_recon(&H, cap[2], "admm-tv", 30000);
+    int ok2 = daemon_child_wait_recon(&H, cap[2], "admm-tv", 30000);
     /* finished and canceled jobs leave nothing behind to resume */
     hconn_close(&c);
     harness_stop(&H);
     harness_spawn(&H, NULL);
     hconn_open(&c, &H);
-    int n3 = resumed_count(&c);
+    int n3 = daemon_child_resumed(&c);
     printf("  SIGTERM with 1 running + 1 queued: %d resumed, queued one reconstructed: %s; after they ended and a "
            "clean restart: %d resumed\n", n2, ok2 ? "yes" : "no", n3);
     assert_int_equal(n2, 2);
     assert_true(ok2);
     assert_int_equal(n3, 0);
     hconn_close(&c);
-    harness_stop(&H);
-    harness_cleanup(&H);
+    daemon_child_teardown(&H);
 }
 
 int main(void)

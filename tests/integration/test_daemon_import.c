@@ -27,7 +27,7 @@
 #include <jansson.h>
 #include <matio.h>
 
-#include "daemon_harness.h"
+#include "tests/helpers/daemon_child.h"
 #include "io/matfile.h"
 #include "io/problem_dir.h"
 #include "tests/helpers/cli_child.h"
@@ -133,14 +133,9 @@ static void capture_of_snapshot(const char *out, int n, char *id)
     assert_int_equal(sscanf(st, "stored %31s", id), 1);
 }
 
-static double recon_psnr(const char *store, const char *id)
+static double recon_psnr(const harness *h, const char *id)
 {
-    char path[1200];
-    snprintf(path, sizeof path, "%s/captures/%s/recon/gap-tv/result.json", store, id);
-    json_error_t je;
-    json_t *j = json_load_file(path, 0, &je);
-    if (!j)
-        fail_msg("%s: %s", path, je.text);
+    json_t *j = daemon_child_result(h, id, "gap-tv");
     double v = json_number_value(json_object_get(json_object_get(j, "psnr_frame_max_db"), "mean"));
     json_decref(j);
     return v;
@@ -176,7 +171,7 @@ static void test_mat_options_reconstruct_as_the_original(void **state)
                   H.dir);
     if (cli_child_exit_code(&c) != 0)
         fail_msg("exit %d\nstdout: %s\nstderr: %s", cli_child_exit_code(&c), c.out, c.err);
-    double lab = recon_psnr(H.store, id_lab), orig = recon_psnr(H.store, id_orig);
+    double lab = recon_psnr(&H, id_lab), orig = recon_psnr(&H, id_orig);
     print_message("  snapshot 1: %.4f dB from y/X + Phi at [0, 1] (%s), %.4f dB from the original (%s)\n", lab,
                   id_lab, orig, id_orig);
     assert_true(fabs(lab - orig) < 1e-3);
@@ -370,20 +365,8 @@ static void test_problem_folder(void **state)
     assert_non_null(strstr(c.err, "problem folder"));
 }
 
-static int setup(void **state)
-{
-    if (cli_child_program(scicap, sizeof scicap, "scicap") < 0)
-        return -1;
-    harness_start(&H, NULL, NULL);
-    return 0;
-}
-
-static int teardown(void **state)
-{
-    harness_stop(&H);
-    harness_cleanup(&H);
-    return 0;
-}
+static int setup(void **state) { return daemon_child_setup(&H, scicap, sizeof scicap, NULL); }
+static int teardown(void **state) { return daemon_child_teardown(&H); }
 
 int main(void)
 {

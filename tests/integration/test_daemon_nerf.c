@@ -16,7 +16,7 @@
 #include <cmocka.h>
 #include <dirent.h>
 
-#include "daemon_harness.h"
+#include "tests/helpers/daemon_child.h"
 #include "io/image.h"
 #include "io/problem_dir.h"
 #include "tests/helpers/cli_child.h"
@@ -58,33 +58,6 @@ static json_int_t reconstruct_small(hconn *c, const char *cap, const char *metho
     json_decref(r);
     assert_true(id > 0);
     return id;
-}
-
-static int recon_exists(const harness *h, const char *cap, const char *method)
-{
-    char p[700];
-    snprintf(p, sizeof p, "%s/captures/%s/recon/%s/result.json", h->store, cap, method);
-    return access(p, F_OK) == 0;
-}
-
-static int wait_recon(const harness *h, const char *cap, const char *method, int timeout_ms)
-{
-    int64_t t0 = h_now_ms();
-    while (!recon_exists(h, cap, method)) {
-        if (h_now_ms() - t0 > timeout_ms)
-            return 0;
-        h_sleep_ms(50);
-    }
-    return 1;
-}
-
-static int resumed_count(hconn *c)
-{
-    json_t *r = hconn_request(c, "status", NULL);
-    json_t *n = json_object_get(json_object_get(r, "recovered"), "reconstructions_resumed");
-    int v = json_is_integer(n) ? (int)json_integer_value(n) : -1;
-    json_decref(r);
-    return v;
 }
 
 typedef struct followed {
@@ -199,8 +172,6 @@ static void import_folder(const char *folder, char *id)
 static int group_setup(void **state)
 {
     (void)state;
-    if (cli_child_program(scicap, sizeof scicap, "scicap") < 0)
-        return -1;
     if (!mkdtemp(curves_dir))
         return -1;
     char cpath[300], config[600];
@@ -213,7 +184,8 @@ static int group_setup(void **state)
     snprintf(config, sizeof config,
              "{\"reconstruction\": {\"workers\": 1, \"threads\": 1, \"checkpoint_every\": %d, \"curves\": \"%s\"}}\n",
              CKPT_EVERY, cpath);
-    harness_start(&H, config, NULL);
+    if (daemon_child_setup(&H, scicap, sizeof scicap, config) < 0)
+        return -1;
     /* the scene with a camera, as a problem folder, imported twice */
     char folder[400];
     snprintf(folder, sizeof folder, "%s/scene", H.dir);
@@ -239,8 +211,7 @@ static int group_setup(void **state)
 static int group_teardown(void **state)
 {
     (void)state;
-    harness_stop(&H);
-    harness_cleanup(&H);
+    daemon_child_teardown(&H);
     cli_child_remove_dir(curves_dir);
     return 0;
 }
@@ -272,7 +243,7 @@ static void run_method(const char *method)
     assert_int_equal(f.checkpoints, ITERS / CKPT_EVERY); /* every 5 steps; the last one is step 30 */
     assert_int_equal(f.last_ckpt, ITERS);
     assert_true(isfinite(psnr) && psnr > 0);
-    assert_true(recon_exists(&H, cap_a, method));
+    assert_true(daemon_child_recon_exists(&H, cap_a, method));
     assert_int_equal(entries + ckpts, 0);
     json_decref(f.end);
     hconn_close(&c);
@@ -313,10 +284,10 @@ static void cancel_mid_run(void **state)
     print_message("  canceled after a checkpoint at step %d: %s (%s); queue files after: %d entries, %d "
                   "checkpoints; result folder: %s\n", f.last_ckpt, ev,
                   json_string_value(json_object_get(json_object_get(g.end, "data"), "error")), entries, ckpts,
-                  recon_exists(&H, cap_b, "scinerf") ? "yes" : "no");
+                  daemon_child_recon_exists(&H, cap_b, "scinerf") ? "yes" : "no");
     assert_string_equal(ev, "recon.canceled");
     assert_int_equal(entries + ckpts, 0);
-    assert_false(recon_exists(&H, cap_b, "scinerf"));
+    assert_false(daemon_child_recon_exists(&H, cap_b, "scinerf"));
     json_decref(g.end);
     hconn_close(&c);
 }
@@ -346,9 +317,9 @@ static void resume_after_kill9(void **state)
     fclose(o);
     harness_spawn(&H, NULL);
     hconn_open(&c, &H);
-    int resumed = resumed_count(&c);
+    int resumed = daemon_child_resumed(&c);
     hconn_close(&c);
-    int ok = wait_recon(&H, cap_b, "rayformer", 300000);
+    int ok = daemon_child_wait_recon(&H, cap_b, "rayformer", 300000);
     int rows = ok ? trace_rows(cap_b, "rayformer") : -1;
     /* the log says where it went on from */
     char cmd[700];
@@ -392,9 +363,9 @@ static void resume_after_sigterm(void **state)
     harness_stop(&H); /* SIGTERM; fails unless the daemon exits 0 */
     harness_spawn(&H, NULL);
     hconn_open(&c, &H);
-    int resumed = resumed_count(&c);
+    int resumed = daemon_child_resumed(&c);
     hconn_close(&c);
-    int ok = wait_recon(&H, cap_b, "scinerf", 300000);
+    int ok = daemon_child_wait_recon(&H, cap_b, "scinerf", 300000);
     int rows = ok ? trace_rows(cap_b, "scinerf") : -1;
     int entries, ckpts;
     queue_files(&entries, &ckpts);
@@ -417,15 +388,11 @@ static void resume_after_sigterm(void **state)
 /* The method of the reconstruction a budget chose, from its result.json (which records the budget). */
 static void budget_result(const char *cap, const char *method, double *budget_s)
 {
-    char p[700];
-    snprintf(p, sizeof p, "%s/captures/%s/recon/%s/result.json", H.store, cap, method);
-    json_t *r = json_load_file(p, 0, NULL);
-    if (!r)
-        fail_msg("%s: missing", p);
+    json_t *r = daemon_child_result(&H, cap, method);
     char *text = json_dumps(r, JSON_COMPACT);
     json_t *b = json_object_get(json_object_get(json_object_get(r, "params"), "budget"), "budget_s");
     if (!b)
-        fail_msg("%s has no budget: %s", p, text);
+        fail_msg("%s/%s: result.json has no budget: %s", cap, method, text);
     *budget_s = json_number_value(b);
     free(text);
     json_decref(r);
@@ -449,11 +416,8 @@ static void budget_picks_nerf(void **state)
     /* a capture of the simulated bench (no camera): the same budget picks among the camera-less curves */
     hconn h;
     hconn_open(&h, &H);
-    json_decref(hconn_request(&h, "capture", json_pack("{s:b}", "reconstruct", 0)));
-    json_t *e = hconn_wait_event(&h, "capture.stored", 30000);
     char cap[32];
-    snprintf(cap, sizeof cap, "%s", json_string_value(json_object_get(json_object_get(e, "data"), "capture")));
-    json_decref(e);
+    daemon_child_capture(&h, cap, sizeof cap, 30000);
     json_decref(hconn_wait_event(&h, "capture.done", 30000));
     /* a NeRF method on it is refused at the request, with the reason */
     json_t *m = hconn_call(&h, "reconstruct", json_pack("{s:s, s:s}", "capture", cap, "method", "rayformer"));
