@@ -17,6 +17,7 @@
 
 #include "io/image.h"
 #include "io/problem_dir.h"
+#include "tests/helpers/daemon_child.h"
 #include "tests/integration/daemon_harness.h"
 
 static harness H;
@@ -41,6 +42,19 @@ static void capture(hconn *c, int count, char ids[][32])
         json_decref(e);
     }
     json_decref(hconn_wait_event(c, "capture.done", 30000));
+}
+
+/* scicapd started, one capture taken and reconstructed with GAP-TV (fast): its id into id (32 bytes). */
+static void start_capture_reconstruct(hconn *c, char *id)
+{
+    harness_start(&H, NULL, NULL);
+    hconn_open(c, &H);
+    char ids[1][32];
+    capture(c, 1, ids);
+    snprintf(id, 32, "%s", ids[0]);
+    json_decref(hconn_request(c, "reconstruct", json_pack("{s:s, s:s, s:s}", "capture", id, "method", "gap-tv",
+                                                            "preset", "fast")));
+    json_decref(hconn_wait_event(c, "recon.done", 60000));
 }
 
 static struct stat stat_of(const char *fmt, const char *a, const char *b)
@@ -191,14 +205,9 @@ static void assert_gif_shows(const char *gif, const sci_cube *frames, double sca
 static void previews_show_the_frames(void **state)
 {
     (void)state;
-    harness_start(&H, NULL, NULL);
     hconn c;
-    hconn_open(&c, &H);
     char ids[1][32];
-    capture(&c, 1, ids);
-    json_decref(hconn_request(&c, "reconstruct", json_pack("{s:s, s:s, s:s}", "capture", ids[0], "method", "gap-tv",
-                                                             "preset", "fast")));
-    json_decref(hconn_wait_event(&c, "recon.done", 60000));
+    start_capture_reconstruct(&c, ids[0]);
     sci_problem *p = read_capture(&H, ids[0]);
     assert_non_null(p->truth);
     char gif[700], side[700];
@@ -217,15 +226,6 @@ static void previews_show_the_frames(void **state)
     hconn_close(&c);
     harness_stop(&H);
     harness_cleanup(&H);
-}
-
-static int resumed_count(hconn *c)
-{
-    json_t *r = hconn_request(c, "status", NULL);
-    json_t *n = json_object_get(json_object_get(r, "recovered"), "reconstructions_resumed");
-    int v = json_is_integer(n) ? (int)json_integer_value(n) : -1;
-    json_decref(r);
-    return v;
 }
 
 /* result.json's "job"."queue_entry" of <cap>/recon/gap-tv, into buf ("" when none). */
@@ -253,14 +253,9 @@ static void plant_entry(const harness *h, const char *name, const char *cap)
 static void published_job_not_rerun(void **state)
 {
     (void)state;
-    harness_start(&H, NULL, NULL);
     hconn c;
-    hconn_open(&c, &H);
     char ids[1][32];
-    capture(&c, 1, ids);
-    json_decref(hconn_request(&c, "reconstruct", json_pack("{s:s, s:s, s:s}", "capture", ids[0], "method", "gap-tv",
-                                                             "preset", "fast")));
-    json_decref(hconn_wait_event(&c, "recon.done", 60000));
+    start_capture_reconstruct(&c, ids[0]);
     char entry[256];
     written_by(&H, ids[0], entry, sizeof entry);
     assert_true(strncmp(entry, "r-", 2) == 0);
@@ -273,7 +268,7 @@ static void published_job_not_rerun(void **state)
     plant_entry(&H, later, ids[0]);
     harness_spawn(&H, NULL);
     hconn_open(&c, &H);
-    const int resumed = resumed_count(&c);
+    const int resumed = daemon_child_resumed(&c);
     char p[700];
     snprintf(p, sizeof p, "%s/recon-queue/%s", H.store, entry);
     struct stat sb;
