@@ -148,11 +148,11 @@ static int timing_read(double cpu_s[5], double wall_s[5], long long count[5])
 
 /* Events per second over the second half of n event times: with a reconstruction per snapshot the first captures
  * run ahead while the reconstruction queue (16 deep) fills, so the whole-run rates mix that start with the pace
- * the two settle to; the second half is nearer the sustained rates. NAN below 4 events. */
+ * the two settle to; the second half is nearer the sustained rates. NAN below 10 events (two writers finish in pairs). */
 static double half_rate(const int64_t *t, int n)
 {
     const int h = n / 2;
-    return n >= 4 && t[n - 1] > t[h] ? (double)(n - 1 - h) / sci_clock_s(t[h], t[n - 1]) : NAN;
+    return n >= 10 && t[n - 1] > t[h] ? (double)(n - 1 - h) / sci_clock_s(t[h], t[n - 1]) : NAN;
 }
 
 static int sustained(pid_t pid, int count, int recon, run_result *out)
