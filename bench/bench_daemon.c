@@ -3,8 +3,8 @@
  * threads at their defaults):
  *   1. sustained snapshots per second for a 40-snapshot capture job (--snapshots), without and with a GAP-TV
  *      reconstruction (fast preset) requested for every snapshot; with reconstructions, the rate at which they
- *      were done too, and how many were refused (none since the reconstruction queue applies back-pressure: the bench fails
- *      if any is);
+ *      were done too (over the whole run and over its second half), and how many were refused (none since the
+ *      reconstruction queue applies back-pressure: the bench fails if any is);
  *   2. daemon CPU time per snapshot over each run (/proc/<pid>/stat utime + stime), and where it went: the
  *      daemon's per-stage counters (status "timing": acquire, store, recon read/solve/write, thread CPU);
  *   3. latency from the capture request to the "capture.stored" event, one snapshot at a time (median, p90).
@@ -148,7 +148,8 @@ static int timing_read(double cpu_s[5], double wall_s[5], long long count[5])
 
 /* Events per second over the second half of n event times: with a reconstruction per snapshot the first captures
  * run ahead while the reconstruction queue (16 deep) fills, so the whole-run rates mix that start with the pace
- * the two settle to; the second half is nearer the sustained rates. NAN below 10 events (two writers finish in pairs). */
+ * the two settle to; the second half is nearer the sustained rates. NAN below 10 events (two writers finish in
+ * pairs: fewer give nonsense). */
 static double half_rate(const int64_t *t, int n)
 {
     const int h = n / 2;
