@@ -47,26 +47,53 @@ double sci_psnr(const sci_cube *x, const sci_cube *truth, sci_peak conv, double 
 #define SSIM_RADIUS 5 /* ceil(3 σ) for σ = 1.5: an 11×11 window */
 
 /* Separable Gaussian filter with replicate padding (MATLAB imgaussfilt, 'Padding','replicate'), in double. */
+/* One tap sum with edge replication: in[clamp(i + k) * stride] for k = -R..R, in order. */
+static inline double gauss_tap_clamped(const double *in, int i, int len, size_t stride, const double *g)
+{
+    double s = 0;
+    for (int k = -SSIM_RADIUS; k <= SSIM_RADIUS; k++) {
+        int j = i + k < 0 ? 0 : (i + k >= len ? len - 1 : i + k);
+        s += g[k + SSIM_RADIUS] * in[(size_t)j * stride];
+    }
+    return s;
+}
+
+/* Separable Gaussian with edge replication. Where the whole window is inside the frame the clamps are left out
+ * (the loops then vectorise); every sum is formed in the same order as with the clamps, so the result is the
+ * same, bit for bit. */
 static void gauss_filter(const double *in, double *out, double *tmp, int w, int h, const double *g)
 {
-    for (int r = 0; r < h; r++)
-        for (int c = 0; c < w; c++) {
+    const int R = SSIM_RADIUS;
+    const int c0 = R < w ? R : w, c1 = w - R > c0 ? w - R : c0; /* interior columns [c0, c1) */
+    for (int r = 0; r < h; r++) {
+        const double *row = in + (size_t)r * w;
+        double *t = tmp + (size_t)r * w;
+        for (int c = 0; c < c0; c++)
+            t[c] = gauss_tap_clamped(row, c, w, 1, g);
+        for (int c = c0; c < c1; c++) {
             double s = 0;
-            for (int k = -SSIM_RADIUS; k <= SSIM_RADIUS; k++) {
-                int cc = c + k < 0 ? 0 : (c + k >= w ? w - 1 : c + k);
-                s += g[k + SSIM_RADIUS] * in[(size_t)r * w + cc];
-            }
-            tmp[(size_t)r * w + c] = s;
+            for (int k = -R; k <= R; k++)
+                s += g[k + R] * row[c + k];
+            t[c] = s;
         }
-    for (int r = 0; r < h; r++)
-        for (int c = 0; c < w; c++) {
-            double s = 0;
-            for (int k = -SSIM_RADIUS; k <= SSIM_RADIUS; k++) {
-                int rr = r + k < 0 ? 0 : (r + k >= h ? h - 1 : r + k);
-                s += g[k + SSIM_RADIUS] * tmp[(size_t)rr * w + c];
+        for (int c = c1; c < w; c++)
+            t[c] = gauss_tap_clamped(row, c, w, 1, g);
+    }
+    for (int r = 0; r < h; r++) {
+        double *o = out + (size_t)r * w;
+        if (r >= R && r + R < h) { /* interior rows: a whole row per tap */
+            for (int c = 0; c < w; c++)
+                o[c] = 0;
+            for (int k = -R; k <= R; k++) {
+                const double gk = g[k + R], *src = tmp + (size_t)(r + k) * w;
+                for (int c = 0; c < w; c++)
+                    o[c] += gk * src[c];
             }
-            out[(size_t)r * w + c] = s;
+        } else {
+            for (int c = 0; c < w; c++)
+                o[c] = gauss_tap_clamped(tmp + c, r, h, (size_t)w, g);
         }
+    }
 }
 
 double sci_ssim_frame(const float *x, const float *ref, int w, int h, double range)

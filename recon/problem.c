@@ -146,4 +146,8 @@ void sci_result_free_contents(sci_result *r)
     sci_cube_free(r->frames);
     r->frames = NULL;
     sci_trace_clear(&r->trace);
+    free(r->final_metrics);
+    r->final_metrics = NULL;
+    r->final_n = 0;
+    r->final_of = NULL;
 }

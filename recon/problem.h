@@ -83,9 +83,15 @@ typedef struct sci_result {
     int stopped;        /* 0 ran to the end; SCI_ECANCELED; SCI_EDIVERGED */
     sci_error error;    /* message when the solver returned an error */
     char method[32];    /* "gap-tv", "admm-tv", ... */
+    /* The metrics the tracer computed on its last iteration (truth known), per frame, so that writers of
+     * result.json need not compute them again (an SSIM is ~25 ms for 256×256×8): 3·n values — PSNR (per-frame
+     * max), PSNR (peak), SSIM — owned, or NULL. Valid for `final_of` (the frames' data they were computed on). */
+    double *final_metrics;
+    int final_n;
+    const float *final_of;
 } sci_result;
 
-void sci_result_free_contents(sci_result *r); /* frees frames and trace, keeps the struct */
+void sci_result_free_contents(sci_result *r); /* frees frames, trace and final_metrics, keeps the struct */
 
 /* Called after every iteration with the newest trace entry. Return nonzero to cancel: the solver stops, keeps
  * its current estimate in result->frames, and returns SCI_ECANCELED. Called on the solver's thread. */
