@@ -285,14 +285,17 @@ static void optimised_poses_rf(sci_rayformer_params *q)
     q->pose_lr = 1e-3, q->pose_lr_final = 1e-4;
 }
 
-/* patch-size study: the full method, the same number of rays per step */
+/* patch-size study: the full method at every other patch side (the default's row is the ladder's last), the same
+ * number of rays per step */
 static void patch_study(const char *name, const sci_problem *p, const sci_rayformer_params *qf)
 {
     const sci_rayformer_params q = *qf;
     const int rays = q.patches_per_step * q.patch * q.patch;
-    const int sizes[] = {2, 4, 16};
-    for (int i = 0; i < 3; i++) {
+    const int sizes[] = {2, 4, 8, 16};
+    for (int i = 0; i < 4; i++) {
         sci_rayformer_params v = q;
+        if (sizes[i] == q.patch)
+            continue;
         v.patch = sizes[i];
         v.patches_per_step = rays / (sizes[i] * sizes[i]) > 0 ? rays / (sizes[i] * sizes[i]) : 1;
         if (p->mask->w < v.patch || p->mask->h < v.patch)
@@ -349,9 +352,11 @@ static void one_scene(const char *name, const char *parts)
     sci_rayformer_params_preset(&q, preset);
     q.metrics_every = 0;
     const double tv = q.tv_weight;
-    static const char *const ladder[5] = {"rayformer baseline (random rays, no attention, no TV)",
-                                          "rayformer + patch sampling", "rayformer + inter-ray attention",
-                                          "rayformer + intra-ray attention", "rayformer + TV (full), patch 8"};
+    char full[96];
+    snprintf(full, sizeof full, "rayformer + TV (full), patch %d", q.patch);
+    const char *const ladder[5] = {"rayformer baseline (random rays, no attention, no TV)",
+                                   "rayformer + patch sampling", "rayformer + inter-ray attention",
+                                   "rayformer + intra-ray attention", full};
     for (int s = 0; s <= 4; s++) {
         sci_rayformer_params_ablation(&q, s, tv);
         if (strstr(parts, "ladder"))

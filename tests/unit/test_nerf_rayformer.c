@@ -191,18 +191,17 @@ static void test_rayformer_gradcheck_head_hidden(void **state)
     gradcheck(&c, "no final layer norm");
 }
 
-/* Same seed: bitwise identical outputs and gradients (full-size 8×8×32 patches), on 2 threads and on 3 (patches and
- * hash levels are scheduled dynamically and the sums never depend on which thread did what). */
-static void test_rayformer_deterministic(void **state)
+/* Same seed: bitwise identical outputs and gradients on 2 threads and on 3 (patches and hash levels are scheduled
+ * dynamically and the sums never depend on which thread did what). */
+static void deterministic_check(const nerf_rayformer_config *c, int Pn)
 {
-    (void)state;
     sci_rng rng;
     uint64_t seed = test_seed();
-    nerf_rayformer_config cfg = nerf_rayformer_config_default();
+    const nerf_rayformer_config cfg = *c;
     nerf_rayformer *net;
     sci_error err = {0};
     assert_int_equal(nerf_rayformer_new(&net, &cfg, &err), 0);
-    const int Pn = 4, R = 64, N = Pn * R * cfg.samples;
+    const int R = cfg.patch_w * cfg.patch_h, N = Pn * R * cfg.samples;
     size_t np = nerf_rayformer_param_count(net);
     float *P = malloc(np * 4), *out[2][6];
     float *pos = malloc(3 * N * 4), *dir = malloc(3 * Pn * R * 4), *ds = malloc(N * 4), *dc = malloc(3 * N * 4);
@@ -232,6 +231,16 @@ static void test_rayformer_deterministic(void **state)
         for (int k = 0; k < 5; k++) free(out[run][k]);
     free(P), free(pos), free(dir), free(ds), free(dc);
     nerf_rayformer_free(net);
+}
+
+/* Full-size 8×8×32 patches, and the default 2×2×16 ones (40 small patches shared out dynamically). */
+static void test_rayformer_deterministic(void **state)
+{
+    (void)state;
+    nerf_rayformer_config cfg = nerf_rayformer_config_default();
+    deterministic_check(&cfg, 4);
+    cfg.patch_w = cfg.patch_h = 2, cfg.samples = 16;
+    deterministic_check(&cfg, 40);
 }
 
 static void test_rayformer_config_errors(void **state)

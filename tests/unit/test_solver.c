@@ -100,12 +100,12 @@ static void test_presets(void **state)
         json_decref(jd), json_decref(jb);
         solver_settings_free(d), solver_settings_free(b);
     }
-    /* the rayformer presets (1500 / 3000 / 4000 steps; best: 64 windows of 4 × 4) */
+    /* the rayformer presets (1500 / 3000 / 4000 steps; best: 256 windows of 2 × 2) */
     sci_rayformer_params r;
     sci_rayformer_params_default(&r);
     solver_settings_preset(&sci_rayformer_solver, &r, SOLVER_PRESET_BEST);
     assert_int_equal(r.iters, 4000);
-    assert_int_equal(r.patches_per_step, 64);
+    assert_int_equal(r.patches_per_step, 256);
 }
 
 static void test_json(void **state)
@@ -163,7 +163,7 @@ static void test_json(void **state)
     assert_int_equal(r.pose_mode, NERF_POSES_PER_FRAME);
     assert_true(r.patch_sampling && r.inter_ray && !r.intra_ray && r.tv_weight == 0);
     assert_int_equal(r.patch, 8);
-    assert_int_equal(r.patches_per_step, 32 * 16 / 64); /* the fast preset's 32 windows of 4 × 4 */
+    assert_int_equal(r.patches_per_step, 128 * 4 / 64); /* the fast preset's 128 windows of 2 × 2 */
     assert_int_equal(r.log2_table, 14);
     json_decref(rj);
     rj = json_pack("{s:s}", "pose_mode", "sideways");
