@@ -32,7 +32,7 @@ SAN_FLAGS := $(if $(SANITIZE),-fsanitize=address$(comma)undefined -fno-sanitize-
 ALL_CFLAGS   = -std=c11 -D_GNU_SOURCE -fopenmp $(WARN) -I. $(PKG_CFLAGS) -DSCICAP_GPIOD_MAJOR=$(or $(GPIOD_MAJOR),0) \
                -DSCICAP_VERSION='"$(VERSION)"' -DSCICAP_DATADIR='"$(PREFIX)/share/scicap"' $(CFLAGS) $(SAN_FLAGS) $(CPPFLAGS)
 ALL_CXXFLAGS = -std=c++17 -fopenmp $(filter-out -Wshadow,$(WARN)) -I. $(PKG_CFLAGS) $(CXXFLAGS) $(SAN_FLAGS) $(CPPFLAGS)
-LDLIBS_ALL   = $(PKG_LIBS) -lstdc++ -lm -lpthread $(LDLIBS)
+LDLIBS_ALL   = $(PKG_LIBS) -lgif -lstdc++ -lm -lpthread $(LDLIBS)
 VERSION := $(shell git describe --always --dirty 2>/dev/null || echo 0.1)
 
 # Every .c under these folders goes into libscicap.a: adding a module needs no Makefile edit.
@@ -55,7 +55,7 @@ BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
 DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools libmatio-dev libjansson-dev \
             libcmocka-dev libopenblas-dev libhidapi-dev libusb-1.0-0-dev libgpiod-dev gpiod libsystemd-dev \
             gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools systemd zlib1g-dev \
-            python3-dev python3-numpy python3-pytest slurm-wlm munge
+            python3-dev python3-numpy python3-pytest slurm-wlm munge libgif-dev
 
 .PHONY: all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
 .PHONY: python check-python check-slurm
@@ -252,7 +252,7 @@ $(FUZZ_LIB): $(FUZZ_OBJ)
 	ar rcs $@ $^
 $(BUILD)/fuzz/%: tests/fuzz/%.c $(FUZZ_LIB)
 	@mkdir -p $(dir $@)
-	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $< $(FUZZ_LIB) $(PKG_LIBS) -lstdc++ -lm -lpthread
+	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $< $(FUZZ_LIB) $(PKG_LIBS) -lgif -lstdc++ -lm -lpthread
 fuzz: deps
 	@$(MAKE) --no-print-directory $(FUZZ_BIN)
 	@set -e; for f in $(FUZZ_BIN); do n=$$(basename $$f); mkdir -p $(BUILD)/fuzz/corpus-$$n; \

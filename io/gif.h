@@ -1,14 +1,13 @@
-/* io/gif.h — animated grey GIF previews, encoded here with one fixed 256-level grey palette.
+/* io/gif.h — animated grey GIF previews with one fixed 256-level grey palette, encoded by giflib.
  *
  * Why not OpenImageIO's GIF writer: it builds a fresh palette for every frame (a k-d tree over the frame's
- * colours, then a search per pixel), ≈ 57 ms for 8 frames of 256×256 — for frames that are grey, whose 256
- * levels fit GIF's 256 palette entries exactly. With the grey palette every 8-bit value is stored as itself (the
- * preview is lossless) and encoding is LZW alone.
+ * colours, then a search per pixel), ≈ 57 ms for 8 frames of 256×256, and is lossy — for frames that are grey,
+ * whose 256 levels fit GIF's 256 palette entries exactly. With the grey palette every 8-bit value is stored as
+ * itself (the preview is lossless) and encoding is giflib's LZW alone.
  *
  * Format: GIF89a, one global colour table (entry v = (v, v, v)), a NETSCAPE2.0 loop-forever extension, and per
- * frame a graphic control extension (delay in 1/100 s, no transparency, disposal "none") and a full-size image
- * with 8-bit LZW codes (clear codes when the 12-bit table is full). Any GIF reader decodes it (checked with
- * OpenImageIO's giflib-based reader in tests/unit/test_gif.c).
+ * frame a graphic control extension (delay in 1/100 s, no transparency, disposal "do not dispose") and a full-size
+ * image (tests/unit/test_gif.c decodes it with OpenImageIO's reader).
  */
 #ifndef SCICAP_IO_GIF_H
 #define SCICAP_IO_GIF_H
