@@ -104,7 +104,7 @@ static int write_frames(const char *path, const sci_cube *c, int k0, int channel
     }
     char tmp[4096], msg[SCI_ERROR_MSG_MAX];
     tmp_name(tmp, sizeof tmp, path);
-    int rc = sci_oiio_write_ex(tmp, buf, c->w, c->h, channels, (int)type, description, uncompressed, msg, sizeof msg);
+    int rc = sci_oiio_write(tmp, buf, c->w, c->h, channels, (int)type, description, uncompressed, msg, sizeof msg);
     free(buf);
     return publish(tmp, path, rc, msg, err);
 }
@@ -126,6 +126,13 @@ int sci_image_write_rgb(const char *path, const sci_cube *rgb, int f, sci_pixel_
 }
 
 void sci_image_exr_threads(int threads) { sci_oiio_exr_threads(threads); }
+
+/* A preview value (already scaled) as 8 bits: NaN black, rounded, clamped to [0, 255]. */
+static unsigned char grey8(double v)
+{
+    v = isnan(v) ? 0 : nearbyint(v);
+    return (unsigned char)(v < 0 ? 0 : (v > 255 ? 255 : v));
+}
 
 /* The smallest f with ceil(w/f)·ceil(h/f) <= SCI_GIF_MAX_PIXELS and both sides <= 65535. */
 static int gif_factor(int w, int h)
@@ -155,10 +162,8 @@ int sci_image_write_gif_opt(const char *path, const sci_cube *c, double scale, i
     for (int k = 0; k < c->n && f == 1; k++) { /* full size: one pixel each, no block loops */
         const float *src = sci_cube_frame(c, k);
         unsigned char *dst = buf + (size_t)k * gfs;
-        for (size_t i = 0; i < gfs; i++) {
-            const double v = isnan(src[i]) ? 0 : nearbyint((double)src[i] * scale);
-            dst[i] = (unsigned char)(v < 0 ? 0 : (v > 255 ? 255 : v));
-        }
+        for (size_t i = 0; i < gfs; i++)
+            dst[i] = grey8((double)src[i] * scale);
     }
     for (int k = 0; k < c->n && f > 1; k++) {
         const float *src = sci_cube_frame(c, k);
@@ -172,9 +177,7 @@ int sci_image_write_gif_opt(const char *path, const sci_cube *c, double scale, i
                         const float v = src[(size_t)y * c->w + x];
                         acc += isnan(v) ? 0 : v;
                     }
-                double v = acc / cnt * scale;
-                v = isnan(v) ? 0 : nearbyint(v);
-                buf[(size_t)k * gfs + (size_t)gy * gw + gx] = (unsigned char)(v < 0 ? 0 : (v > 255 ? 255 : v));
+                buf[(size_t)k * gfs + (size_t)gy * gw + gx] = grey8(acc / cnt * scale);
             }
     }
     char tmp[4096];
@@ -221,10 +224,7 @@ int sci_stack_write_ex(const char *dir, const char *stem, const char *ext, const
     for (int k = 0; k < c->n && rc == 0; k++) {
         snprintf(name, sizeof name, "%s_%03d.%s", stem, k, ext);
         snprintf(path, sizeof path, "%s/%s", dir, name);
-        if (k < 0 || k >= c->n)
-            rc = sci_error_set(err, -EINVAL, "%s: frame %d out of range", path, k);
-        else
-            rc = write_frames(path, c, k, 1, type, scale, NULL, uncompressed, err);
+        rc = write_frames(path, c, k, 1, type, scale, NULL, uncompressed, err);
         json_array_append_new(files, json_string(name));
     }
     if (rc < 0) {

@@ -126,13 +126,7 @@ extern "C" int sci_oiio_probe(const char *path, int *w, int *h, char *errbuf, si
 }
 
 extern "C" int sci_oiio_write(const char *path, const float *data, int w, int h, int channels, int pixel_type,
-                              const char *description, char *errbuf, size_t errlen)
-{
-    return sci_oiio_write_ex(path, data, w, h, channels, pixel_type, description, 0, errbuf, errlen);
-}
-
-extern "C" int sci_oiio_write_ex(const char *path, const float *data, int w, int h, int channels, int pixel_type,
-                                 const char *description, int uncompressed, char *errbuf, size_t errlen)
+                              const char *description, int uncompressed, char *errbuf, size_t errlen)
 {
     try {
         TypeDesc t = pixel_type == 0 ? TypeDesc::UINT8

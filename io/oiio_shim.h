@@ -25,13 +25,10 @@ int sci_oiio_probe(const char *path, int *w, int *h, char *errbuf, size_t errlen
  * 0 = uint8, 1 = uint16, 2 = half, 3 = float; values must already be in the type's range (integer types: rounded
  * by the caller). Lossless compression at its cheapest level (deflate level 1: EXR "zip:1", TIFF zip quality 1,
  * PNG level 1): ~3 times less CPU than the libraries' defaults for 5-15 % more bytes on our frames (measured on
- * 256×256 frames). description may be NULL. Not atomic: io/image.c writes to a
- * temporary name and renames. */
+ * 256×256 frames); uncompressed = 1 stores the pixels without compression (EXR and TIFF; PNG is always deflated).
+ * description may be NULL. Not atomic: io/image.c writes to a temporary name and renames. */
 int sci_oiio_write(const char *path, const float *data, int w, int h, int channels, int pixel_type,
-                   const char *description, char *errbuf, size_t errlen);
-/* Same; uncompressed = 1 stores the pixels without compression (EXR and TIFF; PNG is always deflated). */
-int sci_oiio_write_ex(const char *path, const float *data, int w, int h, int channels, int pixel_type,
-                      const char *description, int uncompressed, char *errbuf, size_t errlen);
+                   const char *description, int uncompressed, char *errbuf, size_t errlen);
 
 /* OpenEXR's process-wide compression pool: threads > 0 sets its size, 0 lets it use every core, -1 turns it off
  * (each file compressed on the thread that writes it). Affects every EXR read and write in the process. */
