@@ -104,9 +104,20 @@ size_t nerf_i2r_scratch_floats(const nerf_i2r_shape *s)
 typedef struct grp {
     int n, d, C, c0;
     size_t base, stride;
+    float slope; /* the logit of query i for key j gets −slope·|i − j| (0: none) */
 } grp;
 
 INLINE size_t row_of(const grp *g, int j) { return g->base + (size_t)j * g->stride; }
+
+/* The logit of the 16 queries b … b+15 (lanes) for key j: the dot product s, minus the distance bias. The forward
+ * and the backward's recomputation call this with the same s, so p is bitwise the same in both. */
+INLINE vf biased(const grp *g, vf s, int b, int j)
+{
+    if (g->slope == 0.0f) return s;
+    const vf lane = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+    const vf dist = (float)(j - b) - lane;
+    return s - g->slope * (vf)((vi)dist & 0x7fffffff);
+}
 
 /* Transposed copy of channels [off, off + d) of the group's rows: dst[c·np + j] = scale·src[row_j·ld + off + c],
  * lanes j >= n zero. */
@@ -135,6 +146,7 @@ INLINE void group_forward(const grp *g, const int d, const float *qkv, int ldq, 
             const float *k = qkv + row_of(g, j) * ldq + C + c0;
             vf s = q[0] * k[0];
             for (int c = 1; c < d; c++) s += q[c] * k[c];
+            s = biased(g, s, b, j);
             vstore(St + (size_t)j * VW, s);
             m = j ? vsel(s > m, s, m) : s;
         }
@@ -192,6 +204,7 @@ INLINE void group_backward(const grp *g, const int d, const float *qkv, int ldq,
             const float *k = qkv + row_of(g, j) * ldq + C + c0, *v = k + C;
             vf s = q[0] * k[0], dp = gq[0] * v[0];
             for (int c = 1; c < d; c++) s += q[c] * k[c], dp += gq[c] * v[c];
+            s = biased(g, s, b, j);
             vf arg = s - Lv;
             vf p = vexp(&arg);
             vf ds = p * (dp - Dv);
@@ -283,7 +296,8 @@ CLONES void nerf_i2r_forward(const nerf_i2r_shape *s, int n_patches, const float
         if (s->inter_off) pass_forward(s, p0, 1, qkv, ld_qkv, o, ldo, lse);
         for (int h = 0; h < H; h++) {
             for (int r = 0; r < R && !s->intra_off; r++) { /* intra-ray: the L samples of ray r */
-                grp g = {.n = L, .d = d, .C = C, .c0 = h * d, .base = p0 + (size_t)r * L, .stride = 1};
+                grp g = {.n = L, .d = d, .C = C, .c0 = h * d, .base = p0 + (size_t)r * L, .stride = 1,
+                         .slope = ldexpf(s->intra_slope, -h)};
 #define FWD_A(D) group_forward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, h, scratch)
                 DISPATCH_D(FWD_A);
             }
@@ -307,7 +321,8 @@ CLONES void nerf_i2r_backward(const nerf_i2r_shape *s, int n_patches, const floa
         if (s->inter_off) pass_backward(s, p0, 1, dout, lddo, dqkv, ld_dqkv);
         for (int h = 0; h < H; h++) {
             for (int r = 0; r < R && !s->intra_off; r++) {
-                grp g = {.n = L, .d = d, .C = C, .c0 = h * d, .base = p0 + (size_t)r * L, .stride = 1};
+                grp g = {.n = L, .d = d, .C = C, .c0 = h * d, .base = p0 + (size_t)r * L, .stride = 1,
+                         .slope = ldexpf(s->intra_slope, -h)};
 #define BWD_A(D) group_backward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, h, dout, lddo, dqkv, ld_dqkv, scratch)
                 DISPATCH_D(BWD_A);
             }

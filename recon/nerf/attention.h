@@ -4,8 +4,9 @@
  * (0 … L−1) sits at row (p·R + r)·L + s. The input is the packed projection qkv (row = [Q | K | V], each C wide,
  * row stride ld_qkv >= 3C) made by the caller's linear layer. Channels [0, C/2) form path A: attention among the
  * L samples of one ray (intra-ray). Channels [C/2, C) form path B: attention among the R rays of the patch at the
- * same sample index (inter-ray). Each path is split into `heads` heads of d = C/(2·heads) channels:
- *   o_i = Σ_j softmax_j(q_i·k_j / sqrt(d)) v_j,   softmax with max subtraction, sums in float with the
+ * same sample index (inter-ray). Each path is split into `heads` heads of d = C/(2·heads) channels (b_ij: the
+ * intra-ray distance bias below, 0 on path B):
+ *   o_i = Σ_j softmax_j(q_i·k_j / sqrt(d) + b_ij) v_j,   softmax with max subtraction, sums in float with the
  *   normaliser in double. The forward saves lse = max + log Σ exp per row and head (rows × 2·heads floats);
  *   the backward recomputes the probabilities from it (flash-attention style: O(n) memory, not O(n·L + n·R)),
  *   using D_i = dO_i·O_i for the softmax Jacobian, so logits of ±1e4 stay finite and exact.
@@ -29,6 +30,10 @@ typedef struct nerf_i2r_shape {
     int R;         /* rays per patch (W·H) */
     int intra_off; /* 1: path A passes V through (o_i = v_i: each point attends only to itself) — ablation */
     int inter_off; /* 1: path B passes V through — ablation */
+    float intra_slope; /* >= 0: path A's head h adds −(intra_slope / 2^h)·|i − j| to the logit of sample i
+                          attending to sample j (a fixed distance bias, ALiBi; 0: none — the paper's plain
+                          attention). The samples of a ray carry no position otherwise: without it every sample
+                          attends to the ray's samples as to a bag. */
 } nerf_i2r_shape;
 
 size_t nerf_i2r_scratch_floats(const nerf_i2r_shape *s);

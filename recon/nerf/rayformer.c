@@ -66,6 +66,8 @@ int nerf_rayformer_new(nerf_rayformer **out, const nerf_rayformer_config *cfg, s
     if (c->heads < 1 || (c->width / 2) % c->heads)
         return sci_error_set(err, SCI_ECONFIG, "rayformer: heads %d must divide width/2 = %d", c->heads,
                              c->width / 2);
+    if (!(c->intra_slope >= 0.0f && c->intra_slope <= 100.0f))
+        return sci_error_set(err, SCI_ECONFIG, "rayformer: intra_slope %g outside 0..100", (double)c->intra_slope);
     if (c->ffn_hidden < 1 || c->ffn_hidden > 4096)
         return sci_error_set(err, SCI_ECONFIG, "rayformer: ffn_hidden %d outside 1..4096", c->ffn_hidden);
     if (c->geo_dim < 0 || c->geo_dim > 256)
@@ -95,7 +97,8 @@ int nerf_rayformer_new(nerf_rayformer **out, const nerf_rayformer_config *cfg, s
     n->Hh = c->head_hidden;
     n->R = c->patch_w * c->patch_h, n->L = c->samples, n->cin = n->G + n->S;
     n->bs = (nerf_block_shape){.att = {.C = n->C, .heads = c->heads, .L = n->L, .R = n->R,
-                                       .intra_off = !c->intra_ray, .inter_off = !c->inter_ray},
+                                       .intra_off = !c->intra_ray, .inter_off = !c->inter_ray,
+                                       .intra_slope = c->intra_slope},
                                .hidden = c->ffn_hidden};
     size_t k = nerf_hashgrid_param_count(n->grid);
     n->n_hash = k;

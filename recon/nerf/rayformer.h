@@ -58,6 +58,7 @@ typedef struct nerf_rayformer_config {
     float aabb_min[3], aabb_max[3];
     float density_bias;        /* added before trunc_exp */
     int intra_ray, inter_ray;  /* 1: the attention path; 0: pass-through (o = V, per point) — the paper's ablation */
+    float intra_slope;         /* intra-ray distance bias (attention.h; 0: none, the paper's attention) */
     int head_hidden;           /* 0: density and geometry from one FC layer on LN_f(h) (the paper); > 0: a ReLU
                                   hidden layer of this width first, as SCINeRF's density MLP (issue 15: with the
                                   blocks starting as the identity, one FC layer on normalised hash features fits

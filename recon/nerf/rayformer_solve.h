@@ -46,6 +46,8 @@ typedef struct sci_rayformer_params {
     double tv_eps;               /* Charbonnier ε of the TV term (0: plain |d|) */
     int patch_sampling;          /* 1: patches; 0: scattered random rays in groups of patch² (ablation baseline) */
     int inter_ray, intra_ray;    /* 1: the attention path; 0: pass-through (ablation) */
+    double intra_slope;          /* intra-ray distance bias, 0 … 100: head h adds −(slope/2^h)·|i − j| to the logit
+                                    of sample i for sample j (attention.h; 0: the paper's position-free attention) */
     int zero_gates;              /* 1: each block's output projections start at zero (the block starts as the
                                     identity, ReZero/LayerScale-style); 0: Kaiming-uniform */
     int final_norm;              /* 1: layer norm before the density head (pre-norm transformers); 0: the head reads

@@ -72,7 +72,8 @@ void nerf_ref_linear(int n, int in, int out, const double *W, const double *b, c
 
 double nerf_ref_gelu(double x) { return 0.5 * x * (1.0 + erf(x / sqrt(2.0))); }
 
-static void ref_group(int n, int d, size_t base, size_t stride, int c0, int C, const double *qkv, double *o)
+static void ref_group(int n, int d, size_t base, size_t stride, int c0, int C, double slope, const double *qkv,
+                      double *o)
 {
     double *p = malloc((size_t)n * sizeof *p);
     for (int i = 0; i < n; i++) {
@@ -82,7 +83,7 @@ static void ref_group(int n, int d, size_t base, size_t stride, int c0, int C, c
             const double *k = qkv + (base + (size_t)j * stride) * 3 * C + C + c0;
             double s = 0;
             for (int c = 0; c < d; c++) s += q[c] * k[c];
-            p[j] = s / sqrt((double)d);
+            p[j] = s / sqrt((double)d) - slope * abs(i - j);
             m = p[j] > m ? p[j] : m;
         }
         double sum = 0;
@@ -102,9 +103,10 @@ void nerf_ref_i2r_forward(const nerf_i2r_shape *s, int n_patches, const double *
     for (int pa = 0; pa < n_patches; pa++) {
         size_t p0 = (size_t)pa * R * L;
         for (int h = 0; h < H; h++) {
-            for (int r = 0; r < R && !s->intra_off; r++) ref_group(L, d, p0 + (size_t)r * L, 1, h * d, C, qkv, o);
+            for (int r = 0; r < R && !s->intra_off; r++)
+                ref_group(L, d, p0 + (size_t)r * L, 1, h * d, C, ldexp(s->intra_slope, -h), qkv, o);
             for (int t = 0; t < L && !s->inter_off; t++)
-                ref_group(R, d, p0 + t, (size_t)L, C / 2 + h * d, C, qkv, o);
+                ref_group(R, d, p0 + t, (size_t)L, C / 2 + h * d, C, 0.0, qkv, o);
         }
         for (size_t i = p0; i < p0 + (size_t)R * L; i++) /* switched-off paths pass V through */
             for (int c = 0; c < C; c++)
@@ -141,7 +143,7 @@ void nerf_ref_rayformer_forward(const nerf_rayformer *net, const double *P, int 
     const int R = cf->patch_w * cf->patch_h, L = cf->samples, Ci = G + S;
     const size_t n = (size_t)n_patches * R * L;
     nerf_block_shape bs = {.att = {.C = C, .heads = cf->heads, .L = L, .R = R, .intra_off = !cf->intra_ray,
-                                   .inter_off = !cf->inter_ray},
+                                   .inter_off = !cf->inter_ray, .intra_slope = cf->intra_slope},
                            .hidden = cf->ffn_hidden};
     double *u = malloc(n * 3 * sizeof *u), *a = malloc(n * C * sizeof *a), *b = malloc(n * C * sizeof *b);
     double *ho = malloc(n * (G + 1) * sizeof *ho), *ci = calloc(n * Ci, sizeof *ci);

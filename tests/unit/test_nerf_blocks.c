@@ -534,6 +534,33 @@ static void test_attention_wide_heads(void **s)
     att_check_shape((nerf_i2r_shape){.C = 32, .heads = 2, .L = 17, .R = 3}, 1, 100.0, "d = 8, logits ±1e4");
 }
 
+/* The intra-ray distance bias: forward and gradient against the reference with the bias, on a ray of 17 samples
+ * (two 16-lane blocks: the second block's lanes must see distances from their own sample index), with d = 4 and
+ * d = 8, and a steep slope (logits down to −1600 for the farthest sample: the softmax stays exact and finite). */
+static void test_attention_intra_slope(void **s)
+{
+    (void)s;
+    att_check_shape((nerf_i2r_shape){.C = 8, .heads = 2, .L = 5, .R = 6, .intra_slope = 0.7f}, 2, 1.0, "slope 0.7");
+    att_check_shape((nerf_i2r_shape){.C = 32, .heads = 2, .L = 17, .R = 3, .intra_slope = 0.7f}, 1, 1.0,
+                    "slope 0.7, L = 17");
+    att_check_shape((nerf_i2r_shape){.C = 16, .heads = 2, .L = 17, .R = 2, .intra_slope = 100.0f}, 1, 1.0,
+                    "slope 100, L = 17");
+    /* the bias changes the output (the check above would also pass if both ignored it) */
+    nerf_i2r_shape a = {.C = 8, .heads = 2, .L = 5, .R = 2}, b = a;
+    b.intra_slope = 2.0f;
+    const int N = a.R * a.L, C = a.C;
+    double *qkv = malloc((size_t)N * 3 * C * 8), *oa = malloc((size_t)N * C * 8), *ob = malloc((size_t)N * C * 8);
+    for (int i = 0; i < N * 3 * C; i++) qkv[i] = unif(-1, 1);
+    nerf_ref_i2r_forward(&a, 1, qkv, oa);
+    nerf_ref_i2r_forward(&b, 1, qkv, ob);
+    double dA = 0, dB = 0;
+    for (int i = 0; i < N; i++)
+        for (int c = 0; c < C; c++) *(c < C / 2 ? &dA : &dB) += fabs(oa[i * C + c] - ob[i * C + c]);
+    assert_true(dA > 1e-3); /* path A (intra-ray) moved */
+    assert_true(dB == 0.0); /* path B (inter-ray) did not */
+    free(qkv), free(oa), free(ob);
+}
+
 /* Logits of ±1e4: q, k entries ~±100 give q·k/sqrt(2) up to ~1e4. */
 static void test_attention_large_logits(void **s)
 {
@@ -616,7 +643,8 @@ int main(void)
         cmocka_unit_test(test_hashgrid_random),   cmocka_unit_test(test_hashgrid_borders),
         cmocka_unit_test(test_hashgrid_config_errors), cmocka_unit_test(test_attention),
         cmocka_unit_test(test_attention_large_logits),
-        cmocka_unit_test(test_attention_wide_heads), cmocka_unit_test(test_attention_pass_through),
+        cmocka_unit_test(test_attention_wide_heads),
+        cmocka_unit_test(test_attention_intra_slope), cmocka_unit_test(test_attention_pass_through),
         cmocka_unit_test(test_gelu_with_grad), cmocka_unit_test(test_block),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -177,6 +177,9 @@ static void test_rayformer_gradcheck_ablation(void **state)
     c = small_config();
     c.inter_ray = 0;
     gradcheck(&c, "inter-ray off");
+    c = small_config();
+    c.intra_slope = 0.8f; /* the intra-ray distance bias: a fixed term in the logits, still exact */
+    gradcheck(&c, "intra-ray slope 0.8");
 }
 
 /* The density/geometry head with a hidden ReLU layer (head_hidden > 0) instead of the paper's single FC layer. */
@@ -260,6 +263,10 @@ static void test_rayformer_config_errors(void **state)
     c.head_hidden = -1;
     assert_int_equal(nerf_rayformer_new(&net, &c, &err), SCI_ECONFIG);
     assert_non_null(strstr(err.msg, "head_hidden"));
+    c = nerf_rayformer_config_default();
+    c.intra_slope = -1.0f;
+    assert_int_equal(nerf_rayformer_new(&net, &c, &err), SCI_ECONFIG);
+    assert_non_null(strstr(err.msg, "intra_slope"));
     c = nerf_rayformer_config_default();
     c.aabb_max[1] = c.aabb_min[1];
     assert_int_equal(nerf_rayformer_new(&net, &c, &err), SCI_ECONFIG);
