@@ -111,8 +111,9 @@ INLINE size_t row_of(const grp *g, int j) { return g->base + (size_t)j * g->stri
 
 /* The logit of the 16 queries b … b+15 (lanes) for key j: the dot product s, minus the distance bias. The forward
  * and the backward's recomputation call this with the same s, so p is bitwise the same in both. */
-INLINE vf biased(const grp *g, vf s, int b, int j)
+INLINE vf biased(const grp *g, const vf *sp, int b, int j)
 {
+    const vf s = *sp;
     if (g->slope == 0.0f) return s;
     const vf lane = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
     const vf dist = (float)(j - b) - lane;
@@ -146,7 +147,7 @@ INLINE void group_forward(const grp *g, const int d, const float *qkv, int ldq, 
             const float *k = qkv + row_of(g, j) * ldq + C + c0;
             vf s = q[0] * k[0];
             for (int c = 1; c < d; c++) s += q[c] * k[c];
-            s = biased(g, s, b, j);
+            s = biased(g, &s, b, j);
             vstore(St + (size_t)j * VW, s);
             m = j ? vsel(s > m, s, m) : s;
         }
@@ -204,7 +205,7 @@ INLINE void group_backward(const grp *g, const int d, const float *qkv, int ldq,
             const float *k = qkv + row_of(g, j) * ldq + C + c0, *v = k + C;
             vf s = q[0] * k[0], dp = gq[0] * v[0];
             for (int c = 1; c < d; c++) s += q[c] * k[c], dp += gq[c] * v[c];
-            s = biased(g, s, b, j);
+            s = biased(g, &s, b, j);
             vf arg = s - Lv;
             vf p = vexp(&arg);
             vf ds = p * (dp - Dv);
