@@ -22,8 +22,11 @@ print("finished without interruption", flush=True)
 
 
 def test_ctrl_c_raises_keyboard_interrupt(drop40):
+    # The child starts with SIGINT at its default: a shell that runs this suite in the background (`cmd &`) ignores
+    # SIGINT, the child would inherit that, and Python installs its KeyboardInterrupt handler only when SIGINT is
+    # not ignored at start-up (two CI runs launched from a detached shell failed here for that reason).
     child = subprocess.Popen([sys.executable, "-c", CHILD, str(drop40)], stdout=subprocess.PIPE, text=True,
-                             env=dict(os.environ))
+                             env=dict(os.environ), preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert child.stdout.readline().strip() == "solving"
         time.sleep(1.0)  # well inside the solve: a million iterations take hours
