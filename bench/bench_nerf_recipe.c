@@ -9,7 +9,8 @@
  * spacing=disparity distortion_weight=0.01 zero_gates=true final_norm=false ablation=patch samples=32
  * threads=1); a value is read as JSON when it parses, else as a string. metrics_every defaults to 100 here.
  * Output: one line per full render ("curve ITER WALL_S PSNR_PEAK1 MEAS_RESIDUAL MAX_WEIGHT") and a last line
- * "final NAME ..." with the same figures, the SSIM and the 1-minute load average. Not part of `make bench`: the
+ * "final NAME ..." with the same figures, the SSIM, the pose error (0 with known poses; rotation in rad,
+ * translation after the scale: nerf_poses_relative_error) and the 1-minute load average. Not part of `make bench`: the
  * candidates it measured are in docs/nerf-methods.md ("The recipe").
  */
 #include <math.h>
@@ -21,6 +22,7 @@
 
 #include "bench/bench_load.h"
 #include "io/source.h"
+#include "recon/nerf/poses.h"
 #include "recon/solver.h"
 
 static int on_progress(const sci_trace_entry *e, void *user)
@@ -93,7 +95,9 @@ int main(int argc, char **argv)
         return 1;
     }
     sci_result res = {0};
-    const solver_io io = {.progress = on_progress};
+    const int n = probs[0]->mask->n;
+    double(*poses)[12] = probs[0]->camera ? calloc((size_t)n, sizeof *poses) : NULL;
+    const solver_io io = {.progress = on_progress, .poses_out = poses};
     int rc = solver_run(m, probs[0], settings, &io, &res);
     if (rc < 0 && rc != SCI_ECANCELED) {
         fprintf(stderr, "%s\n", res.error.msg);
@@ -104,8 +108,16 @@ int main(int argc, char **argv)
     const sci_trace_entry *e = &res.trace.e[res.trace.len - 1];
     char load[48];
     bench_loadavg(load, sizeof load);
-    printf("final %s it=%d wall=%.1f psnr1=%.3f ssim=%.4f meas_res=%.5f max_w=%.4f load=%s\n", m->name, e->iter,
-           e->wall_s, e->psnr_peak1, e->ssim, e->meas_residual, e->max_weight, load);
+    char pose[96] = "";
+    nerf_poses *pp;
+    if (poses && nerf_poses_new(&pp, NERF_POSES_PER_FRAME, n, (const double(*)[12])poses, 0, 0, 0, NULL) == 0) {
+        nerf_pose_error pe = nerf_poses_relative_error(pp, (const double(*)[12])probs[0]->camera->pose);
+        snprintf(pose, sizeof pose, " pose_rot=%.4f pose_trans=%.4f", pe.rot_rad, pe.trans_scaled);
+        nerf_poses_free(pp);
+    }
+    free(poses);
+    printf("final %s it=%d wall=%.1f psnr1=%.3f ssim=%.4f meas_res=%.5f max_w=%.4f%s load=%s\n", m->name, e->iter,
+           e->wall_s, e->psnr_peak1, e->ssim, e->meas_residual, e->max_weight, pose, load);
     sci_result_free_contents(&res);
     sci_problem_array_free(probs, k);
     solver_settings_free(settings);

@@ -11,6 +11,11 @@ struct nerf_adam {
     size_t n;
     float *m, *s;
     uint32_t *t;
+    /* bias corrections by step count, 1 − β1^t and sqrt(1 − β2^t) for t = 1..n_corr (index 0 unused), and the
+     * step factor lr·sqrt(1 − β2^t)/(1 − β1^t) of the current call; t_hi bounds every t[j] (UINT32_MAX: not
+     * known since the buffers were handed out, found by a scan at the next step) */
+    double *c1, *sc2, *k;
+    uint32_t n_corr, cap_corr, t_hi;
 };
 
 int nerf_adam_new(nerf_adam **out, size_t n_params, const nerf_adam_config *cfg, sci_error *err)
@@ -42,6 +47,9 @@ void nerf_adam_free(nerf_adam *a)
     free(a->m);
     free(a->s);
     free(a->t);
+    free(a->c1);
+    free(a->sc2);
+    free(a->k);
     free(a);
 }
 
@@ -50,6 +58,7 @@ void nerf_adam_reset(nerf_adam *a)
     memset(a->m, 0, a->n * sizeof *a->m);
     memset(a->s, 0, a->n * sizeof *a->s);
     memset(a->t, 0, a->n * sizeof *a->t);
+    a->t_hi = 0;
 }
 
 uint32_t nerf_adam_steps_of(const nerf_adam *a, size_t j) { return a->t[j]; }
@@ -60,6 +69,45 @@ void nerf_adam_buffers(nerf_adam *a, float **m, float **s, uint32_t **steps)
     *m = a->m;
     *s = a->s;
     *steps = a->t;
+    a->t_hi = UINT32_MAX; /* the caller may write step counts */
+}
+
+/* Makes a->k[1..t_hi] hold lr·sqrt(1 − β2^t)/(1 − β1^t) for this call (t_hi: the largest step count after it).
+ * -ENOMEM leaves the table short: the step then computes the factors itself. */
+static int adam_factors(nerf_adam *a, double lr)
+{
+    if (a->t_hi == UINT32_MAX) {
+        uint32_t hi = 0;
+        for (size_t j = 0; j < a->n; j++)
+            hi = a->t[j] > hi ? a->t[j] : hi;
+        a->t_hi = hi;
+    }
+    if (a->t_hi < UINT32_MAX - 1)
+        a->t_hi++; /* a step raises a count by at most one */
+    const uint32_t hi = a->t_hi;
+    if (hi > a->cap_corr) {
+        uint32_t cap = a->cap_corr ? a->cap_corr : 1024;
+        while (cap < hi && cap < UINT32_MAX / 2)
+            cap *= 2;
+        double *c1 = realloc(a->c1, ((size_t)cap + 1) * sizeof *c1);
+        if (c1) a->c1 = c1;
+        double *sc2 = realloc(a->sc2, ((size_t)cap + 1) * sizeof *sc2);
+        if (sc2) a->sc2 = sc2;
+        double *k = realloc(a->k, ((size_t)cap + 1) * sizeof *k);
+        if (k) a->k = k;
+        if (!c1 || !sc2 || !k) return -ENOMEM;
+        a->cap_corr = cap;
+    }
+    const double b1 = a->cfg.beta1, b2 = a->cfg.beta2, lb1 = log(b1), lb2 = log(b2);
+    for (uint32_t t = a->n_corr + 1; t <= hi; t++) {
+        /* 1 − β^t via expm1 keeps precision for large t and β near 1 */
+        a->c1[t] = b1 > 0.0 ? -expm1(t * lb1) : 1.0;
+        a->sc2[t] = sqrt(b2 > 0.0 ? -expm1(t * lb2) : 1.0);
+    }
+    if (hi > a->n_corr) a->n_corr = hi;
+    for (uint32_t t = 1; t <= hi; t++)
+        a->k[t] = lr * a->sc2[t] / a->c1[t];
+    return 0;
 }
 
 void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin, size_t end, double lr, int lazy,
@@ -67,30 +115,28 @@ void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin
 {
     const double b1 = a->cfg.beta1, b2 = a->cfg.beta2, eps = a->cfg.eps, wd = decay ? a->cfg.weight_decay : 0.0;
     const double lb1 = log(b1), lb2 = log(b2);
-#pragma omp parallel
-    {
-        /* the bias correction depends on the parameter's own step count; neighbours almost always share it, so
-         * each thread keeps the last one (two expm1 and a sqrt per parameter were a third of the step) */
-        uint32_t t_last = 0;
-        double k_last = 0.0;
-#pragma omp for schedule(dynamic, 16384) /* elementwise: any schedule gives the same bits */
-        for (size_t j = begin; j < end; j++) {
-            double g = grad[j];
-            if (lazy && g == 0.0) continue;
-            g += wd * params[j];
-            uint32_t t = ++a->t[j];
-            double m = b1 * a->m[j] + (1.0 - b1) * g;
-            double s = sqrt(b2 * (double)a->s[j] * a->s[j] + (1.0 - b2) * g * g);
-            a->m[j] = (float)m;
-            a->s[j] = (float)s;
-            if (t != t_last) {
-                /* 1 − β^t via expm1 keeps precision for large t and β near 1 */
-                double c1 = b1 > 0.0 ? -expm1(t * lb1) : 1.0, c2 = b2 > 0.0 ? -expm1(t * lb2) : 1.0;
-                k_last = lr * sqrt(c2) / c1;
-                t_last = t;
-            }
-            params[j] = (float)(params[j] - k_last * m / (s + eps));
+    /* the factor depends on the parameter's own step count, and in a lazily stepped hash table neighbours rarely
+     * share it: two expm1 per parameter were a third of the step; a table by step count replaces them (same bits) */
+    const double *kt = adam_factors(a, lr) == 0 ? a->k : NULL;
+    const uint32_t n_k = kt ? a->t_hi : 0;
+#pragma omp parallel for schedule(dynamic, 16384) /* elementwise: any schedule gives the same bits */
+    for (size_t j = begin; j < end; j++) {
+        double g = grad[j];
+        if (lazy && g == 0.0) continue;
+        g += wd * params[j];
+        uint32_t t = ++a->t[j];
+        double m = b1 * a->m[j] + (1.0 - b1) * g;
+        double s = sqrt(b2 * (double)a->s[j] * a->s[j] + (1.0 - b2) * g * g);
+        a->m[j] = (float)m;
+        a->s[j] = (float)s;
+        double k;
+        if (t <= n_k)
+            k = kt[t];
+        else {
+            double c1 = b1 > 0.0 ? -expm1(t * lb1) : 1.0, c2 = b2 > 0.0 ? -expm1(t * lb2) : 1.0;
+            k = lr * sqrt(c2) / c1;
         }
+        params[j] = (float)(params[j] - k * m / (s + eps));
     }
 }
 

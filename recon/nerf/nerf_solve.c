@@ -106,7 +106,11 @@ int nerf_solve_run(const nerf_solve_method *m, const sci_problem *problem, const
     nerf_solve_config(m, params, &tc);
     if ((rc = nerf_train_prepare(problem, &tc, err)) < 0)
         return rc;
-    const int threads = shared_of(m, params)->threads > 0 ? shared_of(m, params)->threads : omp_get_max_threads();
+    const int outer = omp_get_max_threads();
+    const int threads = shared_of(m, params)->threads > 0 ? shared_of(m, params)->threads : outer;
+    /* the models take the count explicitly; the trainer's own loops and Adam follow this thread's OpenMP default,
+     * which is set for the run so that `threads` bounds all of it (threads=1 used 2 cores in Adam before) */
+    omp_set_num_threads(threads);
     void *state = NULL;
     nerf_model models[2];
     int n_models = 1;
@@ -114,6 +118,7 @@ int nerf_solve_run(const nerf_solve_method *m, const sci_problem *problem, const
         rc = nerf_train_run(problem, &tc, &models[0], n_models == 2 ? &models[1] : NULL, result, progress, user,
                             poses_out);
     m->free_models(state);
+    omp_set_num_threads(outer);
     return rc;
 }
 

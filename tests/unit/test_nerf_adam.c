@@ -53,6 +53,56 @@ static void test_adam_matches_reference(void **s)
     nerf_adam_free(a);
 }
 
+/* Lazy range with sparse gradients: every parameter keeps its own step count and bias correction, also after the
+ * state is written back through nerf_adam_buffers with counts far beyond the steps taken (a resumed run). */
+static void test_adam_own_step_counts(void **s)
+{
+    (void)s;
+    enum { n = 64, steps = 300 };
+    const double b1 = 0.9, b2 = 0.99, eps = 1e-15, lr = 1e-2;
+    nerf_adam_config c = {.beta1 = b1, .beta2 = b2, .eps = eps, .weight_decay = 0};
+    nerf_adam *a;
+    assert_int_equal(nerf_adam_new(&a, n, &c, NULL), 0);
+    float p[n], g[n];
+    double pd[n], m[n] = {0}, v[n] = {0};
+    unsigned t[n] = {0};
+    for (int j = 0; j < n; j++) pd[j] = p[j] = (float)sci_rng_normal(&RNG_);
+    double worst = 0;
+    for (int it = 0; it < steps + 2; it++) {
+        if (it == steps) { /* restore: the counts move on by 40,000 (another run's state) */
+            float *mm, *ss;
+            uint32_t *tt;
+            nerf_adam *b;
+            assert_int_equal(nerf_adam_new(&b, n, &c, NULL), 0);
+            nerf_adam_buffers(b, &mm, &ss, &tt);
+            float *am, *as;
+            uint32_t *at;
+            nerf_adam_buffers(a, &am, &as, &at);
+            for (int j = 0; j < n; j++) mm[j] = am[j], ss[j] = as[j], tt[j] = at[j] + 40000, t[j] += 40000;
+            nerf_adam_free(a);
+            a = b;
+        }
+        for (int j = 0; j < n; j++) g[j] = sci_rng_uniform(&RNG_) < 0.3 ? (float)sci_rng_normal(&RNG_) : 0.0f;
+        nerf_adam_step(a, p, g, 0, n, lr, 1, 0);
+        for (int j = 0; j < n; j++) {
+            if (g[j] == 0.0f) continue;
+            t[j]++;
+            m[j] = b1 * m[j] + (1 - b1) * g[j], v[j] = b2 * v[j] + (1 - b2) * (double)g[j] * g[j];
+            pd[j] -= lr * sqrt(1 - pow(b2, t[j])) / (1 - pow(b1, t[j])) * m[j] / (sqrt(v[j]) + eps);
+            worst = fmax(worst, fabs(p[j] - pd[j]) / fmax(fabs(pd[j]), 1e-3));
+        }
+    }
+    printf("adam, sparse gradients and a restored state: worst relative difference %.2g\n", worst);
+    assert_true(worst < 1e-5);
+    unsigned lo = ~0u, hi = 0;
+    for (int j = 0; j < n; j++) {
+        assert_int_equal(nerf_adam_steps_of(a, j), t[j]);
+        lo = t[j] < lo ? t[j] : lo, hi = t[j] > hi ? t[j] : hi;
+    }
+    assert_true(hi > lo); /* the counts did differ */
+    nerf_adam_free(a);
+}
+
 static void test_adam_zero_gradient(void **s)
 {
     (void)s;
@@ -125,7 +175,8 @@ int main(void)
 {
     sci_rng_seed(&RNG_, test_seed(), 6);
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_adam_matches_reference), cmocka_unit_test(test_adam_zero_gradient),
+        cmocka_unit_test(test_adam_matches_reference), cmocka_unit_test(test_adam_own_step_counts),
+        cmocka_unit_test(test_adam_zero_gradient),
         cmocka_unit_test(test_adam_huge_gradient),     cmocka_unit_test(test_adam_config_errors),
         cmocka_unit_test(test_lr_schedule),
     };

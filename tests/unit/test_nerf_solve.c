@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
+#include <omp.h>
 
 #include "recon/metrics.h"
 #include "recon/nerf/rayformer_solve.h"
@@ -127,6 +128,41 @@ static void test_cancel_keeps_frames(void **state)
     sci_problem_free(p);
 }
 
+/* `threads` bounds the whole run: the trainer's own loops and Adam follow the calling thread's OpenMP default, so
+ * the run sets it (seen from the progress callback, which runs on that thread) and puts the caller's back. */
+static int record_threads(const sci_trace_entry *e, void *user)
+{
+    (void)e;
+    int *seen = user;
+    *seen = *seen > omp_get_max_threads() ? *seen : omp_get_max_threads();
+    return 0;
+}
+
+static void test_threads_bound_the_run(void **state)
+{
+    (void)state;
+    sci_problem *p = nerf_tiny_problem(32, 2);
+    sci_rayformer_params prm;
+    small_params(&prm, 3);
+    prm.iters = 4;
+    prm.metrics_every = 1;
+    prm.threads = 1;
+    omp_set_num_threads(3);
+    int seen = 0;
+    sci_result r = {0};
+    assert_int_equal(sci_rayformer_solve(p, &prm, &r, record_threads, &seen), 0);
+    assert_int_equal(seen, 1);
+    assert_int_equal(omp_get_max_threads(), 3);
+    sci_result_free_contents(&r);
+    prm.threads = 0; /* 0: the caller's */
+    seen = 0;
+    r = (sci_result){0};
+    assert_int_equal(sci_rayformer_solve(p, &prm, &r, record_threads, &seen), 0);
+    assert_int_equal(seen, 3);
+    sci_result_free_contents(&r);
+    sci_problem_free(p);
+}
+
 /* The ablation ladder: each step switches on its own and trains: finite frames, and the frames after 30 steps are
  * more than 0.5 dB better than after the first (per-step losses over two random patches are too noisy to compare). */
 static void test_ablation_ladder(void **state)
@@ -178,6 +214,7 @@ int main(void)
         cmocka_unit_test(test_params_check),
         cmocka_unit_test(test_needs_camera),
         cmocka_unit_test(test_cancel_keeps_frames),
+        cmocka_unit_test(test_threads_bound_the_run),
         cmocka_unit_test(test_learns_tiny_scene),
         cmocka_unit_test(test_ablation_ladder),
     };
