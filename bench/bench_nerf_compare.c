@@ -277,12 +277,12 @@ static void scinerf_row(const char *scene, const sci_problem *p, const char *nam
     sci_result_free_contents(&r);
 }
 
-/* SCINeRF-style pose start: start and end on SE(3) from the identity plus U(±0.005) per twist component. */
+/* SCINeRF-style pose start: start and end on SE(3) from the identity plus U(±0.005) per twist component; the
+ * method's own pose learning rates (what `scicap recon --pose-mode linear` uses). */
 static void optimised_poses_rf(sci_rayformer_params *q)
 {
     q->pose_mode = NERF_POSES_LINEAR, q->pose_init_identity = 1;
     q->pose_perturb_rot_rad = q->pose_perturb_trans = 0.005;
-    q->pose_lr = 1e-3, q->pose_lr_final = 1e-4;
 }
 
 /* patch-size study: the full method at every other patch side (the default's row is the ladder's last), the same
@@ -372,7 +372,6 @@ static void one_scene(const char *name, const char *parts)
     sci_scinerf_params sp = sn;
     sp.pose_mode = NERF_POSES_LINEAR, sp.pose_init_identity = 1;
     sp.pose_perturb_rot_rad = sp.pose_perturb_trans = 0.005;
-    sp.pose_lr = 1e-3, sp.pose_lr_final = 1e-4;
     scinerf_row(name, p, "scinerf, poses optimised", &sp);
     sci_rayformer_params qp = q;
     optimised_poses_rf(&qp);

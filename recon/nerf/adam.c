@@ -116,7 +116,7 @@ void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin
     const double b1 = a->cfg.beta1, b2 = a->cfg.beta2, eps = a->cfg.eps, wd = decay ? a->cfg.weight_decay : 0.0;
     const double lb1 = log(b1), lb2 = log(b2);
     /* the factor depends on the parameter's own step count, and in a lazily stepped hash table neighbours rarely
-     * share it: two expm1 per parameter were a third of the step; a table by step count replaces them (same bits) */
+     * share it: two expm1 per parameter were a third of its time; a table by step count replaces them (same bits) */
     const double *kt = adam_factors(a, lr) == 0 ? a->k : NULL;
     const uint32_t n_k = kt ? a->t_hi : 0;
 #pragma omp parallel for schedule(dynamic, 16384) /* elementwise: any schedule gives the same bits */

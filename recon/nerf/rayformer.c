@@ -467,11 +467,17 @@ int nerf_rayformer_backward(const nerf_rayformer *n, const float *P, nerf_rayfor
                     }
             }
         }
+        /* the patch sum, row by row over blocks of columns: the same additions in the same order as a sum per
+         * column, but streaming (a column walk strides 75 KB per add: 9 % of a step in cache misses) */
 #pragma omp for schedule(static)
-        for (size_t j = 0; j < nd; j++) {
-            float s = w->pgrad[j];
-            for (int p = 1; p < n_patches; p++) s += w->pgrad[(size_t)p * nd + j];
-            grad[nh + j] = s;
+        for (size_t j0 = 0; j0 < nd; j0 += 1024) {
+            const size_t cnt = nd - j0 < 1024 ? nd - j0 : 1024;
+            float *g = grad + nh + j0;
+            memcpy(g, w->pgrad + j0, cnt * sizeof *g);
+            for (int p = 1; p < n_patches; p++) {
+                const float *src = w->pgrad + (size_t)p * nd + j0;
+                for (size_t j = 0; j < cnt; j++) g[j] += src[j];
+            }
         }
     }
     return 0;
