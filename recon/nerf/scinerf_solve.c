@@ -33,8 +33,10 @@ void sci_scinerf_params_default(sci_scinerf_params *p)
                               .lr_final = 1e-3,
                               .recipe = {.spacing = NERF_SPACING_LINEAR, .distortion_weight = 0.01},
                               .pose_mode = NERF_POSES_KNOWN,
-                              .pose_lr = 1e-3,
-                              .pose_lr_final = 1e-4,
+                              /* SCINeRF's 1e-3 → 1e-4 serves 200k steps; in 1000 it cannot follow the corridor's
+                               * motion (fast, from the identity: 17.45 dB; 3e-2 → 3e-3: 20.25 dB at step 750) */
+                              .pose_lr = 3e-2,
+                              .pose_lr_final = 3e-3,
                               .metrics_every = 50,
                               .seed = 1};
 }
@@ -69,6 +71,7 @@ void sci_scinerf_params_paper(sci_scinerf_params *p)
     p->samples = 64, p->fine_samples = 64, p->pos_enc = NERF_MLP_POS_FREQ, p->pos_freqs = 10;
     p->depth = 8, p->width = 256, p->skip = 4, p->feature_dim = 256, p->color_hidden = 128;
     p->dir_enc = NERF_MLP_DIR_FREQ, p->lr = 5e-4, p->lr_final = 5e-5;
+    p->pose_lr = 1e-3, p->pose_lr_final = 1e-4; /* the paper's, for its 200k steps */
 }
 
 /* The model part of the trainer's configuration (nerf_solve.c fills the shared part): scattered rays batched in

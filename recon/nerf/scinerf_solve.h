@@ -51,8 +51,8 @@ void sci_scinerf_params_default(sci_scinerf_params *p);
 /* "fast", "balanced", "best" on the hash-encoded field (best adds 32 importance samples with a fine network):
  * overwrites the network and cost fields; bench/results/nerf_recon.md measures them. -EINVAL for an unknown name. */
 int sci_scinerf_params_preset(sci_scinerf_params *p, const char *name);
-/* SCINeRF's own network and sampling (frequency encoding, 8 × 256, coarse 64 + fine 64, lr 5e-4): overwrites the
- * network fields, keeps iters and rays. About 0.05 Mpoints/s forward + backward on 2 cores: slow. */
+/* SCINeRF's own network and sampling (frequency encoding, 8 × 256, coarse 64 + fine 64, lr 5e-4, pose lr 1e-3):
+ * overwrites the network fields, keeps iters and rays. About 0.05 Mpoints/s forward + backward on 2 cores: slow. */
 void sci_scinerf_params_paper(sci_scinerf_params *p);
 /* -EINVAL with a message naming the parameter and its value. */
 int sci_scinerf_params_check(const sci_scinerf_params *p, sci_error *err);
