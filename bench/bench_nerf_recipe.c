@@ -10,8 +10,8 @@
  * threads=1); a value is read as JSON when it parses, else as a string. metrics_every defaults to 100 here.
  * Output: one line per full render ("curve ITER WALL_S PSNR_PEAK1 MEAS_RESIDUAL MAX_WEIGHT") and a last line
  * "final NAME ..." with the same figures, the SSIM, the pose error (0 with known poses; rotation in rad,
- * translation after the scale: nerf_poses_relative_error) and the 1-minute load average. Not part of `make bench`: the
- * candidates it measured are in docs/nerf-methods.md ("The recipe").
+ * translation after the scale: nerf_poses_relative_error) and the 1-minute load average. Not part of `make
+ * bench`: the candidates it measured are in docs/nerf-methods.md ("The recipe").
  */
 #include <math.h>
 #include <stdio.h>

@@ -10,8 +10,8 @@
  *
  * The factor lr·sqrt(1 − β2^t)/(1 − β1^t) comes from a table by step count, filled once per call (in a lazily
  * stepped table neighbours rarely share a count: two expm1 per parameter took 7 % of a RayFormer step).
- * Memory: 3 floats + 1 int32 per parameter (m, s, step), 3 doubles per step count reached. Elementwise, split across OpenMP threads: the result does
- * not depend on the thread count. Not thread-safe per object.
+ * Memory: 3 floats + 1 int32 per parameter (m, s, step), 3 doubles per step count reached. Elementwise, split
+ * across OpenMP threads: the result does not depend on the thread count. Not thread-safe per object.
  */
 #ifndef SCICAP_RECON_NERF_ADAM_H
 #define SCICAP_RECON_NERF_ADAM_H

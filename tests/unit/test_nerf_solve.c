@@ -147,6 +147,7 @@ static void test_threads_bound_the_run(void **state)
     prm.iters = 4;
     prm.metrics_every = 1;
     prm.threads = 1;
+    const int before = omp_get_max_threads();
     omp_set_num_threads(3);
     int seen = 0;
     sci_result r = {0};
@@ -159,6 +160,7 @@ static void test_threads_bound_the_run(void **state)
     r = (sci_result){0};
     assert_int_equal(sci_rayformer_solve(p, &prm, &r, record_threads, &seen), 0);
     assert_int_equal(seen, 3);
+    omp_set_num_threads(before); /* the later tests run as the suite was started */
     sci_result_free_contents(&r);
     sci_problem_free(p);
 }
