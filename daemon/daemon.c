@@ -175,27 +175,28 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
                 s->problem = NULL;
             }
             sci_error e2 = {0};
-            int q = scicapd_reconq_save(d->store, r, &e2);
-            if (q < 0)
+            if (scicapd_reconq_save(d->store, r, &e2) < 0) {
                 sci_log_write(d->log, SCI_LOG_ERR, "job %llu: %s", (unsigned long long)r->id, e2.msg);
-            else /* back-pressure: a full queue holds this writer, the store queue then the acquisition, so a
-                  * capture runs at the pace its reconstructions keep up with instead of refusing them */
-                q = scicapd_queue_push_wait(d->recon_q, r);
-            if (q == -EPIPE) { /* stopping: the saved entry stays and is resumed at the next start */
-                why = "daemon stopping; resumed at the next start";
-                scicapd_jobs_forget(d->jobs, r);
-                scicapd_job_unref(d->jobs, r);
-            } else if (q < 0) {
                 why = "cannot save the queue entry";
                 scicapd_reconq_drop(d->store, r);
                 scicapd_jobs_forget(d->jobs, r);
                 scicapd_job_unref(d->jobs, r);
             } else {
+                /* announced before the hand-over: once pushed, a worker may post recon.started (or be done with
+                 * the job) before this thread runs again */
                 scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1,
                                      scicapd_event("recon.queued", r->id, r->request_id,
                                                    json_pack("{s:s, s:s, s:I}", "capture", s->capture_id, "method",
                                                              c->recon.method->name, "capture_job",
                                                              (json_int_t)j->id)));
+                /* back-pressure: a full queue holds this writer, the store queue then the acquisition, so a
+                 * capture runs at the pace its reconstructions keep up with instead of refusing them */
+                if (scicapd_queue_push_wait(d->recon_q, r) == -EPIPE) {
+                    /* stopping: the saved entry stays and is resumed at the next start */
+                    why = "daemon stopping; resumed at the next start";
+                    scicapd_jobs_forget(d->jobs, r);
+                    scicapd_job_unref(d->jobs, r);
+                }
             }
         }
         if (why)

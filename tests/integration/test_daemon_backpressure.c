@@ -4,7 +4,9 @@
  * answering "recon.rejected" (before: 12 snapshots into a queue of 1 with one slow worker left most refused).
  * Reconstructions of a capture use the problem the writer handed over, not a read-back of the folder (the
  * recon_read stage costs no measurable time), and the output is the same as a reconstruction requested later,
- * which reads the folder. The per-stage counters of `status` count every stage. */
+ * which reads the folder. The per-stage counters of `status` count every stage. Each reconstruction's
+ * recon.queued reaches the client before its recon.started (before: the writer announced it after the hand-over,
+ * so a free worker could start it first: a race, which this check caught in 2 runs of 6 with the cores busy). */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -37,7 +39,8 @@ static void test_every_snapshot_reconstructed(void **state)
                                                       "reconstruct", 1, "preset", "fast", "params", "iters", 30,
                                                       "tv_iters", 8));
     json_decref(r);
-    int stored = 0, done = 0, rejected = 0, capture_done = 0;
+    int stored = 0, done = 0, rejected = 0, capture_done = 0, n_queued = 0, early = 0;
+    json_int_t queued[SNAPSHOTS];
     double psnr_first = NAN;
     char first[32] = "";
     int64_t t0 = h_now_ms();
@@ -53,7 +56,15 @@ static void test_every_snapshot_reconstructed(void **state)
             capture_done = 1;
         else if (ev && !strcmp(ev, "recon.rejected"))
             rejected++;
-        else if (ev && !strcmp(ev, "recon.done")) {
+        else if (ev && !strcmp(ev, "recon.queued") && n_queued < SNAPSHOTS)
+            queued[n_queued++] = json_integer_value(json_object_get(m, "job"));
+        else if (ev && !strcmp(ev, "recon.started")) {
+            json_int_t job = json_integer_value(json_object_get(m, "job"));
+            int seen = 0;
+            for (int i = 0; i < n_queued; i++)
+                seen |= queued[i] == job;
+            early += !seen;
+        } else if (ev && !strcmp(ev, "recon.done")) {
             if (!done++) {
                 snprintf(first, sizeof first, "%s", json_string_value(json_object_get(d, "capture")));
                 psnr_first = json_number_value(json_object_get(d, "psnr"));
@@ -66,6 +77,8 @@ static void test_every_snapshot_reconstructed(void **state)
     print_message("  %d snapshots: %d stored, %d reconstructed, %d refused in %.1f s\n", SNAPSHOTS, stored, done,
                   rejected, (double)(h_now_ms() - t0) / 1e3);
     assert_int_equal(rejected, 0);
+    assert_int_equal(n_queued, SNAPSHOTS);
+    assert_int_equal(early, 0); /* no reconstruction started before its recon.queued */
     assert_int_equal(stored, SNAPSHOTS);
     assert_int_equal(done, SNAPSHOTS);
     /* where the time went: every stage counted; the hand-over reads nothing back */
