@@ -10,6 +10,10 @@
  * average before and after (2 shared cores: timings vary with what else runs). Part 2 takes about an hour (the
  * presets' own times: 3.5 + 3.5 + 9 + 10 + 16 + 20 min). `--quick`: part 1 only; `--curves-only
  * [--presets fast,balanced]`: part 2 only, for the presets named.
+ * Part 3, `--ceiling [STEPS]` (alone; not in `make bench`): each method's fast preset run for STEPS steps
+ * (default 10000, the learning rate decayed over all of them) on static3d_corridor, PSNR, the measurement residual
+ * and the mean largest ray weight every STEPS/20 steps, written to bench/results/nerf_ceiling.md: where accuracy
+ * stops following the fit (issue 15). About 25 min for rayformer and 45 for scinerf on 2 cores.
  */
 #include <errno.h>
 #include <math.h>
@@ -25,13 +29,13 @@
 #include "sim/simulate.h"
 
 #define STEPS 12
-#define MAX_CURVE 16
+#define MAX_CURVE 24
 
 typedef struct measure {
     int ok;
     double step_s, render_s_per_frame, total_s;
     int n_curve;
-    double curve[MAX_CURVE][4]; /* iter, wall s, PSNR, SSIM */
+    double curve[MAX_CURVE][6]; /* iter, wall s, PSNR, SSIM, measurement residual, mean largest weight */
     long n_params;
     char err[256];
 } measure;
@@ -60,8 +64,9 @@ static sci_problem *load_scene(const char *path, sci_error *err)
     return one;
 }
 
-/* Runs in the child: one preset of one method on one scene, `full` = the whole preset, else STEPS steps. */
-static void run_child(const char *method, const char *preset, const char *scene, int full, measure *m)
+/* Runs in the child: one preset of one method on one scene, `full` = the whole preset, else STEPS steps;
+ * `steps` > 0 overrides the preset's step count (the ceiling runs: evaluated every steps/20, no SSIM). */
+static void run_child(const char *method, const char *preset, const char *scene, int full, int steps, measure *m)
 {
     sci_error err = {0};
     sci_problem *p = load_scene(scene, &err);
@@ -78,9 +83,10 @@ static void run_child(const char *method, const char *preset, const char *scene,
     void *q = op ? solver_settings_new(op) : NULL;
     if (q && solver_preset_parse(preset, &pr, NULL, &r.error) == 0) {
         solver_settings_preset(op, q, pr);
-        iters = full ? solver_settings_iters(op, q) : STEPS;
-        const int every = full ? (iters + 7) / 8 : 0;
-        json_t *set = json_pack("{s:i, s:i, s:i}", "iters", iters, "metrics_every", every, "ssim_every", every);
+        iters = steps > 0 ? steps : full ? solver_settings_iters(op, q) : STEPS;
+        const int every = steps > 0 ? (iters + 19) / 20 : full ? (iters + 7) / 8 : 0;
+        json_t *set = json_pack("{s:i, s:i, s:i}", "iters", iters, "metrics_every", every, "ssim_every",
+                                steps > 0 ? 0 : every);
         if ((rc = solver_settings_from_json(op, q, set, NULL, "settings", &r.error)) == 0)
             rc = solver_run(op, p, q, NULL, &r);
         json_decref(set);
@@ -105,6 +111,7 @@ static void run_child(const char *method, const char *preset, const char *scene,
             if (!isnan(e[i].psnr_peak1)) {
                 double *c = m->curve[m->n_curve++];
                 c[0] = e[i].iter, c[1] = e[i].wall_s, c[2] = e[i].psnr_peak1, c[3] = e[i].ssim;
+                c[4] = e[i].meas_residual, c[5] = e[i].max_weight;
             }
         m->ok = 1;
     }
@@ -113,8 +120,8 @@ static void run_child(const char *method, const char *preset, const char *scene,
 }
 
 /* Fork, run, collect the measurement and the child's peak RSS (KiB). */
-static int measure_in_child(const char *method, const char *preset, const char *scene, int full, measure *m,
-                            long *maxrss_kib)
+static int measure_in_child(const char *method, const char *preset, const char *scene, int full, int steps,
+                            measure *m, long *maxrss_kib)
 {
     int fd[2];
     if (pipe(fd) < 0)
@@ -126,7 +133,7 @@ static int measure_in_child(const char *method, const char *preset, const char *
     if (pid == 0) {
         close(fd[0]);
         measure mm = {0};
-        run_child(method, preset, scene, full, &mm);
+        run_child(method, preset, scene, full, steps, &mm);
         ssize_t w = write(fd[1], &mm, sizeof mm);
         _exit(w == (ssize_t)sizeof mm ? 0 : 1);
     }
@@ -193,7 +200,7 @@ static int part_costs(const char *const *methods, int n_methods, const char *con
             for (int si = 0; si < 2; si++) {
                 measure m;
                 long rss = 0;
-                int rc = measure_in_child(methods[mi], presets[pi], scenes[si], 0, &m, &rss);
+                int rc = measure_in_child(methods[mi], presets[pi], scenes[si], 0, 0, &m, &rss);
                 if (rc < 0 || !m.ok) {
                     printf("%s %s %d: failed: %s\n", methods[mi], presets[pi], sizes[si], m.err);
                     fprintf(md, "| %s | %s | %d | failed | | |\n", methods[mi], presets[pi], sizes[si]);
@@ -234,7 +241,7 @@ static int part_curves(const char *const *methods, int n_methods, const char *co
         for (int mi = 0; mi < n_methods; mi++) {
             measure m;
             long rss = 0;
-            int rc = measure_in_child(methods[mi], presets[pi], "etc/scenes/static3d_corridor.json", 1, &m, &rss);
+            int rc = measure_in_child(methods[mi], presets[pi], "etc/scenes/static3d_corridor.json", 1, 0, &m, &rss);
             if (rc < 0 || !m.ok) {
                 printf("%s %s full run failed: %s\n", methods[mi], presets[pi], m.err);
                 status = 1;
@@ -255,9 +262,46 @@ static int part_curves(const char *const *methods, int n_methods, const char *co
     return publish(md, "bench/results/nerf_recon_curves.md") < 0 ? 1 : status;
 }
 
+/* Part 3: each method's fast preset run for `steps` steps on the corridor: the ceiling of the recipe. */
+static int part_ceiling(const char *const *methods, int n_methods, int steps)
+{
+    char load0[64], load1[64];
+    bench_loadavg(load0, sizeof load0);
+    FILE *md = open_tmp("bench/results/nerf_ceiling.md");
+    if (!md)
+        return 1;
+    fprintf(md, "The ceiling of the recipe: each method's fast preset run for %d steps (the learning rate decayed over "
+                "all of them) on static3d_corridor (128×128×8, known poses, 2 threads), evaluated every %d steps "
+                "(renders excluded from the time). PSNR with peak 1; residual = ‖y − Σ Mᵢ Xᵢ‖ / ‖y‖ of the render; "
+                "largest weight = mean over the rays that hit something of the ray's largest sample weight.\n\n",
+            steps, (steps + 19) / 20);
+    fprintf(md, "| method | step | wall s | PSNR dB | residual | largest weight |\n|---|---:|---:|---:|---:|---:|\n");
+    int status = 0;
+    for (int mi = 0; mi < n_methods; mi++) {
+        measure m;
+        long rss = 0;
+        int rc = measure_in_child(methods[mi], "fast", "etc/scenes/static3d_corridor.json", 1, steps, &m, &rss);
+        if (rc < 0 || !m.ok) {
+            printf("%s ceiling run failed: %s\n", methods[mi], m.err);
+            status = 1;
+            continue;
+        }
+        for (int k = 0; k < m.n_curve; k++) {
+            const double *c = m.curve[k];
+            printf("%-9s step %6.0f  %7.1f s  PSNR %.2f dB  residual %.4f  largest weight %.3f\n", methods[mi], c[0],
+                   c[1], c[2], c[4], c[5]);
+            fprintf(md, "| %s | %.0f | %.1f | %.2f | %.4f | %.3f |\n", methods[mi], c[0], c[1], c[2], c[4], c[5]);
+        }
+        fflush(stdout);
+    }
+    bench_loadavg(load1, sizeof load1);
+    fprintf(md, "\nLoad average %s at the start, %s at the end (2 cores).\n", load0, load1);
+    return publish(md, "bench/results/nerf_ceiling.md") < 0 ? 1 : status;
+}
+
 int main(int argc, char **argv)
 {
-    int costs = 1, curves = 1;
+    int costs = 1, curves = 1, ceiling = 0;
     char which[128] = "fast,balanced,best";
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--quick") == 0)
@@ -266,8 +310,20 @@ int main(int argc, char **argv)
             costs = 0;
         else if (strcmp(argv[i], "--presets") == 0 && i + 1 < argc)
             snprintf(which, sizeof which, "%s", argv[++i]);
-        else {
-            fprintf(stderr, "usage: bench_nerf_recon [--quick | --curves-only] [--presets fast,balanced,best]\n");
+        else if (strcmp(argv[i], "--ceiling") == 0) {
+            ceiling = 10000;
+            if (i + 1 < argc && argv[i + 1][0] != '-') {
+                char *end;
+                long v = strtol(argv[++i], &end, 10);
+                if (*end || v < 20 || v > 1000000) {
+                    fprintf(stderr, "bench_nerf_recon: --ceiling takes a step count in [20, 1000000]\n");
+                    return 2;
+                }
+                ceiling = (int)v;
+            }
+        } else {
+            fprintf(stderr, "usage: bench_nerf_recon [--quick | --curves-only [--presets fast,balanced,best] | "
+                            "--ceiling [STEPS]]\n");
             return 2;
         }
     }
@@ -278,6 +334,11 @@ int main(int argc, char **argv)
         if ((*m)->caps & SOLVER_NEEDS_CAMERA)
             methods[n_methods++] = (*m)->name;
     int status = 0;
+    if (ceiling) {
+        status = part_ceiling(methods, n_methods, ceiling);
+        printf("wrote bench/results/nerf_ceiling.md\n");
+        return status;
+    }
     if (costs)
         status |= part_costs(methods, n_methods, presets);
     if (curves)

@@ -19,6 +19,7 @@
 #include "daemon/reconq.h"
 #include "io/problem_dir.h"
 #include "io/recon_store.h"
+#include "io/staging.h"
 #include "recon/solver.h"
 
 #define SCICAPD_IMPORT_RECON_MAX 1000 /* reconstructions one import queues (a .mat may hold more snapshots) */
@@ -196,6 +197,13 @@ static void run(scicapd_workers *w, scicapd_job *j)
     json_decref(params);
     if (rc < 0)
         goto done;
+    /* storage.fsync promises that a reconstruction the queue forgets below survives a power cut: its files, the
+     * rename that published it and a new recon/ folder's name reach the disk first (recon/ whole: the other
+     * methods' folders there are synced already, and fsync of a clean file costs next to nothing) */
+    if (scicapd_store_fsync_on(w->env.store) && (rc = sci_staging_sync(rdir)) < 0) {
+        sci_error_set(&err, rc, "%s: cannot make the reconstruction durable: %s", out, sci_strerror(rc));
+        goto done;
+    }
     scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_WRITE, &sp);
     const sci_trace_entry *last = r.trace.len ? &r.trace.e[r.trace.len - 1] : NULL;
     json_t *d = json_pack("{s:s, s:s, s:s, s:i, s:f, s:f}", "capture", ra->capture_id, "method", method, "dir", out,

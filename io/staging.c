@@ -1,7 +1,10 @@
 #include "io/staging.h"
 
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <ftw.h>
+#include <libgen.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <string.h>
@@ -16,6 +19,58 @@ int sci_staging_remove(const char *dir)
     if (lstat(dir, &st) != 0)
         return errno == ENOENT ? 0 : -errno;
     return nftw(dir, rm_entry, 16, FTW_DEPTH | FTW_PHYS) == 0 ? 0 : -errno;
+}
+
+/* fsync every regular file and folder under the open folder fd, then fd itself; the first -errno, or 0. The
+ * output folders are shallow; deeper than 16 levels is not followed (and not reported). */
+static int sync_folder(int fd, int depth)
+{
+    int rc = 0, dup_fd = dup(fd);
+    DIR *d = dup_fd >= 0 ? fdopendir(dup_fd) : NULL;
+    if (!d) {
+        rc = -errno;
+        if (dup_fd >= 0)
+            close(dup_fd);
+    }
+    for (struct dirent *e; d && (e = readdir(d)) != NULL;) {
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0)
+            continue;
+        struct stat st;
+        if (fstatat(fd, e->d_name, &st, AT_SYMLINK_NOFOLLOW) != 0) {
+            rc = rc ? rc : -errno;
+            continue;
+        }
+        if (!S_ISREG(st.st_mode) && !(S_ISDIR(st.st_mode) && depth < 16))
+            continue;
+        int cfd = openat(fd, e->d_name, O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
+        int crc = cfd < 0 ? -errno : S_ISDIR(st.st_mode) ? sync_folder(cfd, depth + 1) : fsync(cfd) == 0 ? 0 : -errno;
+        if (cfd >= 0)
+            close(cfd);
+        rc = rc ? rc : crc;
+    }
+    if (d)
+        closedir(d);
+    if (fsync(fd) != 0 && rc == 0)
+        rc = -errno;
+    return rc;
+}
+
+int sci_staging_sync(const char *dir)
+{
+    char parent[4096];
+    if ((size_t)snprintf(parent, sizeof parent, "%s", dir) >= sizeof parent)
+        return -ENAMETOOLONG;
+    int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC | O_NOFOLLOW);
+    if (fd < 0)
+        return -errno;
+    int rc = sync_folder(fd, 0);
+    close(fd);
+    /* the parent holds the name the publishing rename gave */
+    int pfd = open(dirname(parent), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    int prc = pfd < 0 ? -errno : fsync(pfd) == 0 ? 0 : -errno;
+    if (pfd >= 0)
+        close(pfd);
+    return rc < 0 ? rc : prc;
 }
 
 int sci_staging_name(char *buf, size_t n, const char *dir)

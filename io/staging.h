@@ -30,6 +30,12 @@ int sci_staging_name(char *buf, size_t n, const char *dir);
 int sci_staging_publish(const char *tmp, const char *dir, int overwrite, const volatile sig_atomic_t *stop,
                         sci_error *err);
 
+/* Make a published folder durable: fsync every regular file and folder under `dir`, then `dir` itself and its
+ * parent folder (which holds the rename). For callers that promise durability (the daemon with storage.fsync)
+ * before they forget the work that made the folder. Symlinks are not followed. 0, or -errno of the first failure
+ * (the remaining entries are still synced). */
+int sci_staging_sync(const char *dir);
+
 /* Remove a folder tree this process created (staging or replaced output). Symlinks are removed, not followed.
  * 0 or -errno; a missing folder is 0. */
 int sci_staging_remove(const char *dir);

@@ -367,6 +367,36 @@ static void test_staging_publish(void **state)
     assert_int_not_equal(system(cmd), 0); /* no .tmp-PID or .old-PID */
 }
 
+/* sci_staging_sync: a published tree (files, a subfolder, a dangling symlink and a FIFO, neither followed nor
+ * opened — opening a FIFO would block) syncs to 0; a missing folder and a plain file are errors. Durability
+ * itself needs a power cut to see; this checks the walk. */
+static void test_staging_sync(void **state)
+{
+    char out[512], path[700];
+    snprintf(out, sizeof out, "%s/durable", tmpdir);
+    assert_int_equal(mkdir(out, 0755), 0);
+    snprintf(path, sizeof path, "%s/sub", out);
+    assert_int_equal(mkdir(path, 0755), 0);
+    const char *files[] = {"a.json", "sub/b.exr"};
+    for (int i = 0; i < 2; i++) {
+        snprintf(path, sizeof path, "%s/%s", out, files[i]);
+        FILE *f = fopen(path, "w");
+        assert_non_null(f);
+        fputs("x\n", f);
+        fclose(f);
+    }
+    snprintf(path, sizeof path, "%s/dangling", out);
+    assert_int_equal(symlink("/nonexistent/scicap-target", path), 0);
+    snprintf(path, sizeof path, "%s/sub/fifo", out);
+    assert_int_equal(mkfifo(path, 0600), 0);
+    assert_int_equal(sci_staging_sync(out), 0);
+    snprintf(path, sizeof path, "%s/missing", out);
+    assert_int_equal(sci_staging_sync(path), -ENOENT);
+    snprintf(path, sizeof path, "%s/a.json", out);
+    assert_int_equal(sci_staging_sync(path), -ENOTDIR);
+    assert_int_equal(sci_staging_remove(out), 0);
+}
+
 /* The limits name the figure, the limit and the override; sci_io_limits_none lifts them. */
 static void test_limits_messages(void **state)
 {
@@ -388,7 +418,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_image_roundtrip), cmocka_unit_test(test_stack_roundtrip_exact),
-        cmocka_unit_test(test_gif_large_frames_scaled_down), cmocka_unit_test(test_staging_publish),
+        cmocka_unit_test(test_gif_large_frames_scaled_down), cmocka_unit_test(test_staging_publish), cmocka_unit_test(test_staging_sync),
         cmocka_unit_test(test_limits_messages),
         cmocka_unit_test(test_problem_dir_roundtrip), cmocka_unit_test(test_mat_roundtrip_and_faults),
         cmocka_unit_test(test_drop40_shape), cmocka_unit_test(test_mat_masks_per_snapshot),
