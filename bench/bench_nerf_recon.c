@@ -155,26 +155,37 @@ static int measure_in_child(const char *method, const char *preset, const char *
     return got == sizeof *m && WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -EIO;
 }
 
-/* Closes md (written to path.tmp) and renames it over path: a killed run leaves the previous file intact. */
-static int publish(FILE *md, const char *path)
+/* A results table: written to path.tmp with the load average at the start, renamed over path by table_close
+ * with the load average at the end, so a killed run leaves the previous file intact. */
+typedef struct table {
+    FILE *md;
+    const char *path;
+    char load0[64];
+} table;
+
+static int table_open(table *t, const char *path)
 {
     char tmp[256];
+    t->path = path;
+    bench_loadavg(t->load0, sizeof t->load0);
     snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    if (fclose(md) != 0 || rename(tmp, path) < 0) {
-        perror(path);
-        return -1;
-    }
-    return 0;
+    if (!(t->md = fopen(tmp, "w")))
+        perror(tmp);
+    return t->md ? 0 : -1;
 }
 
-static FILE *open_tmp(const char *path)
+/* Returns 1 when the file could not be published, else `status`. */
+static int table_close(table *t, int status)
 {
-    char tmp[256];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    FILE *f = fopen(tmp, "w");
-    if (!f)
-        perror(tmp);
-    return f;
+    char tmp[256], load1[64];
+    bench_loadavg(load1, sizeof load1);
+    fprintf(t->md, "\nLoad average %s at the start, %s at the end (2 cores).\n", t->load0, load1);
+    snprintf(tmp, sizeof tmp, "%s.tmp", t->path);
+    if (fclose(t->md) != 0 || rename(tmp, t->path) < 0) {
+        perror(t->path);
+        return 1;
+    }
+    return status;
 }
 
 /* Part 1: cost per step, render and memory of every preset at both sizes. */
@@ -182,11 +193,10 @@ static int part_costs(const char *const *methods, int n_methods, const char *con
 {
     const char *scenes[] = {"etc/scenes/static3d_corridor.json", "etc/scenes/static3d_tabletop.json"};
     const int sizes[] = {128, 256};
-    char load0[64], load1[64];
-    bench_loadavg(load0, sizeof load0);
-    FILE *md = open_tmp("bench/results/nerf_recon.md");
-    if (!md)
+    table t;
+    if (table_open(&t, "bench/results/nerf_recon.md") < 0)
         return 1;
+    FILE *md = t.md;
     fprintf(md, "Measured by `make bench` (bench/bench_nerf_recon.c): each preset trained for %d steps in its own "
                 "process on static3d_corridor (128×128) and static3d_tabletop (256×256), N = 8, 2 threads; step "
                 "time = median step after the first two; render = the final window-wise render of all N frames, "
@@ -212,19 +222,16 @@ static int part_costs(const char *const *methods, int n_methods, const char *con
                 fprintf(md, "| %s | %s | %d² | %.3f | %.2f | %.0f |\n", methods[mi], presets[pi], sizes[si],
                         m.step_s, m.render_s_per_frame, rss / 1024.0);
             }
-    bench_loadavg(load1, sizeof load1);
-    fprintf(md, "\nLoad average %s at the start, %s at the end (2 cores).\n", load0, load1);
-    return publish(md, "bench/results/nerf_recon.md") < 0 ? 1 : status;
+    return table_close(&t, status);
 }
 
 /* Part 2: PSNR and SSIM against wall time of the presets in `which` (comma-separated), each run to its end. */
 static int part_curves(const char *const *methods, int n_methods, const char *const *presets, const char *which)
 {
-    char load0[64], load1[64];
-    bench_loadavg(load0, sizeof load0);
-    FILE *md = open_tmp("bench/results/nerf_recon_curves.md");
-    if (!md)
+    table t;
+    if (table_open(&t, "bench/results/nerf_recon_curves.md") < 0)
         return 1;
+    FILE *md = t.md;
     fprintf(md, "PSNR (peak = 1) and SSIM against wall time, each preset (%s) run to its end on static3d_corridor "
                 "(128×128×8, known poses, 2 threads; every 1/8 of the run; evaluation renders excluded from the "
                 "time, the final render included in the last row):\n\n",
@@ -257,19 +264,16 @@ static int part_curves(const char *const *methods, int n_methods, const char *co
             fflush(stdout);
         }
     }
-    bench_loadavg(load1, sizeof load1);
-    fprintf(md, "\nLoad average %s at the start, %s at the end (2 cores).\n", load0, load1);
-    return publish(md, "bench/results/nerf_recon_curves.md") < 0 ? 1 : status;
+    return table_close(&t, status);
 }
 
 /* Part 3: each method's fast preset run for `steps` steps on the corridor: the ceiling of the recipe. */
 static int part_ceiling(const char *const *methods, int n_methods, int steps)
 {
-    char load0[64], load1[64];
-    bench_loadavg(load0, sizeof load0);
-    FILE *md = open_tmp("bench/results/nerf_ceiling.md");
-    if (!md)
+    table t;
+    if (table_open(&t, "bench/results/nerf_ceiling.md") < 0)
         return 1;
+    FILE *md = t.md;
     fprintf(md, "The ceiling of the recipe: each method's fast preset run for %d steps (the learning rate decayed over "
                 "all of them) on static3d_corridor (128×128×8, known poses, 2 threads), evaluated every %d steps "
                 "(renders excluded from the time). PSNR with peak 1; residual = ‖y − Σ Mᵢ Xᵢ‖ / ‖y‖ of the render; "
@@ -294,9 +298,7 @@ static int part_ceiling(const char *const *methods, int n_methods, int steps)
         }
         fflush(stdout);
     }
-    bench_loadavg(load1, sizeof load1);
-    fprintf(md, "\nLoad average %s at the start, %s at the end (2 cores).\n", load0, load1);
-    return publish(md, "bench/results/nerf_ceiling.md") < 0 ? 1 : status;
+    return table_close(&t, status);
 }
 
 int main(int argc, char **argv)
