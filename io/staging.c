@@ -35,15 +35,20 @@ static int sync_folder(int fd, int depth)
     for (struct dirent *e; d && (e = readdir(d)) != NULL;) {
         if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0)
             continue;
+        /* an entry gone since readdir (another writer's staging folder renamed or removed meanwhile) is not
+         * ours to sync: its own writer does */
         struct stat st;
         if (fstatat(fd, e->d_name, &st, AT_SYMLINK_NOFOLLOW) != 0) {
-            rc = rc ? rc : -errno;
+            rc = rc || errno == ENOENT ? rc : -errno;
             continue;
         }
         if (!S_ISREG(st.st_mode) && !(S_ISDIR(st.st_mode) && depth < 16))
             continue;
         int cfd = openat(fd, e->d_name, O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
-        int crc = cfd < 0 ? -errno : S_ISDIR(st.st_mode) ? sync_folder(cfd, depth + 1) : fsync(cfd) == 0 ? 0 : -errno;
+        int crc = cfd < 0 ? (errno == ENOENT ? 0 : -errno)
+                  : S_ISDIR(st.st_mode) ? sync_folder(cfd, depth + 1)
+                  : fsync(cfd) == 0     ? 0
+                                        : -errno;
         if (cfd >= 0)
             close(cfd);
         rc = rc ? rc : crc;

@@ -32,8 +32,9 @@ int sci_staging_publish(const char *tmp, const char *dir, int overwrite, const v
 
 /* Make a published folder durable: fsync every regular file and folder under `dir`, then `dir` itself and its
  * parent folder (which holds the rename). For callers that promise durability (the daemon with storage.fsync)
- * before they forget the work that made the folder. Symlinks are not followed. 0, or -errno of the first failure
- * (the remaining entries are still synced). */
+ * before they forget the work that made the folder. Symlinks are not followed; an entry that disappears during
+ * the walk (another writer's staging folder renamed) is skipped. 0, or -errno of the first failure (the
+ * remaining entries are still synced); -ENOENT when `dir` itself is missing. */
 int sci_staging_sync(const char *dir);
 
 /* Remove a folder tree this process created (staging or replaced output). Symlinks are removed, not followed.
