@@ -678,7 +678,7 @@ int cli_recon_main(int argc, char **argv)
         sci_result_free_contents(&r);
     }
     if (stage[0] && status == 0) {
-        if (sci_staging_publish(stage, out, force, &stop_requested, &err) < 0) {
+        if (sci_staging_publish(stage, out, force ? SCI_STAGING_OVERWRITE : 0, &stop_requested, &err) < 0) {
             if (err.code != SCI_ECANCELED)
                 fprintf(stderr, "scicap recon: %s\n", err.msg);
             status = 1;

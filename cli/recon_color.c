@@ -147,7 +147,7 @@ int cli_recon_color(const cli_color_job *job, const sci_problem *p, const sci_cu
     if (rc == 0)
         rc = add_color_record(stage, color, err);
     if (rc == 0)
-        rc = sci_staging_publish(stage, dir, force, job->stop, err);
+        rc = sci_staging_publish(stage, dir, force ? SCI_STAGING_OVERWRITE : 0, job->stop, err);
     else
         sci_staging_remove(stage);
 out:

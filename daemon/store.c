@@ -16,6 +16,7 @@
 
 #include "io/image.h"
 #include "io/problem_dir.h"
+#include "io/staging.h"
 
 #define STORE_MAX_WRITERS 16
 /* Ids the durable high-water mark runs ahead of use: one fsync'd write per this many captures. A crash skips at
@@ -132,7 +133,6 @@ static void sweep(const char *dir, const char *prefix, unsigned long *max, int *
  * user may delete the newest capture. So the largest id that may have been handed out is kept in a file, and
  * made durable (written beside, fsync'd, renamed, folder fsync'd) before any id above the old mark is used. */
 
-static int fsync_path(const char *p);
 
 /* Read the mark; a missing file is an empty mark (storage from before it existed). */
 static int ids_read(scicapd_store *s, sci_error *err)
@@ -180,7 +180,7 @@ static int ids_write(scicapd_store *s, unsigned long capture, unsigned long cali
         unlink(tmp);
         return sci_error_set(err, -e, "%s: cannot write the capture id high-water mark: %s", path, strerror(e));
     }
-    if (s->fsync_on && fsync_path(s->root) < 0)
+    if (s->fsync_on && sci_staging_sync(s->root, 0) < 0)
         return sci_error_set(err, -EIO, "%s: fsync of the folder failed", s->root);
     s->mark_capture = capture;
     s->mark_calib = calib;
@@ -331,22 +331,6 @@ void scicapd_snapshot_free(scicapd_jobs *jobs, scicapd_snapshot *s)
     free(s);
 }
 
-static int fsync_path(const char *p)
-{
-    int fd = open(p, O_RDONLY | O_CLOEXEC);
-    if (fd < 0)
-        return -errno;
-    int rc = fsync(fd) == 0 ? 0 : -errno;
-    close(fd);
-    return rc;
-}
-
-static int fsync_cb(const char *p, const struct stat *sb, int flag, struct FTW *ftw)
-{
-    (void)sb, (void)ftw;
-    return (flag == FTW_F || flag == FTW_DP || flag == FTW_D) ? (fsync_path(p) < 0 ? -1 : 0) : 0;
-}
-
 static int write_json(const char *path, const json_t *j, sci_error *err)
 {
     if (json_dump_file(j, path, JSON_INDENT(2) | JSON_SORT_KEYS) != 0)
@@ -357,12 +341,13 @@ static int write_json(const char *path, const json_t *j, sci_error *err)
 /* Rename tmp to final after syncing it; then sync the parent. */
 static int publish(scicapd_store *st, const char *tmp, const char *final, const char *parent, sci_error *err)
 {
-    if (st->fsync_on && nftw(tmp, fsync_cb, 16, FTW_PHYS) != 0)
-        return sci_error_set(err, -EIO, "%s: fsync failed: %s", tmp, strerror(errno));
+    int rc;
+    if (st->fsync_on && (rc = sci_staging_sync(tmp, SCI_SYNC_TREE)) < 0)
+        return sci_error_set(err, rc, "%s: fsync failed: %s", tmp, strerror(-rc));
     if (rename(tmp, final) != 0)
         return sci_error_set(err, -errno, "%s: cannot rename to %s: %s", tmp, final, strerror(errno));
     if (st->fsync_on)
-        fsync_path(parent);
+        sci_staging_sync(parent, 0);
     return 0;
 }
 
@@ -461,9 +446,11 @@ static int write_shown_masks(scicapd_store *st, const sci_cube *m, const char *d
             return rc;
         }
         if (st->fsync_on)
-            nftw(tmp, fsync_cb, 16, FTW_PHYS);
+            sci_staging_sync(tmp, SCI_SYNC_TREE);
         if (rename(tmp, shared) != 0) /* another writer got there first: theirs is the same */
             scicapd_remove_tree(tmp);
+        else if (st->fsync_on)
+            sci_staging_sync(shared, SCI_SYNC_PARENT);
     }
     if (link_all(shared, dir) == 0) {
         if (!known)
@@ -500,11 +487,11 @@ static int shared_mask_stack(scicapd_store *st, const sci_cube *m, char *path, s
             return -1;
         }
         if (st->fsync_on)
-            nftw(tmp, fsync_cb, 16, FTW_PHYS);
+            sci_staging_sync(tmp, SCI_SYNC_TREE);
         if (rename(tmp, path) != 0) /* another writer got there first: checked below like any folder found */
             scicapd_remove_tree(tmp);
         else if (st->fsync_on)
-            fsync_path(path);
+            sci_staging_sync(path, SCI_SYNC_PARENT);
     }
     char side[1400];
     snprintf(side, sizeof side, "%s/mask.json", path);
@@ -617,7 +604,7 @@ int scicapd_store_write_calibration(scicapd_store *st, const char *key, const sc
     if ((rc = write_json(ptmp, rec, err)) < 0)
         goto fail;
     if (st->fsync_on)
-        fsync_path(ptmp);
+        sci_staging_sync(ptmp, 0);
     if (rename(ptmp, ptr) != 0) {
         rc = sci_error_set(err, -errno, "%s: cannot rename: %s", ptr, strerror(errno));
         unlink(ptmp);

@@ -184,7 +184,8 @@ static void run(scicapd_workers *w, scicapd_job *j)
     snprintf(out, sizeof out, "%s/recon/%s", dir, method);
     char rdir[1200];
     snprintf(rdir, sizeof rdir, "%s/recon", dir);
-    if (mkdir(rdir, 0750) != 0 && errno != EEXIST) {
+    const int created = mkdir(rdir, 0750) == 0;
+    if (!created && errno != EEXIST) {
         rc = sci_error_set(&err, -errno, "%s: cannot create: %s", rdir, strerror(errno));
         goto done;
     }
@@ -192,15 +193,17 @@ static void run(scicapd_workers *w, scicapd_job *j)
     /* which queued job wrote it: a restart after a crash before the entry is dropped below finds it done
      * (daemon/reconq.h) rather than running it again */
     json_t *job = json_pack("{s:{s:I, s:s}}", "job", "id", (json_int_t)j->id, "queue_entry", j->persisted);
-    rc = sci_recon_store_write_ex(out, pp[0], &r, params, job, 1, NULL, &err);
+    /* storage.fsync promises that a reconstruction the queue forgets below survives a power cut: its files and
+     * the rename that published it reach the disk before the write returns, and a new recon/ folder's name
+     * before the entry is dropped */
+    const int durable = scicapd_store_fsync_on(w->env.store);
+    rc = sci_recon_store_write_ex(out, pp[0], &r, params, job, SCI_STAGING_OVERWRITE | (durable ? SCI_STAGING_DURABLE : 0),
+                                  NULL, &err);
     json_decref(job);
     json_decref(params);
     if (rc < 0)
         goto done;
-    /* storage.fsync promises that a reconstruction the queue forgets below survives a power cut: its files, the
-     * rename that published it and a new recon/ folder's name reach the disk first (recon/ whole: the other
-     * methods' folders there are synced already, and fsync of a clean file costs next to nothing) */
-    if (scicapd_store_fsync_on(w->env.store) && (rc = sci_staging_sync(rdir)) < 0) {
+    if (durable && created && (rc = sci_staging_sync(rdir, SCI_SYNC_PARENT)) < 0) {
         sci_error_set(&err, rc, "%s: cannot make the reconstruction durable: %s", out, sci_strerror(rc));
         goto done;
     }

@@ -86,17 +86,17 @@ int sci_recon_store_write(const char *dir, const sci_problem *p, const sci_resul
 int sci_recon_store_write_opt(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
                               int overwrite, const volatile sig_atomic_t *stop, sci_error *err)
 {
-    return sci_recon_store_write_ex(dir, p, r, params, NULL, overwrite, stop, err);
+    return sci_recon_store_write_ex(dir, p, r, params, NULL, overwrite ? SCI_STAGING_OVERWRITE : 0, stop, err);
 }
 
 int sci_recon_store_write_ex(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
-                             const json_t *extra, int overwrite, const volatile sig_atomic_t *stop, sci_error *err)
+                             const json_t *extra, int flags, const volatile sig_atomic_t *stop, sci_error *err)
 {
     struct stat st;
     if (!r->frames)
         return sci_error_set(err, -EINVAL, "%s: no frames to write (%s)", dir,
                              r->error.msg[0] ? r->error.msg : "solver produced none");
-    if (stat(dir, &st) == 0 && !overwrite)
+    if (stat(dir, &st) == 0 && !(flags & SCI_STAGING_OVERWRITE))
         return sci_error_set(err, -EEXIST, "%s: already exists (use --force to replace it)", dir);
     char tmp[4096], path[4300];
     if (sci_staging_name(tmp, sizeof tmp, dir) < 0)
@@ -133,7 +133,7 @@ int sci_recon_store_write_ex(const char *dir, const sci_problem *p, const sci_re
         json_decref(s);
     }
     if (rc == 0)
-        return sci_staging_publish(tmp, dir, overwrite, stop, err);
+        return sci_staging_publish(tmp, dir, flags, stop, err);
     sci_staging_remove(tmp);
     return rc;
 }

@@ -18,6 +18,7 @@
 #include <jansson.h>
 #include <signal.h>
 
+#include "io/staging.h"
 #include "recon/problem.h"
 
 int sci_recon_store_write(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
@@ -30,9 +31,10 @@ int sci_recon_store_write_opt(const char *dir, const sci_problem *p, const sci_r
 
 /* Same, with `extra` (may be NULL, borrowed): its members are added at the top level of result.json — the daemon
  * records there which queued job wrote the folder ("job": {"id", "queue_entry"}), so that a restart after a
- * crash between publishing and forgetting the job sees the job done (daemon/reconq.h). */
+ * crash between publishing and forgetting the job sees the job done (daemon/reconq.h) — and `flags`, the
+ * SCI_STAGING_* of io/staging.h (OVERWRITE; DURABLE: on disk, name included, before it returns 0). */
 int sci_recon_store_write_ex(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
-                             const json_t *extra, int overwrite, const volatile sig_atomic_t *stop, sci_error *err);
+                             const json_t *extra, int flags, const volatile sig_atomic_t *stop, sci_error *err);
 
 /* What sci_recon_store_write makes for `snapshots` reconstructions of w×h×n: *bytes (an upper estimate: float
  * EXR frames uncompressed, 8-bit previews, a block of file-system overhead per file) and *files (files and

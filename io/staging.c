@@ -60,17 +60,24 @@ static int sync_folder(int fd, int depth)
     return rc;
 }
 
-int sci_staging_sync(const char *dir)
+int sci_staging_sync(const char *path, int how)
 {
     char parent[4096];
-    if ((size_t)snprintf(parent, sizeof parent, "%s", dir) >= sizeof parent)
+    if ((size_t)snprintf(parent, sizeof parent, "%s", path) >= sizeof parent)
         return -ENAMETOOLONG;
-    int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC | O_NOFOLLOW);
+    /* O_NONBLOCK: a FIFO named here must not block the open; it is refused below */
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
     if (fd < 0)
         return -errno;
-    int rc = sync_folder(fd, 0);
+    struct stat st;
+    int rc = fstat(fd, &st) != 0                        ? -errno
+             : S_ISDIR(st.st_mode) && (how & SCI_SYNC_TREE) ? sync_folder(fd, 0)
+             : !S_ISDIR(st.st_mode) && !S_ISREG(st.st_mode) ? -EINVAL
+             : fsync(fd) == 0                               ? 0
+                                                            : -errno;
     close(fd);
-    /* the parent holds the name the publishing rename gave */
+    if (!(how & SCI_SYNC_PARENT))
+        return rc;
     int pfd = open(dirname(parent), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     int prc = pfd < 0 ? -errno : fsync(pfd) == 0 ? 0 : -errno;
     if (pfd >= 0)
@@ -86,9 +93,15 @@ int sci_staging_name(char *buf, size_t n, const char *dir)
     return 0;
 }
 
-int sci_staging_publish(const char *tmp, const char *dir, int overwrite, const volatile sig_atomic_t *stop,
+int sci_staging_publish(const char *tmp, const char *dir, int flags, const volatile sig_atomic_t *stop,
                         sci_error *err)
 {
+    /* before the signals are blocked: syncing a large tree may take a while, and a stop during it is honoured */
+    int src = flags & SCI_STAGING_DURABLE ? sci_staging_sync(tmp, SCI_SYNC_TREE) : 0;
+    if (src < 0) {
+        sci_staging_remove(tmp);
+        return sci_error_set(err, src, "%s: cannot make it durable: %s", dir, strerror(-src));
+    }
     sigset_t block, old;
     sigemptyset(&block);
     sigaddset(&block, SIGINT);
@@ -101,7 +114,7 @@ int sci_staging_publish(const char *tmp, const char *dir, int overwrite, const v
     if (stop && *stop) {
         rc = sci_error_set(err, SCI_ECANCELED, "%s: interrupted; not written", dir);
     } else if (lstat(dir, &st) == 0) {
-        if (!overwrite)
+        if (!(flags & SCI_STAGING_OVERWRITE))
             rc = sci_error_set(err, -EEXIST, "%s: already exists (use --force to replace it)", dir);
         else if ((size_t)snprintf(aside, sizeof aside, "%s.old-%d", dir, (int)getpid()) >= sizeof aside)
             rc = sci_error_set(err, -ENAMETOOLONG, "%s: name too long", dir);
@@ -119,5 +132,8 @@ int sci_staging_publish(const char *tmp, const char *dir, int overwrite, const v
         sci_staging_remove(tmp);
     else if (aside[0])
         sci_staging_remove(aside);
+    /* the rename reaches the disk with the folder holding `dir` */
+    if (rc == 0 && (flags & SCI_STAGING_DURABLE) && (src = sci_staging_sync(dir, SCI_SYNC_PARENT)) < 0)
+        rc = sci_error_set(err, src, "%s: published, but its name cannot be made durable: %s", dir, strerror(-src));
     return rc;
 }

@@ -38,6 +38,7 @@ typedef struct harness {
     char bin[1024];
     pid_t pid;
     int have_config;
+    int fsync; /* storage.fsync as configured (set between harness_init and harness_spawn); else --no-fsync */
 } harness;
 
 typedef struct hconn {
@@ -112,7 +113,8 @@ static inline void harness_spawn(harness *h, char *const *env)
         argv[k++] = h->store;
         argv[k++] = "--runtime-dir";
         argv[k++] = h->run;
-        argv[k++] = "--no-fsync";
+        if (!h->fsync)
+            argv[k++] = "--no-fsync";
         if (geteuid() == 0)
             argv[k++] = "--allow-root"; /* tests run as root outside systemd: say so (daemon/main.c) */
         argv[k] = NULL;

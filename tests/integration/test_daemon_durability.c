@@ -216,7 +216,11 @@ static void cancel_recon_of(hconn *c, const char *cap)
 static void queued_reconstructions_resumed(void **state)
 {
     (void)state;
-    harness_start(&H, "{\"reconstruction\": {\"workers\": 1}}\n", NULL);
+    /* with storage.fsync on (the default the harness turns off elsewhere): the durable publish of every
+     * reconstruction, and of the captures, runs here */
+    harness_init(&H, "{\"reconstruction\": {\"workers\": 1}}\n");
+    H.fsync = 1;
+    harness_spawn(&H, NULL);
     hconn c;
     hconn_open(&c, &H);
     char cap[3][32];

@@ -343,7 +343,7 @@ static void test_staging_publish(void **state)
         FILE *f = fopen(file, "w");
         assert_non_null(f);
         fclose(f);
-        const int rc = sci_staging_publish(tmp, out, round == 3, &stop, &err);
+        const int rc = sci_staging_publish(tmp, out, round == 3 ? SCI_STAGING_OVERWRITE : 0, &stop, &err);
         assert_int_equal(access(tmp, F_OK), -1); /* never left behind */
         if (round == 0) {
             assert_int_equal(rc, SCI_ECANCELED);
@@ -368,11 +368,12 @@ static void test_staging_publish(void **state)
 }
 
 /* sci_staging_sync: a published tree (files, a subfolder, a dangling symlink and a FIFO, neither followed nor
- * opened — opening a FIFO would block) syncs to 0; a missing folder and a plain file are errors. Durability
- * itself needs a power cut to see; this checks the walk. */
+ * opened — opening a FIFO would block) syncs to 0, alone, with its parent, and one file alone; a missing path,
+ * a symlink and a FIFO named directly are errors. A durable publish (SCI_STAGING_DURABLE) publishes like any
+ * other. Durability itself needs a power cut to see; this checks the walks. */
 static void test_staging_sync(void **state)
 {
-    char out[512], path[700];
+    char out[512], path[700], tmp[700];
     snprintf(out, sizeof out, "%s/durable", tmpdir);
     assert_int_equal(mkdir(out, 0755), 0);
     snprintf(path, sizeof path, "%s/sub", out);
@@ -387,14 +388,35 @@ static void test_staging_sync(void **state)
     }
     snprintf(path, sizeof path, "%s/dangling", out);
     assert_int_equal(symlink("/nonexistent/scicap-target", path), 0);
+    assert_int_equal(sci_staging_sync(path, 0), -ELOOP);
     snprintf(path, sizeof path, "%s/sub/fifo", out);
     assert_int_equal(mkfifo(path, 0600), 0);
-    assert_int_equal(sci_staging_sync(out), 0);
-    snprintf(path, sizeof path, "%s/missing", out);
-    assert_int_equal(sci_staging_sync(path), -ENOENT);
+    assert_int_equal(sci_staging_sync(path, 0), -EINVAL);
+    assert_int_equal(sci_staging_sync(out, SCI_SYNC_TREE), 0);
+    assert_int_equal(sci_staging_sync(out, SCI_SYNC_TREE | SCI_SYNC_PARENT), 0);
     snprintf(path, sizeof path, "%s/a.json", out);
-    assert_int_equal(sci_staging_sync(path), -ENOTDIR);
-    assert_int_equal(sci_staging_remove(out), 0);
+    assert_int_equal(sci_staging_sync(path, SCI_SYNC_PARENT), 0);
+    snprintf(path, sizeof path, "%s/missing", out);
+    assert_int_equal(sci_staging_sync(path, SCI_SYNC_TREE), -ENOENT);
+
+    /* the tree published durably, over an existing folder: the same result as a plain publish */
+    snprintf(tmp, sizeof tmp, "%s/durable-pub.tmp", tmpdir);
+    snprintf(path, sizeof path, "%s/durable-pub", tmpdir);
+    assert_int_equal(mkdir(path, 0755), 0);
+    assert_int_equal(rename(out, tmp), 0);
+    sci_error err = {0};
+    assert_int_equal(sci_staging_publish(tmp, path, SCI_STAGING_DURABLE, NULL, &err), -EEXIST);
+    assert_int_equal(access(tmp, F_OK), -1); /* removed on the error, as documented */
+    assert_int_equal(mkdir(tmp, 0755), 0);
+    snprintf(out, sizeof out, "%s/c.json", tmp);
+    FILE *f = fopen(out, "w");
+    assert_non_null(f);
+    fclose(f);
+    assert_int_equal(sci_staging_publish(tmp, path, SCI_STAGING_DURABLE | SCI_STAGING_OVERWRITE, NULL, &err), 0);
+    snprintf(out, sizeof out, "%s/c.json", path);
+    assert_int_equal(access(out, F_OK), 0);
+    assert_int_equal(access(tmp, F_OK), -1);
+    assert_int_equal(sci_staging_remove(path), 0);
 }
 
 /* The limits name the figure, the limit and the override; sci_io_limits_none lifts them. */
