@@ -133,7 +133,6 @@ static void sweep(const char *dir, const char *prefix, unsigned long *max, int *
  * user may delete the newest capture. So the largest id that may have been handed out is kept in a file, and
  * made durable (written beside, fsync'd, renamed, folder fsync'd) before any id above the old mark is used. */
 
-
 /* Read the mark; a missing file is an empty mark (storage from before it existed). */
 static int ids_read(scicapd_store *s, sci_error *err)
 {

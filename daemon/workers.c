@@ -197,8 +197,8 @@ static void run(scicapd_workers *w, scicapd_job *j)
      * the rename that published it reach the disk before the write returns, and a new recon/ folder's name
      * before the entry is dropped */
     const int durable = scicapd_store_fsync_on(w->env.store);
-    rc = sci_recon_store_write_ex(out, pp[0], &r, params, job, SCI_STAGING_OVERWRITE | (durable ? SCI_STAGING_DURABLE : 0),
-                                  NULL, &err);
+    const int flags = SCI_STAGING_OVERWRITE | (durable ? SCI_STAGING_DURABLE : 0);
+    rc = sci_recon_store_write_ex(out, pp[0], &r, params, job, flags, NULL, &err);
     json_decref(job);
     json_decref(params);
     if (rc < 0)

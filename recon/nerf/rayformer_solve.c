@@ -20,12 +20,13 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
      * I²R block that starts as the identity with its attention learning at 0.1× while the heads learn at the
      * table's rate, no layer norm before the density head, 32 samples over the scene's depth range (16 trailed
      * SCINeRF at equal time on the corridor and the tabletop: session 11, docs/nerf-methods.md eighth round), the
-     * distortion loss at 0.03 (0.01 at 16 samples; at 32 the balanced preset's corridor gains 0.07 dB at step 1500
-     * with 0.03 and its surfaces form, largest ray weight 0.46 → 0.77; 0.1 costs 0.37 dB), windows of 2 × 2 (128 a step: the same 512 rays as 8 of 8 × 8, spread over 16× the image; fast preset
-     * on corridor 21.44 dB against 21.09 with 32 of 4 × 4 and 20.54 with 8 of 8 × 8); finest hash resolution 512
-     * (1024 at balanced: corridor +0.13 dB, orbit +0.02, noisy −0.12, tabletop −0.24: no gain on the average);
-     * intra-ray attention with a distance bias of slope 1 (position-free, it cost 1.1 dB on the corridor's fast
-     * preset: samples of every depth mixed; with the bias 21.44 → 22.35 dB, orbit 24.54 → 25.17) */
+     * distortion loss at 0.03 (0.01 at 16 samples; at 32 the balanced preset's corridor ends 0.11 dB higher with
+     * 0.03 and its surfaces form, largest ray weight 0.58 → 0.87; 0.1 costs 0.27 dB), windows of 2 × 2 (128 a
+     * step: the same 512 rays as 8 of 8 × 8, spread over 16× the image; fast preset on corridor 21.44 dB against
+     * 21.09 with 32 of 4 × 4 and 20.54 with 8 of 8 × 8); finest hash resolution 512 (1024 at balanced: corridor +0.13
+     * dB, orbit +0.02, noisy −0.12, tabletop −0.24: no gain on the average); intra-ray attention with a distance bias
+     * of slope 1 (position-free, it cost 1.1 dB on the corridor's fast preset: samples of every depth mixed; with the
+     * bias 21.44 → 22.35 dB, orbit 24.54 → 25.17) */
     *p = (sci_rayformer_params){.iters = 2500,
                                 .patch = 2,
                                 .patches_per_step = 128,
