@@ -8,6 +8,8 @@
  * It takes hours on the 2-core machine (every NeRF row trains a whole preset), so `make bench` only prints how to
  * run it:  build/bench/bench_nerf_compare --run [--preset fast|balanced|best] [--scenes corridor,orbit,noisy]
  *                                         [--parts classic,scinerf,ladder,patch,poses]
+ * (part "attention": only the ladder's rungs from + inter-ray on, the ones a change to the attention or TV moves;
+ * the baseline and + patch rows are kept)
  * Run from the repository root (it reads etc/scenes/ and writes bench/results/). Rows persist in
  * bench/results/nerf_compare.tsv: a run replaces the rows of the scenes it measures and keeps the others, so the
  * scenes can be measured in separate sittings; each row keeps the load average at its end.
@@ -69,6 +71,18 @@ static const char *row_part(const char *method)
     if (strncmp(method, "rayformer full, patch", 21) == 0)
         return "patch";
     return "ladder";
+}
+
+/* The ladder's rungs from + inter-ray attention on (part "attention"). */
+static int attention_rung(const char *method)
+{
+    return strcmp(row_part(method), "ladder") == 0 && !strstr(method, "baseline") && !strstr(method, "+ patch");
+}
+
+/* Whether `parts` measures the row labelled `method` again. */
+static int redone(const char *method, const char *parts)
+{
+    return strstr(parts, row_part(method)) || (strstr(parts, "attention") && attention_rung(method));
 }
 
 /* Rows in the order of the scenes' first appearance, then of the parts (classic, scinerf, ladder, patch, poses),
@@ -141,7 +155,7 @@ static void read_tsv(const char *redo, const char *parts)
         snprintf(key, sizeof key, ",%s,", fld[0]);
         char list[160];
         snprintf(list, sizeof list, ",%s,", redo);
-        if (strstr(list, key) && strstr(parts, row_part(fld[1])))
+        if (strstr(list, key) && redone(fld[1], parts))
             continue;
         snprintf(r.scene, sizeof r.scene, "%s", fld[0]);
         snprintf(r.method, sizeof r.method, "%s", fld[1]);
@@ -359,7 +373,7 @@ static void one_scene(const char *name, const char *parts)
                                    "rayformer + intra-ray attention", full};
     for (int s = 0; s <= 4; s++) {
         sci_rayformer_params_ablation(&q, s, tv);
-        if (strstr(parts, "ladder"))
+        if (redone(ladder[s], parts))
             rayformer_row(name, p, ladder[s], &q);
     }
     if (strstr(parts, "patch"))
@@ -393,7 +407,7 @@ int main(int argc, char **argv)
         else if (strcmp(argv[i], "--parts") == 0 && i + 1 < argc)
             snprintf(parts, sizeof parts, "%s", argv[++i]);
         else {
-            fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c] [--parts classic,scinerf,ladder,patch,poses]\n");
+            fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c] [--parts classic,scinerf,ladder,attention,patch,poses]\n");
             return 2;
         }
     }

@@ -100,24 +100,29 @@ size_t nerf_i2r_scratch_floats(const nerf_i2r_shape *s)
     return (size_t)(4 * d + 2) * np + (size_t)n * (2 * d + 2 * VW) + 64;
 }
 
-/* A group: n tokens, token j at row base + j·stride; one head at channel offset c0, width d. */
+/* A group: n tokens, token j at row base + j·stride; one head at channel offset c0, width d. Tokens sit in raster
+ * order in rows 2^wshift wide (wshift 0: a sequence, token i at position i). */
 typedef struct grp {
     int n, d, C, c0;
     size_t base, stride;
-    float slope; /* the logit of query i for key j gets −slope·|i − j| (0: none) */
+    float slope; /* the logit of query i for key j gets −slope·(|xi − xj| + |yi − yj|) (0: none) */
+    int wshift;
 } grp;
 
 INLINE size_t row_of(const grp *g, int j) { return g->base + (size_t)j * g->stride; }
 
-/* The logit of the 16 queries b … b+15 (lanes) for key j: the dot product s, minus the distance bias. The forward
- * and the backward's recomputation call this with the same s, so p is bitwise the same in both. */
+/* The logit of the 16 queries b … b+15 (lanes) for key j: the dot product s, minus the distance bias (a sequence's
+ * |i − j|; a window's city-block distance between pixels). The forward and the backward's recomputation call this
+ * with the same s, so p is bitwise the same in both. */
 INLINE vf biased(const grp *g, const vf *sp, int b, int j)
 {
     const vf s = *sp;
     if (g->slope == 0.0f) return s;
-    const vf lane = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
-    const vf dist = (float)(j - b) - lane;
-    return s - g->slope * (vf)((vi)dist & 0x7fffffff);
+    const vi lane = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+    const int m = (1 << g->wshift) - 1;
+    const vi qi = b + lane, dx = (qi & m) - (j & m), dy = (qi >> g->wshift) - (j >> g->wshift);
+    const vi dist = ((dx ^ (dx >> 31)) - (dx >> 31)) + ((dy ^ (dy >> 31)) - (dy >> 31));
+    return s - g->slope * __builtin_convertvector(dist, vf);
 }
 
 /* Transposed copy of channels [off, off + d) of the group's rows: dst[c·np + j] = scale·src[row_j·ld + off + c],
@@ -291,6 +296,7 @@ CLONES void nerf_i2r_forward(const nerf_i2r_shape *s, int n_patches, const float
                              int ldo, float *lse, float *scratch)
 {
     const int C = s->C, H = s->heads, L = s->L, R = s->R, d = C / (2 * H), half = C / 2;
+    const int wshift = s->win_w > 1 ? __builtin_ctz((unsigned)s->win_w) : 0;
     for (int pa = 0; pa < n_patches; pa++) {
         size_t p0 = (size_t)pa * R * L;
         if (s->intra_off) pass_forward(s, p0, 0, qkv, ld_qkv, o, ldo, lse);
@@ -303,7 +309,8 @@ CLONES void nerf_i2r_forward(const nerf_i2r_shape *s, int n_patches, const float
                 DISPATCH_D(FWD_A);
             }
             for (int t = 0; t < L && !s->inter_off; t++) { /* inter-ray: the R rays at sample t */
-                grp g = {.n = R, .d = d, .C = C, .c0 = half + h * d, .base = p0 + t, .stride = (size_t)L};
+                grp g = {.n = R, .d = d, .C = C, .c0 = half + h * d, .base = p0 + t, .stride = (size_t)L,
+                         .slope = ldexpf(s->inter_slope, -h), .wshift = wshift};
 #define FWD_B(D) group_forward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, H + h, scratch)
                 DISPATCH_D(FWD_B);
             }
@@ -316,6 +323,7 @@ CLONES void nerf_i2r_backward(const nerf_i2r_shape *s, int n_patches, const floa
                               float *scratch)
 {
     const int C = s->C, H = s->heads, L = s->L, R = s->R, d = C / (2 * H), half = C / 2;
+    const int wshift = s->win_w > 1 ? __builtin_ctz((unsigned)s->win_w) : 0;
     for (int pa = 0; pa < n_patches; pa++) {
         size_t p0 = (size_t)pa * R * L;
         if (s->intra_off) pass_backward(s, p0, 0, dout, lddo, dqkv, ld_dqkv);
@@ -328,7 +336,8 @@ CLONES void nerf_i2r_backward(const nerf_i2r_shape *s, int n_patches, const floa
                 DISPATCH_D(BWD_A);
             }
             for (int t = 0; t < L && !s->inter_off; t++) {
-                grp g = {.n = R, .d = d, .C = C, .c0 = half + h * d, .base = p0 + t, .stride = (size_t)L};
+                grp g = {.n = R, .d = d, .C = C, .c0 = half + h * d, .base = p0 + t, .stride = (size_t)L,
+                         .slope = ldexpf(s->inter_slope, -h), .wshift = wshift};
 #define BWD_B(D)                                                                                                 \
     group_backward(&g, D, qkv, ld_qkv, o, ldo, lse, 2 * H, H + h, dout, lddo, dqkv, ld_dqkv, scratch)
                 DISPATCH_D(BWD_B);

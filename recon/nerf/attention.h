@@ -5,7 +5,7 @@
  * row stride ld_qkv >= 3C) made by the caller's linear layer. Channels [0, C/2) form path A: attention among the
  * L samples of one ray (intra-ray). Channels [C/2, C) form path B: attention among the R rays of the patch at the
  * same sample index (inter-ray). Each path is split into `heads` heads of d = C/(2·heads) channels (b_ij: the
- * intra-ray distance bias below, 0 on path B):
+ * distance biases below):
  *   o_i = Σ_j softmax_j(q_i·k_j / sqrt(d) + b_ij) v_j,   softmax with max subtraction, sums in float with the
  *   normaliser in double. The forward saves lse = max + log Σ exp per row and head (rows × 2·heads floats);
  *   the backward recomputes the probabilities from it (flash-attention style: O(n) memory, not O(n·L + n·R)),
@@ -34,6 +34,11 @@ typedef struct nerf_i2r_shape {
                           attending to sample j (a fixed distance bias, ALiBi; 0: none — the paper's plain
                           attention). The samples of a ray carry no position otherwise: without it every sample
                           attends to the ray's samples as to a bag. */
+    float inter_slope; /* >= 0: path B's head h adds −(inter_slope / 2^h)·(|xi − xj| + |yi − yj|) to the logit of
+                          ray i attending to ray j, (x, y) the ray's pixel offset in its window (0: none). Without
+                          it a ray cannot tell itself from its neighbours except by content. */
+    int win_w;         /* the window's width in rays (rays in raster order, R a multiple of it); a power of two
+                          (1, 2, 4 …) when inter_slope > 0; 0 or 1: one column */
 } nerf_i2r_shape;
 
 size_t nerf_i2r_scratch_floats(const nerf_i2r_shape *s);

@@ -68,6 +68,11 @@ int nerf_rayformer_new(nerf_rayformer **out, const nerf_rayformer_config *cfg, s
                              c->width / 2);
     if (!(c->intra_slope >= 0.0f && c->intra_slope <= 100.0f))
         return sci_error_set(err, SCI_ECONFIG, "rayformer: intra_slope %g outside 0..100", (double)c->intra_slope);
+    if (!(c->inter_slope >= 0.0f && c->inter_slope <= 100.0f))
+        return sci_error_set(err, SCI_ECONFIG, "rayformer: inter_slope %g outside 0..100", (double)c->inter_slope);
+    if (c->inter_slope > 0.0f && (c->patch_w & (c->patch_w - 1)))
+        return sci_error_set(err, SCI_ECONFIG, "rayformer: inter_slope needs a window width that is a power of two "
+                             "(got %d)", c->patch_w);
     if (c->ffn_hidden < 1 || c->ffn_hidden > 4096)
         return sci_error_set(err, SCI_ECONFIG, "rayformer: ffn_hidden %d outside 1..4096", c->ffn_hidden);
     if (c->geo_dim < 0 || c->geo_dim > 256)
@@ -98,7 +103,8 @@ int nerf_rayformer_new(nerf_rayformer **out, const nerf_rayformer_config *cfg, s
     n->R = c->patch_w * c->patch_h, n->L = c->samples, n->cin = n->G + n->S;
     n->bs = (nerf_block_shape){.att = {.C = n->C, .heads = c->heads, .L = n->L, .R = n->R,
                                        .intra_off = !c->intra_ray, .inter_off = !c->inter_ray,
-                                       .intra_slope = c->intra_slope},
+                                       .intra_slope = c->intra_slope, .inter_slope = c->inter_slope,
+                                       .win_w = c->patch_w},
                                .hidden = c->ffn_hidden};
     size_t k = nerf_hashgrid_param_count(n->grid);
     n->n_hash = k;

@@ -59,6 +59,8 @@ typedef struct nerf_rayformer_config {
     float density_bias;        /* added before trunc_exp */
     int intra_ray, inter_ray;  /* 1: the attention path; 0: pass-through (o = V, per point) — the paper's ablation */
     float intra_slope;         /* intra-ray distance bias (attention.h; 0: none, the paper's attention) */
+    float inter_slope;         /* inter-ray distance bias over pixel offsets in the window (attention.h; 0: none;
+                                  > 0 needs patch_w a power of two) */
     int head_hidden;           /* 0: density and geometry from one FC layer on LN_f(h) (the paper); > 0: a ReLU
                                   hidden layer of this width first, as SCINeRF's density MLP (issue 15: with the
                                   blocks starting as the identity, one FC layer on normalised hash features fits

@@ -25,8 +25,11 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
      * step: the same 512 rays as 8 of 8 × 8, spread over 16× the image; fast preset on corridor 21.44 dB against
      * 21.09 with 32 of 4 × 4 and 20.54 with 8 of 8 × 8); finest hash resolution 512 (1024 at balanced: corridor +0.13
      * dB, orbit +0.02, noisy −0.12, tabletop −0.24: no gain on the average); intra-ray attention with a distance bias
-     * of slope 1 (position-free, it cost 1.1 dB on the corridor's fast preset: samples of every depth mixed; with the
-     * bias 21.44 → 22.35 dB, orbit 24.54 → 25.17) */
+     * of slope 1 per sample (position-free, it cost 1.1 dB on the corridor's fast preset: samples of every depth
+     * mixed: 21.44 → 22.35 dB with it at 16 samples). Measured, not yet the defaults (every preset figure would move;
+     * docs/nerf-methods.md ninth round): intra_slope 2 (+0.15 dB on the fast preset's three-scene mean at 32
+     * samples), inter_slope 1 (+ inter-ray rung +0.02 / +0.02 / +0.015 dB on corridor / orbit / noisy), four
+     * render tilings (+0.01 … +0.04 dB for 4× the render) */
     *p = (sci_rayformer_params){.iters = 2500,
                                 .patch = 2,
                                 .patches_per_step = 128,
@@ -38,6 +41,7 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
                                 .zero_gates = 1,
                                 .final_norm = 0,
                                 .head_hidden = 0,
+                                .render_tilings = 1,
                                 .heads_full_lr = 1,
                                 .recipe = {.spacing = NERF_SPACING_LINEAR, .distortion_weight = 0.03},
                                 /* decayed to 3e-3, not 1e-3: at 32 samples the field still gains from a large step
@@ -54,6 +58,7 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
                                 .inter_ray = 1,
                                 .intra_ray = 1,
                                 .intra_slope = 1,
+                                .inter_slope = 0,
                                 .pose_mode = NERF_POSES_KNOWN,
                                 .pose_init_identity = 0,
                                 .pose_perturb_rot_rad = 0,
@@ -117,6 +122,8 @@ static void rf_config(const void *params, nerf_train_config *c)
     c->adam_eps = 1e-15;
     c->tv_weight = p->tv_weight;
     c->tv_eps = p->tv_eps;
+    /* without inter-ray attention every tiling renders the same image: one, at a quarter of the cost */
+    c->render_tilings = p->inter_ray ? p->render_tilings : 1;
 }
 
 static int rf_check(const void *params, sci_error *err)
@@ -137,6 +144,8 @@ static int rf_check(const void *params, sci_error *err)
         return sci_error_set(err, -EINVAL, "rayformer: patch-sampling, inter-ray and intra-ray are 0 or 1");
     if (!(p->intra_slope >= 0 && p->intra_slope <= 100))
         return sci_error_set(err, -EINVAL, "rayformer: intra-slope must be in [0, 100] (got %g)", p->intra_slope);
+    if (!(p->inter_slope >= 0 && p->inter_slope <= 100))
+        return sci_error_set(err, -EINVAL, "rayformer: inter-slope must be in [0, 100] (got %g)", p->inter_slope);
     return 0;
 }
 
@@ -197,6 +206,7 @@ static int rf_build(const void *params, const sci_problem *problem, const nerf_t
     cfg.inter_ray = p->inter_ray;
     cfg.intra_ray = p->intra_ray;
     cfg.intra_slope = (float)p->intra_slope;
+    cfg.inter_slope = (float)p->inter_slope;
     cfg.zero_gates = p->zero_gates;
     cfg.final_norm = p->final_norm;
     cfg.head_hidden = p->head_hidden;
@@ -278,8 +288,11 @@ static const solver_field rf_fields[] = {
     RF("intra_ray", SOLVER_FIELD_BOOL, intra_ray, 0, 1, "intra-ray attention"),
     RF("intra_slope", SOLVER_FIELD_DOUBLE, intra_slope, 0, 100,
        "intra-ray distance bias: head h's logits − slope/2^h·|i − j| (0: none)"),
+    RF("inter_slope", SOLVER_FIELD_DOUBLE, inter_slope, 0, 100,
+       "inter-ray distance bias: head h's logits − slope/2^h·(|Δx| + |Δy|) in the window (0: none)"),
     RF("zero_gates", SOLVER_FIELD_BOOL, zero_gates, 0, 1, "blocks start as the identity"),
     RF("final_norm", SOLVER_FIELD_BOOL, final_norm, 0, 1, "layer norm before the density head"),
+    RF("render_tilings", SOLVER_FIELD_INT, render_tilings, 1, 4, "inference tilings of windows: 1, or 4 (the mean)"),
     RF("head_hidden", SOLVER_FIELD_INT, head_hidden, 0, 4096, "hidden ReLU layer of the density head (0: one FC)"),
     {"ablation", SOLVER_FIELD_ACTION, 0, 0, 0, ablation_steps, 0,
      "the paper's ladder: sets patch_sampling, inter_ray, intra_ray, tv_weight (tv: the full method)"},

@@ -48,11 +48,15 @@ typedef struct sci_rayformer_params {
     int inter_ray, intra_ray;    /* 1: the attention path; 0: pass-through (ablation) */
     double intra_slope;          /* intra-ray distance bias, 0 … 100: head h adds −(slope/2^h)·|i − j| to the logit
                                     of sample i for sample j (attention.h; 0: the paper's position-free attention) */
+    double inter_slope;          /* inter-ray distance bias, 0 … 100: head h adds −(slope/2^h)·(|Δx| + |Δy|), the
+                                    pixel offset between rays i and j in their window (attention.h; 0: none) */
     int zero_gates;              /* 1: each block's output projections start at zero (the block starts as the
                                     identity, ReZero/LayerScale-style); 0: Kaiming-uniform */
     int final_norm;              /* 1: layer norm before the density head (pre-norm transformers); 0: the head reads
                                     the features as they are, as SCINeRF's MLP reads the hash features */
     int head_hidden;             /* 0: density and geometry from one FC layer (the paper); > 0: a ReLU layer first */
+    int render_tilings;          /* inference: 1 = one tiling of windows, 4 = the mean of four offset by half a
+                                    window (trainer.h); only inter-ray attention makes them differ */
     /* iters, samples (L per ray, paper 32), lr, lr_final, recipe, pose_*, metrics_every, ssim_every, seed, threads,
      * checkpoint_*, resume*: the settings every NeRF method shares (recon/nerf/nerf_solve.h) */
     union {

@@ -72,8 +72,9 @@ void nerf_ref_linear(int n, int in, int out, const double *W, const double *b, c
 
 double nerf_ref_gelu(double x) { return 0.5 * x * (1.0 + erf(x / sqrt(2.0))); }
 
-static void ref_group(int n, int d, size_t base, size_t stride, int c0, int C, double slope, const double *qkv,
-                      double *o)
+/* Tokens in raster order in rows ww wide; the bias is −slope × the city-block distance. */
+static void ref_group(int n, int d, size_t base, size_t stride, int c0, int C, double slope, int ww,
+                      const double *qkv, double *o)
 {
     double *p = malloc((size_t)n * sizeof *p);
     for (int i = 0; i < n; i++) {
@@ -83,7 +84,7 @@ static void ref_group(int n, int d, size_t base, size_t stride, int c0, int C, d
             const double *k = qkv + (base + (size_t)j * stride) * 3 * C + C + c0;
             double s = 0;
             for (int c = 0; c < d; c++) s += q[c] * k[c];
-            p[j] = s / sqrt((double)d) - slope * abs(i - j);
+            p[j] = s / sqrt((double)d) - slope * (abs(i % ww - j % ww) + abs(i / ww - j / ww));
             m = p[j] > m ? p[j] : m;
         }
         double sum = 0;
@@ -104,9 +105,10 @@ void nerf_ref_i2r_forward(const nerf_i2r_shape *s, int n_patches, const double *
         size_t p0 = (size_t)pa * R * L;
         for (int h = 0; h < H; h++) {
             for (int r = 0; r < R && !s->intra_off; r++)
-                ref_group(L, d, p0 + (size_t)r * L, 1, h * d, C, ldexp(s->intra_slope, -h), qkv, o);
+                ref_group(L, d, p0 + (size_t)r * L, 1, h * d, C, ldexp(s->intra_slope, -h), 1, qkv, o);
             for (int t = 0; t < L && !s->inter_off; t++)
-                ref_group(R, d, p0 + t, (size_t)L, C / 2 + h * d, C, 0.0, qkv, o);
+                ref_group(R, d, p0 + t, (size_t)L, C / 2 + h * d, C, ldexp(s->inter_slope, -h),
+                          s->win_w > 1 ? s->win_w : 1, qkv, o);
         }
         for (size_t i = p0; i < p0 + (size_t)R * L; i++) /* switched-off paths pass V through */
             for (int c = 0; c < C; c++)

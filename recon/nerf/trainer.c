@@ -38,6 +38,8 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
     if (!(c->lr > 0) || !(c->lr < 10) || !(c->lr_final > 0) || !(c->lr_final < 10))
         return sci_error_set(err, -EINVAL, "%s: lr and lr-final must be in (0, 10) (got %g, %g)", m, c->lr,
                              c->lr_final);
+    if (c->render_tilings != 0 && c->render_tilings != 1 && c->render_tilings != 4)
+        return sci_error_set(err, -EINVAL, "%s: render tilings must be 1 or 4 (got %d)", m, c->render_tilings);
     if (!(c->net_lr_scale >= 0 && c->net_lr_scale <= 10))
         return sci_error_set(err, -EINVAL, "%s: net-lr-scale must be in [0, 10] (got %g)", m, c->net_lr_scale);
     if (!(c->adam_beta2 >= 0 && c->adam_beta2 < 1) || !(c->adam_eps > 0) || !isfinite(c->adam_eps))
@@ -547,47 +549,73 @@ static void max_weights(const pass *p, int n_rays, double *sum, long *cnt)
     }
 }
 
+/* Render frame i's one tiling, offset (ox, oy) pixels up and left (windows clamped inside the image), into
+ * frame (w×h, every pixel written once: a later window overwrites an earlier one where clamping makes them meet). */
+static int render_tiling(run *r, int i, const double T[1][12], int ox, int oy, float *frame, double *wsum, long *wcnt)
+{
+    const nerf_train_config *c = r->c;
+    const int pw = c->group_w, ph = c->group_h, R = r->R;
+    const int nx = (r->w + ox + pw - 1) / pw, ny = (r->h + oy + ph - 1) / ph, tiles = nx * ny;
+    const int chunk = r->G;
+    pass *pc = &r->ps[0], *last = &r->ps[r->n_pass - 1];
+    for (int t0 = 0; t0 < tiles; t0 += chunk) {
+        int cnt = tiles - t0 < chunk ? tiles - t0 : chunk;
+        for (int b = 0; b < cnt; b++) {
+            int x0 = (t0 + b) % nx * pw - ox, y0 = (t0 + b) / nx * ph - oy;
+            x0 = x0 < 0 ? 0 : x0 > r->w - pw ? r->w - pw : x0;
+            y0 = y0 < 0 ? 0 : y0 > r->h - ph ? r->h - ph : y0;
+            nerf_patch_pixels(x0, y0, pw, ph, r->px + (size_t)b * R, r->py + (size_t)b * R);
+        }
+        nerf_rays_camera(r->pb->camera, cnt * R, r->px, r->py, pc->L, r->near, r->far, c->spacing, NULL, pc->pcam,
+                         r->dcam, pc->delta);
+        int rc = pass_forward(r, pc, cnt, 1, T);
+        if (rc == 0 && r->n_pass == 2) {
+            importance(r, cnt, 1, NULL);
+            rc = pass_forward(r, &r->ps[1], cnt, 1, T);
+        }
+        if (rc < 0)
+            return rc;
+        if (wsum)
+            max_weights(last, cnt * R, wsum, wcnt);
+        for (int k = 0; k < cnt * R; k++)
+            frame[(size_t)r->py[k] * r->w + r->px[k]] = last->grey[k];
+    }
+    return 0;
+}
+
 /* Render all N frames window-wise into x (w×h×N); *max_weight (or NULL) gets the mean largest ray weight over the
- * rays that hit something (NaN if none do). */
+ * rays that hit something (NaN if none do), over every tiling rendered. With render_tilings 4, each pixel is the
+ * mean of the tiling and the three offset by half a window across, down and both (in that order). */
 static int render_all(run *r, sci_cube *x, double *max_weight)
 {
     double wsum = 0.0;
     long wcnt = 0;
     const nerf_train_config *c = r->c;
-    const int pw = c->group_w, ph = c->group_h, R = r->R;
-    const int nx = (r->w + pw - 1) / pw, ny = (r->h + ph - 1) / ph, tiles = nx * ny;
-    const int chunk = r->G;
-    pass *pc = &r->ps[0], *last = &r->ps[r->n_pass - 1];
-    for (int i = 0; i < r->n; i++) {
+    const int K = c->render_tilings == 4 ? 4 : 1;
+    const size_t npix = (size_t)r->w * r->h;
+    float *tmp = K > 1 ? malloc(npix * sizeof *tmp) : NULL;
+    if (K > 1 && !tmp)
+        return -ENOMEM;
+    int rc = 0;
+    for (int i = 0; i < r->n && rc == 0; i++) {
         double T[1][12];
         nerf_poses_get(r->poses, i, T[0]);
-        for (int t0 = 0; t0 < tiles; t0 += chunk) {
-            int cnt = tiles - t0 < chunk ? tiles - t0 : chunk;
-            for (int b = 0; b < cnt; b++) {
-                int tx = (t0 + b) % nx, ty = (t0 + b) / nx;
-                int x0 = tx * pw, y0 = ty * ph;
-                if (x0 > r->w - pw)
-                    x0 = r->w - pw;
-                if (y0 > r->h - ph)
-                    y0 = r->h - ph;
-                nerf_patch_pixels(x0, y0, pw, ph, r->px + (size_t)b * R, r->py + (size_t)b * R);
-            }
-            nerf_rays_camera(r->pb->camera, cnt * R, r->px, r->py, pc->L, r->near, r->far, c->spacing, NULL, pc->pcam,
-                             r->dcam, pc->delta);
-            int rc = pass_forward(r, pc, cnt, 1, (const double(*)[12])T);
-            if (rc == 0 && r->n_pass == 2) {
-                importance(r, cnt, 1, NULL);
-                rc = pass_forward(r, &r->ps[1], cnt, 1, (const double(*)[12])T);
-            }
-            if (rc < 0)
-                return rc;
-            if (max_weight)
-                max_weights(last, cnt * R, &wsum, &wcnt);
-            float *frame = sci_cube_frame(x, i);
-            for (int k = 0; k < cnt * R; k++)
-                frame[(size_t)r->py[k] * r->w + r->px[k]] = last->grey[k];
+        float *frame = sci_cube_frame(x, i);
+        double *ws = max_weight ? &wsum : NULL;
+        rc = render_tiling(r, i, (const double(*)[12])T, 0, 0, frame, ws, &wcnt);
+        for (int k = 1; k < K && rc == 0; k++) {
+            rc = render_tiling(r, i, (const double(*)[12])T, k & 1 ? c->group_w / 2 : 0, k & 2 ? c->group_h / 2 : 0,
+                               tmp, ws, &wcnt);
+            for (size_t p = 0; p < npix && rc == 0; p++)
+                frame[p] += tmp[p];
         }
+        if (K > 1)
+            for (size_t p = 0; p < npix; p++)
+                frame[p] *= 1.0f / (float)K;
     }
+    free(tmp);
+    if (rc < 0)
+        return rc;
     if (max_weight)
         *max_weight = wcnt > 0 ? wsum / (double)wcnt : NAN;
     return 0;

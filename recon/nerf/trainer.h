@@ -17,7 +17,8 @@
  *      to lr_final; optimised poses: per-point position/direction gradients → ∂loss/∂Tᵢ → twists (poses.h) →
  *      pose Adam with its own warm-up and decay.
  * Inference renders every frame window-wise (non-overlapping gw×gh windows; the last row and column shifted
- * inside the image) at sample midpoints (deterministic importance samples).
+ * inside the image; with render_tilings 4 the mean of four tilings) at sample midpoints (deterministic importance
+ * samples).
  *
  * Gauge (pose optimisation): a scene and camera poses fitted together from one snapshot are defined only up to
  * a rigid motion (and scale) of everything; `pose_hold_first` pins pose 1 (its twist gets no update), which fixes
@@ -109,6 +110,10 @@ typedef struct nerf_train_config {
     double pose_lr, pose_lr_final;/* pose Adam, exponential decay */
     int pose_delay;               /* poses stay put for this many steps (the scene forms first), 0: none */
     int pose_warmup;              /* then the pose lr ramps linearly from 0 over this many steps (0: none) */
+    int render_tilings;           /* inference: 1 (or 0) = one tiling of non-overlapping windows; 4 = each pixel the
+                                     mean of that tiling and the three offset by half a window (models that mix the
+                                     rays of a window: a pixel's value depends on the window it sits in, and
+                                     training saw it at every position in one); 4× the render's cost */
     int metrics_every;            /* full render for PSNR every k steps (0: only at the end) */
     int ssim_every;               /* SSIM on those renders every k steps (0: only at the end) */
     uint64_t seed;

@@ -561,6 +561,44 @@ static void test_attention_intra_slope(void **s)
     free(qkv), free(oa), free(ob);
 }
 
+/* The inter-ray distance bias over pixel offsets: windows 2 wide (R = 6: 2 × 3) and 4 wide (R = 16, one full 16-lane
+ * block; R = 32 = 4 × 8: two blocks, the second's lanes at rows 4 … 7), a steep slope, and both biases at once; then
+ * the bias moves path B only, and a ray's distances are city-block ones (a 2 × 2 window's diagonal neighbour is
+ * 2 away: with only the bias, equal q·k, the weights are e^0 : e^−s : e^−s : e^−2s). */
+static void test_attention_inter_slope(void **s)
+{
+    (void)s;
+    att_check_shape((nerf_i2r_shape){.C = 8, .heads = 2, .L = 5, .R = 6, .inter_slope = 0.7f, .win_w = 2}, 2, 1.0,
+                    "inter 0.7, 2 x 3");
+    att_check_shape((nerf_i2r_shape){.C = 32, .heads = 2, .L = 3, .R = 16, .inter_slope = 0.7f, .win_w = 4}, 1, 1.0,
+                    "inter 0.7, 4 x 4");
+    att_check_shape((nerf_i2r_shape){.C = 16, .heads = 2, .L = 2, .R = 32, .inter_slope = 100.0f, .win_w = 4}, 1,
+                    1.0, "inter 100, 4 x 8");
+    att_check_shape((nerf_i2r_shape){.C = 8, .heads = 2, .L = 17, .R = 4, .intra_slope = 1.0f, .inter_slope = 2.0f,
+                                     .win_w = 2},
+                    1, 1.0, "both, 2 x 2");
+    nerf_i2r_shape a = {.C = 4, .heads = 1, .L = 1, .R = 4, .win_w = 2}, b = a;
+    b.inter_slope = 1.5f;
+    const int N = a.R * a.L, C = a.C;
+    double qkv[4 * 3 * 4], oa[4 * 4], ob[4 * 4];
+    for (int i = 0; i < N * 3 * C; i++) qkv[i] = unif(-1, 1);
+    nerf_ref_i2r_forward(&a, 1, qkv, oa);
+    nerf_ref_i2r_forward(&b, 1, qkv, ob);
+    double dA = 0, dB = 0;
+    for (int i = 0; i < N; i++)
+        for (int c = 0; c < C; c++) *(c < C / 2 ? &dA : &dB) += fabs(oa[i * C + c] - ob[i * C + c]);
+    assert_true(dA == 0.0);
+    assert_true(dB > 1e-3);
+    /* q = k = 0 on path B: ray 0's output is the bias-weighted mean of the V's, one-hot V picks each weight */
+    float q[4 * 12] = {0}, o[4 * 4], lse[4 * 2], *scr = malloc(nerf_i2r_scratch_floats(&b) * sizeof *scr);
+    for (int r = 0; r < 4; r++) q[r * 12 + 2 * C + 2] = (float)r; /* path B's first V channel = the ray's index */
+    nerf_i2r_forward(&b, 1, q, 12, o, 4, lse, scr);
+    const double e1 = exp(-1.5), e2 = exp(-3.0), z = 1 + 2 * e1 + e2;
+    assert_float_equal(o[2], (0 * 1 + 1 * e1 + 2 * e1 + 3 * e2) / z, 1e-6);
+    assert_float_equal(o[3 * 4 + 2], (0 * e2 + 1 * e1 + 2 * e1 + 3 * 1) / z, 1e-6);
+    free(scr);
+}
+
 /* Logits of ±1e4: q, k entries ~±100 give q·k/sqrt(2) up to ~1e4. */
 static void test_attention_large_logits(void **s)
 {
@@ -644,7 +682,7 @@ int main(void)
         cmocka_unit_test(test_hashgrid_config_errors), cmocka_unit_test(test_attention),
         cmocka_unit_test(test_attention_large_logits),
         cmocka_unit_test(test_attention_wide_heads),
-        cmocka_unit_test(test_attention_intra_slope), cmocka_unit_test(test_attention_pass_through),
+        cmocka_unit_test(test_attention_intra_slope), cmocka_unit_test(test_attention_inter_slope), cmocka_unit_test(test_attention_pass_through),
         cmocka_unit_test(test_gelu_with_grad), cmocka_unit_test(test_block),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

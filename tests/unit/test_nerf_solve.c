@@ -210,6 +210,46 @@ static void test_ablation_ladder(void **state)
     sci_problem_free(p);
 }
 
+/* Four tilings at inference: training is untouched (the same loss at every step), the render changes only where
+ * inter-ray attention makes a pixel depend on its window (with it off the frames are bitwise those of one tiling),
+ * the frames stay finite, and other counts are refused. */
+static void test_render_tilings(void **state)
+{
+    (void)state;
+    sci_problem *p = nerf_tiny_problem(32, 3);
+    for (int inter = 0; inter <= 1; inter++) {
+        sci_result r[2] = {{0}, {0}};
+        for (int k = 0; k < 2; k++) {
+            sci_rayformer_params prm;
+            small_params(&prm, 3);
+            prm.patch = 4;
+            prm.patches_per_step = 8;
+            prm.samples = 8;
+            prm.iters = 20;
+            prm.inter_ray = inter;
+            prm.render_tilings = k ? 4 : 1;
+            int rc = sci_rayformer_solve(p, &prm, &r[k], NULL, NULL);
+            if (rc != 0)
+                fail_msg("%s", r[k].error.msg);
+            assert_int_equal(sci_cube_check_finite(r[k].frames, "frames", NULL), 0);
+        }
+        for (size_t i = 0; i < r[0].trace.len; i++)
+            assert_true(r[0].trace.e[i].loss == r[1].trace.e[i].loss);
+        size_t n = (size_t)r[0].frames->w * r[0].frames->h * r[0].frames->n;
+        int same = memcmp(r[0].frames->data, r[1].frames->data, n * sizeof(float)) == 0;
+        double p1 = r[0].trace.e[r[0].trace.len - 1].psnr_peak1, p4 = r[1].trace.e[r[1].trace.len - 1].psnr_peak1;
+        printf("inter-ray %d: PSNR one tiling %.3f dB, four %.3f dB\n", inter, p1, p4);
+        assert_int_equal(same, !inter);
+        sci_result_free_contents(&r[0]);
+        sci_result_free_contents(&r[1]);
+    }
+    sci_rayformer_params prm;
+    small_params(&prm, 3);
+    prm.render_tilings = 2;
+    assert_int_equal(sci_rayformer_params_check(&prm, NULL), -EINVAL);
+    sci_problem_free(p);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -219,6 +259,7 @@ int main(void)
         cmocka_unit_test(test_threads_bound_the_run),
         cmocka_unit_test(test_learns_tiny_scene),
         cmocka_unit_test(test_ablation_ladder),
+        cmocka_unit_test(test_render_tilings),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
