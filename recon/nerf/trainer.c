@@ -549,9 +549,10 @@ static void max_weights(const pass *p, int n_rays, double *sum, long *cnt)
     }
 }
 
-/* Render frame i's one tiling, offset (ox, oy) pixels up and left (windows clamped inside the image), into
- * frame (w×h, every pixel written once: a later window overwrites an earlier one where clamping makes them meet). */
-static int render_tiling(run *r, int i, const double T[1][12], int ox, int oy, float *frame, double *wsum, long *wcnt)
+/* Render one tiling of the frame seen from pose T, offset (ox, oy) pixels up and left (windows clamped inside the
+ * image), into frame (w×h, every pixel written once: a later window overwrites an earlier one where clamping makes
+ * them meet). */
+static int render_tiling(run *r, const double T[1][12], int ox, int oy, float *frame, double *wsum, long *wcnt)
 {
     const nerf_train_config *c = r->c;
     const int pw = c->group_w, ph = c->group_h, R = r->R;
@@ -602,10 +603,10 @@ static int render_all(run *r, sci_cube *x, double *max_weight)
         nerf_poses_get(r->poses, i, T[0]);
         float *frame = sci_cube_frame(x, i);
         double *ws = max_weight ? &wsum : NULL;
-        rc = render_tiling(r, i, (const double(*)[12])T, 0, 0, frame, ws, &wcnt);
+        rc = render_tiling(r, (const double(*)[12])T, 0, 0, frame, ws, &wcnt);
         for (int k = 1; k < K && rc == 0; k++) {
-            rc = render_tiling(r, i, (const double(*)[12])T, k & 1 ? c->group_w / 2 : 0, k & 2 ? c->group_h / 2 : 0,
-                               tmp, ws, &wcnt);
+            rc = render_tiling(r, (const double(*)[12])T, k & 1 ? c->group_w / 2 : 0, k & 2 ? c->group_h / 2 : 0, tmp,
+                               ws, &wcnt);
             for (size_t p = 0; p < npix && rc == 0; p++)
                 frame[p] += tmp[p];
         }
