@@ -25,11 +25,11 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
      * step: the same 512 rays as 8 of 8 × 8, spread over 16× the image; fast preset on corridor 21.44 dB against
      * 21.09 with 32 of 4 × 4 and 20.54 with 8 of 8 × 8); finest hash resolution 512 (1024 at balanced: corridor +0.13
      * dB, orbit +0.02, noisy −0.12, tabletop −0.24: no gain on the average); intra-ray attention with a distance bias
-     * of slope 1 per sample (position-free, it cost 1.1 dB on the corridor's fast preset: samples of every depth
-     * mixed: 21.44 → 22.35 dB with it at 16 samples). Measured, not yet the defaults (every preset figure would move;
-     * docs/nerf-methods.md ninth round): intra_slope 2 (+0.15 dB on the fast preset's three-scene mean at 32
-     * samples), inter_slope 1 (+ inter-ray rung +0.02 / +0.02 / +0.015 dB on corridor / orbit / noisy), four
-     * render tilings (+0.01 … +0.04 dB for 4× the render) */
+     * of slope 2 per sample (position-free, it cost 1.1 dB on the corridor's fast preset: samples of every depth
+     * mixed; slope 1 reached as far in depth at 16 samples as 2 does at 32, and 2 gained 0.15 dB on the fast
+     * preset's three-scene mean over 1), inter-ray attention with a city-block bias of slope 1 inside the window
+     * (+ inter-ray rung +0.02 / +0.02 / +0.015 dB on corridor / orbit / noisy; docs/nerf-methods.md ninth round).
+     * Measured, not the default: four render tilings (+0.01 … +0.04 dB for 4× the render) */
     *p = (sci_rayformer_params){.iters = 2500,
                                 .patch = 2,
                                 .patches_per_step = 128,
@@ -57,8 +57,8 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
                                 .patch_sampling = 1,
                                 .inter_ray = 1,
                                 .intra_ray = 1,
-                                .intra_slope = 1,
-                                .inter_slope = 0,
+                                .intra_slope = 2,
+                                .inter_slope = 1,
                                 .pose_mode = NERF_POSES_KNOWN,
                                 .pose_init_identity = 0,
                                 .pose_perturb_rot_rad = 0,

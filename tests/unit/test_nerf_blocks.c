@@ -534,6 +534,22 @@ static void test_attention_wide_heads(void **s)
     att_check_shape((nerf_i2r_shape){.C = 32, .heads = 2, .L = 17, .R = 3}, 1, 100.0, "d = 8, logits ±1e4");
 }
 
+/* How far the reference block's output moves from shape a to shape b (same sizes, a bias changed) on one random
+ * input: summed |Δ| over path A's channels (the first C/2, intra-ray) into *dA and over path B's into *dB. */
+static void att_path_change(const nerf_i2r_shape *a, const nerf_i2r_shape *b, double *dA, double *dB)
+{
+    const int N = a->R * a->L, C = a->C;
+    double *qkv = malloc((size_t)N * 3 * C * sizeof *qkv), *oa = malloc((size_t)N * C * sizeof *oa),
+           *ob = malloc((size_t)N * C * sizeof *ob);
+    for (int i = 0; i < N * 3 * C; i++) qkv[i] = unif(-1, 1);
+    nerf_ref_i2r_forward(a, 1, qkv, oa);
+    nerf_ref_i2r_forward(b, 1, qkv, ob);
+    *dA = *dB = 0;
+    for (int i = 0; i < N; i++)
+        for (int c = 0; c < C; c++) *(c < C / 2 ? dA : dB) += fabs(oa[i * C + c] - ob[i * C + c]);
+    free(qkv), free(oa), free(ob);
+}
+
 /* The intra-ray distance bias: forward and gradient against the reference with the bias, on a ray of 17 samples
  * (two 16-lane blocks: the second block's lanes must see distances from their own sample index), with d = 4 and
  * d = 8, and a steep slope (logits down to −1600 for the farthest sample: the softmax stays exact and finite). */
@@ -548,17 +564,10 @@ static void test_attention_intra_slope(void **s)
     /* the bias changes the output (the check above would also pass if both ignored it) */
     nerf_i2r_shape a = {.C = 8, .heads = 2, .L = 5, .R = 2}, b = a;
     b.intra_slope = 2.0f;
-    const int N = a.R * a.L, C = a.C;
-    double *qkv = malloc((size_t)N * 3 * C * 8), *oa = malloc((size_t)N * C * 8), *ob = malloc((size_t)N * C * 8);
-    for (int i = 0; i < N * 3 * C; i++) qkv[i] = unif(-1, 1);
-    nerf_ref_i2r_forward(&a, 1, qkv, oa);
-    nerf_ref_i2r_forward(&b, 1, qkv, ob);
-    double dA = 0, dB = 0;
-    for (int i = 0; i < N; i++)
-        for (int c = 0; c < C; c++) *(c < C / 2 ? &dA : &dB) += fabs(oa[i * C + c] - ob[i * C + c]);
+    double dA, dB;
+    att_path_change(&a, &b, &dA, &dB);
     assert_true(dA > 1e-3); /* path A (intra-ray) moved */
     assert_true(dB == 0.0); /* path B (inter-ray) did not */
-    free(qkv), free(oa), free(ob);
 }
 
 /* The inter-ray distance bias over pixel offsets: windows 2 wide (R = 6: 2 × 3) and 4 wide (R = 16, one full 16-lane
@@ -579,14 +588,9 @@ static void test_attention_inter_slope(void **s)
                     1, 1.0, "both, 2 x 2");
     nerf_i2r_shape a = {.C = 4, .heads = 1, .L = 1, .R = 4, .win_w = 2}, b = a;
     b.inter_slope = 1.5f;
-    const int N = a.R * a.L, C = a.C;
-    double qkv[4 * 3 * 4], oa[4 * 4], ob[4 * 4];
-    for (int i = 0; i < N * 3 * C; i++) qkv[i] = unif(-1, 1);
-    nerf_ref_i2r_forward(&a, 1, qkv, oa);
-    nerf_ref_i2r_forward(&b, 1, qkv, ob);
-    double dA = 0, dB = 0;
-    for (int i = 0; i < N; i++)
-        for (int c = 0; c < C; c++) *(c < C / 2 ? &dA : &dB) += fabs(oa[i * C + c] - ob[i * C + c]);
+    const int C = a.C;
+    double dA, dB;
+    att_path_change(&a, &b, &dA, &dB);
     assert_true(dA == 0.0);
     assert_true(dB > 1e-3);
     /* q = k = 0 on path B: ray 0's output is the bias-weighted mean of the V's, one-hot V picks each weight */
