@@ -35,6 +35,7 @@
 
 #include "base/clock.h"
 #include "daemon/store.h"
+#include "io/staging.h"
 
 static int sock_fd = -1;
 static char rbuf[1 << 16];
@@ -447,6 +448,6 @@ int main(int argc, char **argv)
             fclose(f);
         }
     }
-    scicapd_remove_tree(dir);
+    sci_staging_remove(dir);
     return status;
 }

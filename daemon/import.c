@@ -13,6 +13,7 @@
 
 #include "io/limits.h"
 #include "io/problem_dir.h"
+#include "io/staging.h"
 
 static void close_fds(int *fds, int n)
 {
@@ -237,7 +238,7 @@ void scicapd_import_sweep(scicapd_store *st)
 {
     char d[1100];
     imports_dir(st, d, sizeof d);
-    scicapd_remove_tree(d);
+    sci_staging_remove(d);
 }
 
 int scicapd_import_read(scicapd_store *st, uint64_t job, scicapd_import_args *a, sci_problem ***out, int *k,
@@ -248,7 +249,7 @@ int scicapd_import_read(scicapd_store *st, uint64_t job, scicapd_import_args *a,
     if (mkdir(base, 0700) != 0 && errno != EEXIST)
         return sci_error_set(err, -errno, "%s: %s", base, strerror(errno));
     snprintf(stage, sizeof stage, "%s/.import-%llu", base, (unsigned long long)job);
-    scicapd_remove_tree(stage);
+    sci_staging_remove(stage);
     if (mkdir(stage, 0700) != 0)
         return sci_error_set(err, -errno, "%s: %s", stage, strerror(errno));
     size_t total = 0;
@@ -281,7 +282,7 @@ int scicapd_import_read(scicapd_store *st, uint64_t job, scicapd_import_args *a,
             snprintf(err->msg, sizeof err->msg, "%s", msg);
         }
     }
-    scicapd_remove_tree(stage);
+    sci_staging_remove(stage);
     return rc;
 }
 

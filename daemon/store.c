@@ -4,7 +4,6 @@
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
-#include <ftw.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -55,20 +54,6 @@ struct scicapd_store {
     int mask_cache_next;
 };
 
-static int rm_cb(const char *p, const struct stat *sb, int flag, struct FTW *ftw)
-{
-    (void)sb, (void)flag, (void)ftw;
-    return remove(p) == 0 || errno == ENOENT ? 0 : -1;
-}
-
-int scicapd_remove_tree(const char *path)
-{
-    struct stat st;
-    if (lstat(path, &st) != 0)
-        return errno == ENOENT ? 0 : -errno;
-    return nftw(path, rm_cb, 16, FTW_DEPTH | FTW_PHYS) == 0 ? 0 : -errno;
-}
-
 static int mkdir_p(const char *path, sci_error *err)
 {
     char buf[1100];
@@ -105,7 +90,7 @@ static void sweep(const char *dir, const char *prefix, unsigned long *max, int *
         char p[1400];
         snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
         if (is_partial(e->d_name)) {
-            if (scicapd_remove_tree(p) == 0)
+            if (sci_staging_remove(p) == 0)
                 (*removed)++;
             continue;
         }
@@ -441,13 +426,13 @@ static int write_shown_masks(scicapd_store *st, const sci_cube *m, const char *d
         int rc;
         if ((rc = mkdir_p(tmp, err)) < 0 ||
             (rc = sci_stack_write(tmp, "dmd_mask", "png", m, SCI_PIXEL_U8, 255.0, NULL, err)) < 0) {
-            scicapd_remove_tree(tmp);
+            sci_staging_remove(tmp);
             return rc;
         }
         if (st->fsync_on)
             sci_staging_sync(tmp, SCI_SYNC_TREE);
         if (rename(tmp, shared) != 0) /* another writer got there first: theirs is the same */
-            scicapd_remove_tree(tmp);
+            sci_staging_remove(tmp);
         else if (st->fsync_on)
             sci_staging_sync(shared, SCI_SYNC_PARENT);
     }
@@ -481,14 +466,14 @@ static int shared_mask_stack(scicapd_store *st, const sci_cube *m, char *path, s
         snprintf(tmp, sizeof tmp, "%s/mask_stacks/.%016llx.tmp-%d-%lx", st->root, (unsigned long long)hash,
                  (int)getpid(), (unsigned long)pthread_self());
         if (sci_problem_dir_write_masks(tmp, m, &err) < 0) {
-            scicapd_remove_tree(tmp);
+            sci_staging_remove(tmp);
             sci_log_write(st->log, SCI_LOG_WARNING, "%s (the masks are written in each capture folder)", err.msg);
             return -1;
         }
         if (st->fsync_on)
             sci_staging_sync(tmp, SCI_SYNC_TREE);
         if (rename(tmp, path) != 0) /* another writer got there first: checked below like any folder found */
-            scicapd_remove_tree(tmp);
+            sci_staging_remove(tmp);
         else if (st->fsync_on)
             sci_staging_sync(path, SCI_SYNC_PARENT);
     }
@@ -548,7 +533,7 @@ int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_erro
         goto fail;
     return 0;
 fail:
-    scicapd_remove_tree(tmp);
+    sci_staging_remove(tmp);
     sci_error_prefix(err, "capture %s: ", s->capture_id);
     return rc;
 }
@@ -616,7 +601,7 @@ int scicapd_store_write_calibration(scicapd_store *st, const char *key, const sc
     return 0;
 fail:
     json_decref(rec);
-    scicapd_remove_tree(tmp);
+    sci_staging_remove(tmp);
     return rc;
 }
 

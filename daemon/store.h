@@ -111,7 +111,4 @@ int scicapd_store_start(scicapd_store *st, scicapd_queue *q, int writers, scicap
 /* Waits for the queue (closed by the caller) to drain and the threads to end. */
 void scicapd_store_stop(scicapd_store *st);
 
-/* rm -rf `path` (no symlinks followed). 0 or -errno. */
-int scicapd_remove_tree(const char *path);
-
 #endif

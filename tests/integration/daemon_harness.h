@@ -31,6 +31,7 @@
 #include <unistd.h>
 
 #include "daemon/store.h"
+#include "io/staging.h"
 
 typedef struct harness {
     char dir[256];       /* temporary folder */
@@ -210,7 +211,7 @@ static inline void harness_cleanup(harness *h)
         waitpid(h->pid, NULL, 0);
         h->pid = 0;
     }
-    scicapd_remove_tree(h->dir);
+    sci_staging_remove(h->dir);
 }
 
 static inline void hconn_open(hconn *c, const harness *h)

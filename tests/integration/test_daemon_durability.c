@@ -119,7 +119,7 @@ static void ids_not_reused_after_delete(void **state)
     harness_stop(&H);
     char dir[600];
     snprintf(dir, sizeof dir, "%s/captures/c%06ld", H.store, newest);
-    assert_int_equal(scicapd_remove_tree(dir), 0);
+    assert_int_equal(sci_staging_remove(dir), 0);
     harness_spawn(&H, NULL);
     hconn_open(&c, &H);
     long next = next_capture_id(&c);

@@ -17,6 +17,7 @@
 
 #include "io/image.h"
 #include "io/problem_dir.h"
+#include "io/staging.h"
 #include "tests/helpers/daemon_child.h"
 #include "tests/integration/daemon_harness.h"
 
@@ -143,7 +144,7 @@ static void mask_stack_linked_once_per_set(void **state)
     /* self-contained: a deleted capture takes only its links; the others read back whole, masks equal */
     char gone[600];
     snprintf(gone, sizeof gone, "%s/captures/%s", H.store, ids[0]);
-    assert_int_equal(scicapd_remove_tree(gone), 0);
+    assert_int_equal(sci_staging_remove(gone), 0);
     for (int i = 1; i < 3; i++) {
         sci_problem *p = read_capture(&H, ids[i]);
         assert_cubes_equal(p->mask, p0->mask, "masks of two captures of one mask set");
