@@ -18,6 +18,7 @@
  * bench/results/nerf_compare.tsv: a run replaces the rows of the scenes it measures and keeps the others, so the
  * scenes can be measured in separate sittings; each row keeps the load average at its end.
  */
+#include <assert.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -46,6 +47,9 @@ static row rows[MAX_ROWS];
 static int n_rows;
 static char preset[16] = "fast";
 static int n_seeds = 1;
+/* The ladder's rungs in the paper's order; each ladder row's label (one_scene) contains its rung's tag, which is how
+ * the stored rows are recognised (attention_rung, write_ladder_steps). */
+static const char *const ladder_tag[5] = {"baseline", "+ patch", "+ inter", "+ intra", "+ TV"};
 
 static void write_tsv(void)
 {
@@ -83,7 +87,7 @@ static const char *row_part(const char *method)
 /* The ladder's rungs from + inter-ray attention on (part "attention"). */
 static int attention_rung(const char *method)
 {
-    return strcmp(row_part(method), "ladder") == 0 && !strstr(method, "baseline") && !strstr(method, "+ patch");
+    return strcmp(row_part(method), "ladder") == 0 && !strstr(method, ladder_tag[0]) && !strstr(method, ladder_tag[1]);
 }
 
 /* Whether `parts` measures the row labelled `method` again. */
@@ -181,7 +185,6 @@ static void read_tsv(const char *redo, const char *parts)
  * over those scenes (the measure issue 15 judges a step by). Rungs are recognised by their labels' order. */
 static void write_ladder_steps(FILE *f)
 {
-    const char *const rung[5] = {"baseline", "+ patch", "+ inter", "+ intra", "+ TV"};
     double step[4][16], psnr[5];
     char scene[16][32];
     int ns = 0;
@@ -191,7 +194,7 @@ static void write_ladder_steps(FILE *f)
         int found = 0;
         for (int k = 0; k < 5; k++)
             for (int j = i; j < n_rows && strcmp(rows[j].scene, rows[i].scene) == 0; j++)
-                if (strcmp(row_part(rows[j].method), "ladder") == 0 && strstr(rows[j].method, rung[k])) {
+                if (strcmp(row_part(rows[j].method), "ladder") == 0 && strstr(rows[j].method, ladder_tag[k])) {
                     psnr[k] = rows[j].psnr, found++;
                     break;
                 }
@@ -213,7 +216,7 @@ static void write_ladder_steps(FILE *f)
     fprintf(f, "\n");
     for (int k = 0; k < 4; k++) {
         double m = 0;
-        fprintf(f, "| %s |", rung[k + 1]);
+        fprintf(f, "| %s |", ladder_tag[k + 1]);
         for (int s = 0; s < ns; s++)
             fprintf(f, " %+.2f |", step[k][s]), m += step[k][s];
         fprintf(f, " %+.2f |\n", m / ns);
@@ -506,6 +509,7 @@ static void one_scene(const char *name, const char *parts)
                                    "rayformer + patch sampling", "rayformer + inter-ray attention",
                                    "rayformer + intra-ray attention", full};
     for (int s = 0; s <= 4; s++) {
+        assert(strstr(ladder[s], ladder_tag[s]));
         sci_rayformer_params_ablation(&q, s, tv);
         if (redone(ladder[s], parts))
             rayformer_row(name, p, ladder[s], &q);
