@@ -25,6 +25,7 @@ nerf_block_offsets nerf_block_layout(const nerf_block_shape *s)
     o.b_1 = k; k += Hf;
     o.w_2 = k; k += C * Hf;
     o.b_2 = k; k += C;
+    o.gate = k; k += s->inter_gate ? (size_t)s->att.heads : 0;
     o.total = k;
     return o;
 }
@@ -68,6 +69,46 @@ void nerf_block_init(const nerf_block_shape *s, float *params, int depth, sci_rn
     nerf_linear_init(C, C, params + o.w_o, params + o.b_o, res, rng);
     nerf_linear_init(C, Hf, params + o.w_1, params + o.b_1, sqrt(2.0), rng);
     nerf_linear_init(Hf, C, params + o.w_2, params + o.b_2, res, rng);
+    for (size_t h = o.gate; h < o.total; h++)
+        params[h] = 0.0f;
+}
+
+/* The inter-ray channels [C/2, C) of the attention output as W_o reads them: v + g_h·(o − v) (block.h). */
+static void gate_apply(const nerf_block_shape *s, const float *gate, int n, const float *qkv, const float *att,
+                       float *og)
+{
+    const int C = s->att.C, half = C / 2, d = half / s->att.heads;
+    for (size_t r = 0; r < (size_t)n; r++) {
+        const float *v = qkv + r * 3 * C + 2 * C, *a = att + r * C;
+        float *o = og + r * C;
+        memcpy(o, a, (size_t)half * sizeof *o);
+        for (int c = half; c < C; c++)
+            o[c] = v[c] + gate[(c - half) / d] * (a[c] - v[c]);
+    }
+}
+
+/* Backward of gate_apply: dy (rows × C) holds ∂/∂og; on return its inter-ray channels hold ∂/∂o (g_h·dy), the
+ * pass-through part (1 − g_h)·dy is in keep (same channels; the caller adds it to dv after the attention's
+ * backward), and the gates' gradient is added to G_gate. */
+static void gate_backward(const nerf_block_shape *s, const float *gate, int n, const float *qkv, const float *att,
+                          float *dy, float *keep, float *G_gate)
+{
+    const int C = s->att.C, half = C / 2, H = s->att.heads, d = half / H;
+    for (int h = 0; h < H; h++) {
+        const int c0 = half + h * d;
+        const float g = gate[h];
+        double dg = 0.0;
+        for (size_t r = 0; r < (size_t)n; r++) {
+            const float *v = qkv + r * 3 * C + 2 * C, *a = att + r * C;
+            float *t = dy + r * C, *k = keep + r * C;
+            for (int c = c0; c < c0 + d; c++) {
+                dg += (double)t[c] * (a[c] - v[c]);
+                k[c] = (1.0f - g) * t[c];
+                t[c] *= g;
+            }
+        }
+        G_gate[h] += (float)dg;
+    }
 }
 
 void nerf_block_forward(const nerf_block_shape *s, const float *P, int n_patches, size_t row0, const float *x,
@@ -87,7 +128,12 @@ void nerf_block_forward(const nerf_block_shape *s, const float *P, int n_patches
     nerf_linear_forward(n, C, 3 * C, P + o.w_qkv, P + o.b_qkv, y, C, qkv, 3 * C);
     nerf_i2r_forward(&s->att, n_patches, qkv, 3 * C, att, C, lse, att_scr);
     memcpy(outr, xr, (size_t)n * C * sizeof *outr);
-    nerf_linear_forward_add(n, C, C, P + o.w_o, P + o.b_o, att, C, outr, C);
+    const float *wo_in = att;
+    if (s->inter_gate) { /* y (LN1's output) is spent: it holds the gated output until LN2 */
+        gate_apply(s, P + o.gate, n, qkv, att, y);
+        wo_in = y;
+    }
+    nerf_linear_forward_add(n, C, C, P + o.w_o, P + o.b_o, wo_in, C, outr, C);
     nerf_layernorm_forward(n, C, P + o.ln2_g, P + o.ln2_b, outr, C, y, C, xhat2, rstd2);
     nerf_linear_forward(n, C, Hf, P + o.w_1, P + o.b_1, y, C, h, Hf);
     nerf_act_gelu_with_grad((size_t)n * Hf, h, h, dgelu);
@@ -118,8 +164,18 @@ void nerf_block_backward(const nerf_block_shape *s, const float *P, int n_patche
     nerf_linear_backward(n, C, Hf, P + o.w_1, y, C, dh, Hf, dy, C, 0, G + o.w_1, G + o.b_1);
     nerf_layernorm_backward(n, C, P + o.ln2_g, xhat2, rstd2, dy, C, dx1, C, 1, G + o.ln2_g, G + o.ln2_b);
     /* attention branch */
-    nerf_linear_backward(n, C, C, P + o.w_o, att, C, dx1, C, dy, C, 0, G + o.w_o, G + o.b_o);
+    if (s->inter_gate) {
+        gate_apply(s, P + o.gate, n, qkv, att, y); /* W_o's input, recomputed into y (spent after W_1) */
+        nerf_linear_backward(n, C, C, P + o.w_o, y, C, dx1, C, dy, C, 0, G + o.w_o, G + o.b_o);
+        gate_backward(s, P + o.gate, n, qkv, att, dy, y, G + o.gate);
+    } else {
+        nerf_linear_backward(n, C, C, P + o.w_o, att, C, dx1, C, dy, C, 0, G + o.w_o, G + o.b_o);
+    }
     nerf_i2r_backward(&s->att, n_patches, qkv, 3 * C, att, C, lse, dy, C, dqkv, 3 * C, att_scr);
+    if (s->inter_gate) /* the pass-through's share reaches v directly */
+        for (size_t r = 0; r < (size_t)n; r++)
+            for (int c = C / 2; c < C; c++)
+                dqkv[r * 3 * C + 2 * C + c] += y[r * C + c];
     nerf_layernorm_apply(n, C, P + o.ln1_g, P + o.ln1_b, xhat1, y, C);
     nerf_linear_backward(n, C, 3 * C, P + o.w_qkv, y, C, dqkv, 3 * C, dy, C, 0, G + o.w_qkv, G + o.b_qkv);
     nerf_layernorm_backward(n, C, P + o.ln1_g, xhat1, rstd1, dy, C, dx1, C, 1, G + o.ln1_g, G + o.ln1_b);

@@ -3,6 +3,8 @@
  *   x1  = x  + W_o · I2R-MSA(W_qkv · LN1(x) + b_qkv) + b_o
  *   out = x1 + W_2 · GELU(W_1 · LN2(x1) + b_1) + b_2
  *
+ * (with inter_gate, the inter-ray channels of I2R-MSA's output are v + g_h·(o − v), head h's gate g_h)
+ *
  * on rows of whole patches (row layout of attention.h). Parameters are one float array of nerf_block_param_count
  * floats, laid out as below (offsets in nerf_block_offsets); gradients use the same layout and accumulate (+=).
  *
@@ -23,10 +25,13 @@
 typedef struct nerf_block_shape {
     nerf_i2r_shape att; /* C, heads, L, R */
     int hidden;         /* feed-forward width */
+    int inter_gate;     /* 1: the inter-ray path's output is v + g_h·(attention − v), a learned gate per head
+                           (parameters `gate`, heads floats, 0 at init: the path starts as its pass-through and
+                           mixes rays only as far as the loss asks); 0: the attention as it is (no gate parameters) */
 } nerf_block_shape;
 
 typedef struct nerf_block_offsets {
-    size_t ln1_g, ln1_b, w_qkv, b_qkv, w_o, b_o, ln2_g, ln2_b, w_1, b_1, w_2, b_2, total;
+    size_t ln1_g, ln1_b, w_qkv, b_qkv, w_o, b_o, ln2_g, ln2_b, w_1, b_1, w_2, b_2, gate, total;
 } nerf_block_offsets;
 
 /* Saved activations of a whole batch: each array has rows × width floats, row r at r·width. */
@@ -42,7 +47,7 @@ void nerf_block_saved_bind(const nerf_block_shape *s, size_t rows, float *mem, n
 size_t nerf_block_scratch_floats(const nerf_block_shape *s, size_t rows);
 
 /* LN γ = 1, β = 0; linear weights Kaiming-uniform, biases 0; the two residual-branch outputs scaled by 1/sqrt(2·depth)
- * (GPT-2 style) so a deep stack starts near the identity. */
+ * (GPT-2 style) so a deep stack starts near the identity; inter-ray gates 0. */
 void nerf_block_init(const nerf_block_shape *s, float *params, int depth, sci_rng *rng);
 
 /* Rows [row0, row0 + n_patches·R·L) of x (n×C, stride C) → out (same rows, stride C; must not alias x). */

@@ -24,12 +24,21 @@ double nerf_depth_at(nerf_spacing sp, double near, double far, double s)
 }
 
 void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, double near,
-                      double far, nerf_spacing spacing, sci_rng *jitter, float *pcam, float *dcam, float *delta)
+                      double far, nerf_spacing spacing, sci_rng *jitter, int share, float *pcam, float *dcam,
+                      float *delta)
 {
+    if (share < 1)
+        share = 1;
+    sci_rng run_start = {0}; /* the jitter stream at the start of the current run of `share` rays */
     if (spacing != NERF_SPACING_LINEAR && !(near > 0))
         spacing = NERF_SPACING_LINEAR; /* disparity and log spacing need near > 0 */
     const double step = (far - near) / L;
     for (int r = 0; r < n_rays; r++) {
+        /* every ray of a run replays the run's L draws: one depth per sample index across the run */
+        if (jitter && r % share == 0)
+            run_start = *jitter;
+        else if (jitter)
+            *jitter = run_start;
         double d[3] = {(px[r] + 0.5 - cam->cx) / cam->fx, -(py[r] + 0.5 - cam->cy) / cam->fy, -1.0};
         double norm = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         for (int c = 0; c < 3; c++)

@@ -24,9 +24,12 @@ typedef enum nerf_spacing { NERF_SPACING_LINEAR = 0, NERF_SPACING_DISPARITY = 1,
 double nerf_depth_at(nerf_spacing sp, double near, double far, double s);
 /* Camera-frame rays of n_rays pixels (px[r], py[r]) with L samples: pcam n_rays×L×3 (points), dcam n_rays×3 (unit
  * directions), delta n_rays×L (the bin's length × ‖d‖). Bin s spans fractions [s/L, (s+1)/L] of the spacing;
- * the sample sits at (s + u)/L, u = 0.5 with jitter NULL, else U(0, 1). */
+ * the sample sits at (s + u)/L, u = 0.5 with jitter NULL, else U(0, 1). share >= 1: consecutive runs of `share`
+ * rays use the same L draws (sample s at one depth across the run, as at inference: what inter-ray attention
+ * compares); 1 (or less): each ray its own. The stream advances by L draws per run. */
 void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, double near,
-                      double far, nerf_spacing spacing, sci_rng *jitter, float *pcam, float *dcam, float *delta);
+                      double far, nerf_spacing spacing, sci_rng *jitter, int share, float *pcam, float *dcam,
+                      float *delta);
 /* Camera-frame points at given depths along −z: t (n_rays×L, non-decreasing along each ray, in [near, far]) →
  * pcam (n_rays×L×3), dcam (n_rays×3) and delta (n_rays×L): δ_s = (t_{s+1} − t_s)·‖d‖, the last (far − t_{L−1})·‖d‖,
  * clamped at 0. The depth of a point of nerf_rays_camera is −pcam_z. */

@@ -105,7 +105,8 @@ int nerf_rayformer_new(nerf_rayformer **out, const nerf_rayformer_config *cfg, s
                                        .intra_off = !c->intra_ray, .inter_off = !c->inter_ray,
                                        .intra_slope = c->intra_slope, .inter_slope = c->inter_slope,
                                        .win_w = c->patch_w},
-                               .hidden = c->ffn_hidden};
+                               .hidden = c->ffn_hidden,
+                               .inter_gate = c->inter_gate && c->inter_ray};
     size_t k = nerf_hashgrid_param_count(n->grid);
     n->n_hash = k;
     for (int b = 0; b < c->n_blocks; b++) n->off_block[b] = k, k += nerf_block_param_count(&n->bs);

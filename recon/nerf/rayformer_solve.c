@@ -42,6 +42,8 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
                                 .final_norm = 0,
                                 .head_hidden = 0,
                                 .render_tilings = 1,
+                                .window_jitter = 0,
+                                .inter_gate = 0,
                                 .heads_full_lr = 1,
                                 .recipe = {.spacing = NERF_SPACING_LINEAR, .distortion_weight = 0.03},
                                 /* decayed to 3e-3, not 1e-3: at 32 samples the field still gains from a large step
@@ -124,6 +126,8 @@ static void rf_config(const void *params, nerf_train_config *c)
     c->tv_eps = p->tv_eps;
     /* without inter-ray attention every tiling renders the same image: one, at a quarter of the cost */
     c->render_tilings = p->inter_ray ? p->render_tilings : 1;
+    /* only inter-ray attention compares the rays of a window sample by sample */
+    c->window_jitter = p->inter_ray && p->window_jitter;
 }
 
 static int rf_check(const void *params, sci_error *err)
@@ -208,6 +212,7 @@ static int rf_build(const void *params, const sci_problem *problem, const nerf_t
     cfg.intra_slope = (float)p->intra_slope;
     cfg.inter_slope = (float)p->inter_slope;
     cfg.zero_gates = p->zero_gates;
+    cfg.inter_gate = p->inter_gate;
     cfg.final_norm = p->final_norm;
     cfg.head_hidden = p->head_hidden;
     cfg.density_bias = (float)p->recipe.density_bias;
@@ -292,6 +297,10 @@ static const solver_field rf_fields[] = {
        "inter-ray distance bias: head h's logits − slope/2^h·(|Δx| + |Δy|) in the window (0: none)"),
     RF("zero_gates", SOLVER_FIELD_BOOL, zero_gates, 0, 1, "blocks start as the identity"),
     RF("final_norm", SOLVER_FIELD_BOOL, final_norm, 0, 1, "layer norm before the density head"),
+    RF("inter_gate", SOLVER_FIELD_BOOL, inter_gate, 0, 1,
+       "inter-ray attention behind a learned gate per head that starts closed (its pass-through)"),
+    RF("window_jitter", SOLVER_FIELD_BOOL, window_jitter, 0, 1,
+       "a window's rays share their depth jitter in training (with inter-ray attention)"),
     RF("render_tilings", SOLVER_FIELD_INT, render_tilings, 1, 4, "inference tilings of windows: 1, or 4 (the mean)"),
     RF("head_hidden", SOLVER_FIELD_INT, head_hidden, 0, 4096, "hidden ReLU layer of the density head (0: one FC)"),
     {"ablation", SOLVER_FIELD_ACTION, 0, 0, 0, ablation_steps, 0,

@@ -57,6 +57,11 @@ typedef struct sci_rayformer_params {
     int head_hidden;             /* 0: density and geometry from one FC layer (the paper); > 0: a ReLU layer first */
     int render_tilings;          /* inference: 1 = one tiling of windows, 4 = the mean of four offset by half a
                                     window (trainer.h); only inter-ray attention makes them differ */
+    int inter_gate;              /* 1: the inter-ray path's output is v + g·(attention − v), g learned per head from 0
+                                    (the path starts as the + patch rung's pass-through; block.h); 0: the attention */
+    int window_jitter;           /* with inter-ray attention: 1 = in training the rays of a window share their depth
+                                    jitter, so sample s of each ray lies at one depth, as at inference (trainer.h);
+                                    0 = each ray its own */
     /* iters, samples (L per ray, paper 32), lr, lr_final, recipe, pose_*, metrics_every, ssim_every, seed, threads,
      * checkpoint_*, resume*: the settings every NeRF method shares (recon/nerf/nerf_solve.h) */
     union {

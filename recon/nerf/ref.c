@@ -126,6 +126,12 @@ void nerf_ref_block_forward(const nerf_block_shape *s, const double *P, int n_pa
     nerf_ref_layernorm((int)n, C, P + o.ln1_g, P + o.ln1_b, x, y);
     nerf_ref_linear((int)n, C, 3 * C, P + o.w_qkv, P + o.b_qkv, y, qkv);
     nerf_ref_i2r_forward(&s->att, n_patches, qkv, a);
+    if (s->inter_gate) /* v + g_h·(o − v) on the inter-ray channels */
+        for (size_t i = 0; i < n; i++)
+            for (int c = C / 2; c < C; c++) {
+                const double v = qkv[i * 3 * C + 2 * C + c], g = P[o.gate + (c - C / 2) / (C / 2 / s->att.heads)];
+                a[i * C + c] = v + g * (a[i * C + c] - v);
+            }
     nerf_ref_linear((int)n, C, C, P + o.w_o, P + o.b_o, a, t);
     for (size_t i = 0; i < n * C; i++) out[i] = x[i] + t[i];
     nerf_ref_layernorm((int)n, C, P + o.ln2_g, P + o.ln2_b, out, y);
@@ -145,8 +151,9 @@ void nerf_ref_rayformer_forward(const nerf_rayformer *net, const double *P, int 
     const int R = cf->patch_w * cf->patch_h, L = cf->samples, Ci = G + S;
     const size_t n = (size_t)n_patches * R * L;
     nerf_block_shape bs = {.att = {.C = C, .heads = cf->heads, .L = L, .R = R, .intra_off = !cf->intra_ray,
-                                   .inter_off = !cf->inter_ray, .intra_slope = cf->intra_slope},
-                           .hidden = cf->ffn_hidden};
+                                   .inter_off = !cf->inter_ray, .intra_slope = cf->intra_slope,
+                                   .inter_slope = cf->inter_slope, .win_w = cf->patch_w},
+                           .hidden = cf->ffn_hidden, .inter_gate = cf->inter_gate && cf->inter_ray};
     double *u = malloc(n * 3 * sizeof *u), *a = malloc(n * C * sizeof *a), *b = malloc(n * C * sizeof *b);
     double *ho = malloc(n * (G + 1) * sizeof *ho), *ci = calloc(n * Ci, sizeof *ci);
     double *c1 = malloc(n * (Hc ? Hc : 1) * sizeof *c1), *rp = malloc(n * 3 * sizeof *rp);

@@ -472,8 +472,8 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
         }
     }
     pass *pc = &r->ps[0], *pf = &r->ps[1], *last = &r->ps[r->n_pass - 1];
-    nerf_rays_camera(r->pb->camera, (int)P, r->px, r->py, pc->L, r->near, r->far, c->spacing, &r->rng, pc->pcam,
-                     r->dcam, pc->delta);
+    nerf_rays_camera(r->pb->camera, (int)P, r->px, r->py, pc->L, r->near, r->far, c->spacing, &r->rng,
+                     c->window_jitter && c->patch_sampling ? R : 1, pc->pcam, r->dcam, pc->delta);
     const double prior_w = r->Xp && it <= c->prior_steps ? c->prior_weight * (1.0 - (double)(it - 1) / c->prior_steps)
                                                          : 0.0;
     for (size_t k = 0; k < P; k++) {
@@ -567,7 +567,7 @@ static int render_tiling(run *r, const double T[1][12], int ox, int oy, float *f
             y0 = y0 < 0 ? 0 : y0 > r->h - ph ? r->h - ph : y0;
             nerf_patch_pixels(x0, y0, pw, ph, r->px + (size_t)b * R, r->py + (size_t)b * R);
         }
-        nerf_rays_camera(r->pb->camera, cnt * R, r->px, r->py, pc->L, r->near, r->far, c->spacing, NULL, pc->pcam,
+        nerf_rays_camera(r->pb->camera, cnt * R, r->px, r->py, pc->L, r->near, r->far, c->spacing, NULL, 1, pc->pcam,
                          r->dcam, pc->delta);
         int rc = pass_forward(r, pc, cnt, 1, T);
         if (rc == 0 && r->n_pass == 2) {

@@ -87,6 +87,9 @@ typedef struct nerf_train_config {
     int groups_per_step;          /* B, each seen from all N poses */
     int patch_sampling;           /* 1: overlapping windows; 0: scattered random pixels */
     int samples;                  /* L (coarse) stratified samples per ray */
+    int window_jitter;            /* patch sampling: 1 = the rays of a window share their depth jitter (sample s of
+                                     every ray at one depth, as at inference: the points inter-ray attention
+                                     mixes); 0 = each ray its own */
     int fine_samples;             /* importance samples of the fine pass (needs a fine model), 0: none */
     double lr, lr_final;          /* network Adam, exponential decay over the run */
     double net_lr_scale;          /* the model's scaled range (nerf_model.n_scaled) learns at lr × this (0: 1) */

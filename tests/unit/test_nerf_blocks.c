@@ -642,10 +642,20 @@ static double block_loss(void *c)
     return L;
 }
 
+static void block_check(nerf_block_shape bs);
+
+/* One block against the double reference: forward, and every parameter and input gradient against central
+ * differences; with the inter-ray gate (open at random values, so both its terms carry weight) and without. */
 static void test_block(void **s)
 {
     (void)s;
-    nerf_block_shape bs = {.att = {.C = 8, .heads = 2, .L = 4, .R = 4}, .hidden = 12};
+    for (int gated = 0; gated <= 1; gated++)
+        block_check((nerf_block_shape){.att = {.C = 8, .heads = 2, .L = 4, .R = 4, .inter_slope = 0.5f, .win_w = 2},
+                                       .hidden = 12, .inter_gate = gated});
+}
+
+static void block_check(nerf_block_shape bs)
+{
     const int P = 2, N = P * 16, C = 8;
     size_t np = nerf_block_param_count(&bs);
     float *par = malloc(np * 4), *G = calloc(np, 4), *x = malloc(N * C * 4), *y = malloc(N * C * 4), *w = malloc(N * C * 4);
@@ -655,6 +665,7 @@ static void test_block(void **s)
     nerf_block_init(&bs, par, 2, &RNG_);
     nerf_block_offsets o = nerf_block_layout(&bs);
     for (int c = 0; c < C; c++) par[o.ln1_g + c] = (float)unif(0.5, 1.5), par[o.ln2_b + c] = (float)unif(-.5, .5);
+    for (size_t h = o.gate; h < o.total; h++) par[h] = (float)unif(-0.5, 1.0);
     for (size_t j = 0; j < np; j++) pd[j] = par[j];
     for (int i = 0; i < N * C; i++) xd[i] = x[i] = (float)unif(-1, 1), wd[i] = w[i] = (float)unif(-1, 1);
     nerf_block_saved sv;
@@ -668,7 +679,8 @@ static void test_block(void **s)
     attctx k = {.s = bs.att, .bs = bs, .P = P, .in = xd, .w = wd, .par = pd};
     for (size_t j = 0; j < np; j++) acc(&ep, G[j], central(&pd[j], block_loss, &k));
     for (int i = 0; i < N * C; i++) acc(&ex, dx[i], central(&xd[i], block_loss, &k));
-    printf("block forward %.2g, parameter gradient %.2g, input gradient %.2g\n", relerr(&fe), relerr(&ep), relerr(&ex));
+    printf("block%s: forward %.2g, parameter gradient %.2g, input gradient %.2g\n", bs.inter_gate ? " (inter gate)" : "",
+           relerr(&fe), relerr(&ep), relerr(&ex));
     assert_true(relerr(&fe) < 1e-5);
     assert_true(relerr(&ep) < 1e-4);
     assert_true(relerr(&ex) < 1e-4);

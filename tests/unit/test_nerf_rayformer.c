@@ -19,6 +19,7 @@
 #include <cmocka.h>
 
 #include "base/rng.h"
+#include "recon/nerf/block.h"
 #include "recon/nerf/rayformer.h"
 #include "recon/nerf/ref.h"
 
@@ -103,6 +104,13 @@ static void gradcheck(const nerf_rayformer_config *cfg_in, const char *what)
     /* LN affine away from identity to exercise γ, β */
     nerf_rayformer_layout lo = nerf_rayformer_layout_of(net);
     for (size_t j = lo.lnf_g; j < lo.lnf_b + (size_t)cfg.width; j++) P[j] = (float)(1.0 + 0.3 * sci_rng_normal(&rng));
+    if (cfg.inter_gate && cfg.inter_ray) { /* gates open (0 at init would cut the attention's own gradients) */
+        nerf_block_shape bs = {.att = {.C = cfg.width, .heads = cfg.heads}, .hidden = cfg.ffn_hidden, .inter_gate = 1};
+        nerf_block_offsets bo = nerf_block_layout(&bs);
+        for (int b = 0; b < cfg.n_blocks; b++)
+            for (int h = 0; h < cfg.heads; h++)
+                P[lo.block[b] + bo.gate + h] = 0.7f - 0.5f * h;
+    }
     nerf_rayformer_ws *ws;
     assert_int_equal(nerf_rayformer_ws_new(&ws, net, pr.P, 2, &err), 0);
     int N = pr.N, nr = pr.P * pr.R;
@@ -180,6 +188,9 @@ static void test_rayformer_gradcheck_ablation(void **state)
     c = small_config();
     c.intra_slope = 0.8f; /* the intra-ray distance bias: a fixed term in the logits, still exact */
     gradcheck(&c, "intra-ray slope 0.8");
+    c = small_config();
+    c.inter_gate = 1; /* the inter-ray path behind its learned gate */
+    gradcheck(&c, "inter-ray gate");
 }
 
 /* The density/geometry head with a hidden ReLU layer (head_hidden > 0) instead of the paper's single FC layer. */
