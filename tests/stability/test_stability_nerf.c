@@ -155,7 +155,7 @@ static void test_huge_learning_rate(void **state)
 }
 
 /* The issue-15 recipe with every knob on (disparity and log spacing, distortion loss, depth TV, GAP-TV warm start,
- * coarse-to-fine levels, zero-initialised gates, a window's rays sharing their depth jitter) on the hard scenes: all-black (weights → 0, the distortion and
+ * coarse-to-fine levels, zero-initialised gates, a window's rays sharing their depth jitter, the inter-ray gate) on the hard scenes: all-black (weights → 0, the distortion and
  * depth terms see empty rays), all-white (opaque at the first sample), and a learning rate of 9. */
 static void test_recipe_hard_cases(void **state)
 {
@@ -169,6 +169,7 @@ static void test_recipe_hard_cases(void **state)
         q.zero_gates = 1;
         q.heads_full_lr = 1;
         q.window_jitter = 1;
+        q.inter_gate = 1;
         q.recipe = (nerf_recipe){.spacing = (nerf_spacing)sp, .distortion_weight = 0.5, .depth_tv_weight = 5,
                                  .prior_steps = 10, .prior_weight = 10, .density_bias = -3, .c2f_steps = 15};
         char what[64];
