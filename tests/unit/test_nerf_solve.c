@@ -210,6 +210,39 @@ static void test_ablation_ladder(void **state)
     sci_problem_free(p);
 }
 
+/* A 20-step run on the tiny scene with 4×4 windows, inter-ray attention on or off and one inference or training
+ * option set (render_tilings, window_jitter); fails the test on an error or non-finite frames. */
+static void tiny_run(const sci_problem *p, int inter, int render_tilings, int window_jitter, sci_result *r)
+{
+    sci_rayformer_params prm;
+    small_params(&prm, 3);
+    prm.patch = 4;
+    prm.patches_per_step = 8;
+    prm.samples = 8;
+    prm.iters = 20;
+    prm.inter_ray = inter;
+    prm.render_tilings = render_tilings;
+    prm.window_jitter = window_jitter;
+    *r = (sci_result){0};
+    if (sci_rayformer_solve(p, &prm, r, NULL, NULL) != 0)
+        fail_msg("%s", r->error.msg);
+    assert_int_equal(sci_cube_check_finite(r->frames, "frames", NULL), 0);
+}
+
+static int same_loss(const sci_result *a, const sci_result *b)
+{
+    int same = a->trace.len == b->trace.len;
+    for (size_t i = 0; same && i < a->trace.len; i++)
+        same = a->trace.e[i].loss == b->trace.e[i].loss;
+    return same;
+}
+
+static int same_frames(const sci_result *a, const sci_result *b)
+{
+    size_t n = (size_t)a->frames->w * a->frames->h * a->frames->n;
+    return memcmp(a->frames->data, b->frames->data, n * sizeof(float)) == 0;
+}
+
 /* Four tilings at inference: training is untouched (the same loss at every step), the render changes only where
  * inter-ray attention makes a pixel depend on its window (with it off the frames are bitwise those of one tiling),
  * the frames stay finite, and other counts are refused. */
@@ -218,28 +251,13 @@ static void test_render_tilings(void **state)
     (void)state;
     sci_problem *p = nerf_tiny_problem(32, 3);
     for (int inter = 0; inter <= 1; inter++) {
-        sci_result r[2] = {{0}, {0}};
-        for (int k = 0; k < 2; k++) {
-            sci_rayformer_params prm;
-            small_params(&prm, 3);
-            prm.patch = 4;
-            prm.patches_per_step = 8;
-            prm.samples = 8;
-            prm.iters = 20;
-            prm.inter_ray = inter;
-            prm.render_tilings = k ? 4 : 1;
-            int rc = sci_rayformer_solve(p, &prm, &r[k], NULL, NULL);
-            if (rc != 0)
-                fail_msg("%s", r[k].error.msg);
-            assert_int_equal(sci_cube_check_finite(r[k].frames, "frames", NULL), 0);
-        }
-        for (size_t i = 0; i < r[0].trace.len; i++)
-            assert_true(r[0].trace.e[i].loss == r[1].trace.e[i].loss);
-        size_t n = (size_t)r[0].frames->w * r[0].frames->h * r[0].frames->n;
-        int same = memcmp(r[0].frames->data, r[1].frames->data, n * sizeof(float)) == 0;
+        sci_result r[2];
+        tiny_run(p, inter, 1, 0, &r[0]);
+        tiny_run(p, inter, 4, 0, &r[1]);
+        assert_true(same_loss(&r[0], &r[1]));
         double p1 = r[0].trace.e[r[0].trace.len - 1].psnr_peak1, p4 = r[1].trace.e[r[1].trace.len - 1].psnr_peak1;
         printf("inter-ray %d: PSNR one tiling %.3f dB, four %.3f dB\n", inter, p1, p4);
-        assert_int_equal(same, !inter);
+        assert_int_equal(same_frames(&r[0], &r[1]), !inter);
         sci_result_free_contents(&r[0]);
         sci_result_free_contents(&r[1]);
     }
@@ -257,27 +275,10 @@ static void test_window_jitter(void **state)
     (void)state;
     sci_problem *p = nerf_tiny_problem(32, 3);
     for (int inter = 0; inter <= 1; inter++) {
-        sci_result r[2] = {{0}, {0}};
-        for (int k = 0; k < 2; k++) {
-            sci_rayformer_params prm;
-            small_params(&prm, 3);
-            prm.patch = 4;
-            prm.patches_per_step = 8;
-            prm.samples = 8;
-            prm.iters = 10;
-            prm.inter_ray = inter;
-            prm.window_jitter = k;
-            int rc = sci_rayformer_solve(p, &prm, &r[k], NULL, NULL);
-            if (rc != 0)
-                fail_msg("%s", r[k].error.msg);
-            assert_int_equal(sci_cube_check_finite(r[k].frames, "frames", NULL), 0);
-        }
-        int same = 1;
-        for (size_t i = 0; i < r[0].trace.len; i++)
-            same &= r[0].trace.e[i].loss == r[1].trace.e[i].loss;
-        size_t n = (size_t)r[0].frames->w * r[0].frames->h * r[0].frames->n;
-        same &= memcmp(r[0].frames->data, r[1].frames->data, n * sizeof(float)) == 0;
-        assert_int_equal(same, !inter);
+        sci_result r[2];
+        tiny_run(p, inter, 1, 0, &r[0]);
+        tiny_run(p, inter, 1, 1, &r[1]);
+        assert_int_equal(same_loss(&r[0], &r[1]) && same_frames(&r[0], &r[1]), !inter);
         sci_result_free_contents(&r[0]);
         sci_result_free_contents(&r[1]);
     }
