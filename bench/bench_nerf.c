@@ -422,7 +422,8 @@ int main(void)
     add_row("hash grid 16×2, T=2^16", NPTS, s, med, 4.0 * (3 + 32), cr);
     k.att = (nerf_i2r_shape){.C = 32, .heads = 2, .L = 32, .R = 64};
     k.qkv = falloc(big, &rng, -2, 2), k.dqkv = falloc(big, NULL, 0, 0), k.lse = falloc((size_t)NPTS * 4, NULL, 0, 0);
-    for (int t = 0; t < NT; t++) k.scr[t] = falloc(nerf_block_scratch_floats(&(nerf_block_shape){.att = k.att, .hidden = 64}, 2048), NULL, 0, 0);
+    const nerf_block_shape scr_shape = {.att = k.att, .hidden = 64};
+    for (int t = 0; t < NT; t++) k.scr[t] = falloc(nerf_block_scratch_floats(&scr_shape, 2048), NULL, 0, 0);
     s = time_it(run_attention, &k, reps, &cr, &med);
     add_row("I²R-MSA core (2 heads/path, L=32, R=64)", NPTS, s, med, 4.0 * (96 + 32 + 4), cr);
     k.bs = (nerf_block_shape){.att = k.att, .hidden = 64};

@@ -155,8 +155,9 @@ static void test_huge_learning_rate(void **state)
 }
 
 /* The issue-15 recipe with every knob on (disparity and log spacing, distortion loss, depth TV, GAP-TV warm start,
- * coarse-to-fine levels, zero-initialised gates, a window's rays sharing their depth jitter, the inter-ray gate) on the hard scenes: all-black (weights → 0, the distortion and
- * depth terms see empty rays), all-white (opaque at the first sample), and a learning rate of 9. */
+ * coarse-to-fine levels, zero-initialised gates, a window's rays sharing their depth jitter, the inter-ray gate) on
+ * the hard scenes: all-black (weights → 0, the distortion and depth terms see empty rays), all-white (opaque at the
+ * first sample), and a learning rate of 9. */
 static void test_recipe_hard_cases(void **state)
 {
     sci_problem *black = scene(16, 16, 3, 0.02, 0.05, 0.0, 0.0);

@@ -679,8 +679,8 @@ static void block_check(nerf_block_shape bs)
     attctx k = {.s = bs.att, .bs = bs, .P = P, .in = xd, .w = wd, .par = pd};
     for (size_t j = 0; j < np; j++) acc(&ep, G[j], central(&pd[j], block_loss, &k));
     for (int i = 0; i < N * C; i++) acc(&ex, dx[i], central(&xd[i], block_loss, &k));
-    printf("block%s: forward %.2g, parameter gradient %.2g, input gradient %.2g\n", bs.inter_gate ? " (inter gate)" : "",
-           relerr(&fe), relerr(&ep), relerr(&ex));
+    printf("block%s: forward %.2g, parameter gradient %.2g, input gradient %.2g\n",
+           bs.inter_gate ? " (inter gate)" : "", relerr(&fe), relerr(&ep), relerr(&ex));
     assert_true(relerr(&fe) < 1e-5);
     assert_true(relerr(&ep) < 1e-4);
     assert_true(relerr(&ex) < 1e-4);
