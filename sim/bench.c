@@ -118,6 +118,9 @@ static int w_start(void *state, sci_error *err)
     sim_bench *b = state;
     if (!b->inner)
         return no_dmd(err);
+    /* A DMD starts when the command reaches it, not when its reply comes back: the clock is read before the
+     * call, so the (emulated) USB round trip, slow under ASan or load, is not counted as latency. */
+    int64_t issued = sci_clock_mono_ns();
     int rc = dmd_start(b->inner, err);
     if (rc < 0)
         return rc;
@@ -127,7 +130,7 @@ static int w_start(void *state, sci_error *err)
         b->armed_ns = sci_clock_mono_ns();
     } else if (b->tl_valid) {
         /* DMD master: the sequence runs now; the first pattern's trigger output starts the camera */
-        int64_t t0 = sci_clock_mono_ns() + b->opt.dmd_latency_ns;
+        int64_t t0 = issued + b->opt.dmd_latency_ns;
         play(b, t0);
         camera_sim_trigger(b->cs, t0);
     }

@@ -210,7 +210,11 @@ static void dlpc900_backend_on_the_emulator(void **state)
     /* dmd master */
     json_decref(hconn_request(&c, "capture", json_pack("{s:s}", "sync_mode", "dmd-master")));
     e = hconn_wait_event(&c, "capture.snapshot", 20000);
-    assert_true(json_is_false(json_object_get(json_object_get(e, "data"), "broken")));
+    json_t *sd = json_object_get(e, "data");
+    if (!json_is_false(json_object_get(sd, "broken"))) /* say which check failed */
+        printf("  dmd master snapshot broken: sync %s, offset %lld ns\n", json_string_value(json_object_get(sd, "sync")),
+               (long long)json_integer_value(json_object_get(sd, "offset_ns")));
+    assert_true(json_is_false(json_object_get(sd, "broken")));
     json_decref(e);
     json_decref(hconn_wait_event(&c, "capture.done", 20000));
     /* unplugged through the emulator: the real backend notices, reconnects, uploads again */
@@ -261,7 +265,11 @@ static void camera_master_on_the_simulated_bench(void **state)
     json_decref(e);
     json_decref(hconn_request(&c, "capture", json_pack("{s:s}", "sync_mode", "host-master")));
     e = hconn_wait_event(&c, "capture.snapshot", 20000);
-    assert_true(json_is_false(json_object_get(json_object_get(e, "data"), "broken")));
+    json_t *sd = json_object_get(e, "data");
+    if (!json_is_false(json_object_get(sd, "broken"))) /* say which check failed */
+        printf("  dmd master snapshot broken: sync %s, offset %lld ns\n", json_string_value(json_object_get(sd, "sync")),
+               (long long)json_integer_value(json_object_get(sd, "offset_ns")));
+    assert_true(json_is_false(json_object_get(sd, "broken")));
     json_decref(e);
     json_decref(hconn_wait_event(&c, "capture.done", 20000));
     hconn_close(&c);
