@@ -86,7 +86,7 @@ static void usage(FILE *f)
             "                                the end, and when interrupted (Ctrl-C, SIGTERM)\n"
             "              --resume FILE     continue a run from its checkpoint (same input and options)\n"
             "              --checkpoint-every K  steps between checkpoints (default 100)\n"
-            "              recipe knobs (all off by default, results unchanged):\n"
+            "              recipe knobs (the defaults are the presets' recipe, docs/nerf-methods.md):\n"
             "              --spacing linear|disparity|log  how the coarse samples divide [near, far]\n"
             "              --distortion X    weight of the distortion loss on the coarse weights (0: off)\n"
             "              --prior-steps K   GAP-TV warm start: the first K steps also pull the frames toward\n"
@@ -94,6 +94,8 @@ static void usage(FILE *f)
             "              --density-bias X  added to the density before its activation\n"
             "              --zero-gates 0|1  rayformer: each block's output projections start at zero\n"
             "              --sh-degree D     spherical-harmonics degree of the view direction encoding (1-4)\n"
+            "  any method:  --set KEY=VALUE    any setting by its key, e.g. --set inter_gate=false (repeatable;\n"
+            "                                 after the options above; result.json's params list every key)\n"
             "  .mat input:  --mask FILE        the masks are in FILE (its only variable, or --mask-var)\n"
             "              --mask-var NAME    the masks' variable (default mask): H×W×N shared, H×W×N×k per snapshot\n"
             "              --meas-var NAME    the measurements' variable (default meas), H×W×k\n"
@@ -232,6 +234,44 @@ static int apply_options(const recon_opts *o, opt_value *v, int n, const char *c
     return 0;
 }
 
+/* --set KEY=VALUE: any setting of the method by its key (result.json's "params" names them all). VALUE is read as
+ * JSON (numbers, true/false) and otherwise as a string, so "--set spacing=log" needs no quotes. Through the
+ * method's table, as a params file would be: range-checked; an unknown key is refused with the method's keys and
+ * what each does. Returns 0, or 2 (usage) after the message. */
+static int apply_sets(const recon_opts *o, const char *const *kv, int n)
+{
+    json_t *obj = json_object();
+    int rc = obj ? 0 : -ENOMEM;
+    for (int i = 0; i < n && rc == 0; i++) {
+        const char *eq = strchr(kv[i], '=');
+        char key[128];
+        snprintf(key, sizeof key, "%.*s", (int)(eq - kv[i]), kv[i]);
+        if (!solver_field_find(o->method, key, NULL)) {
+            fprintf(stderr, "scicap recon: --set %s: %s has no such setting; its settings are:\n", key,
+                    o->method->name);
+            for (int g = 0; g < 2; g++)
+                for (int k = 0; k < o->method->fields[g].n; k++)
+                    fprintf(stderr, "  %-20s %s\n", o->method->fields[g].f[k].key, o->method->fields[g].f[k].help);
+            json_decref(obj);
+            return 2;
+        }
+        json_t *v = json_loads(eq + 1, JSON_DECODE_ANY, NULL);
+        if (!v)
+            v = json_string(eq + 1);
+        rc = v ? json_object_set_new(obj, key, v) : -ENOMEM;
+    }
+    sci_error err = {0};
+    if (rc == 0 && solver_settings_from_json(o->method, o->settings, obj, NULL, NULL, &err) < 0) {
+        fprintf(stderr, "scicap recon: --set: %s\n", err.msg);
+        rc = 2;
+    } else if (rc) {
+        fprintf(stderr, "scicap recon: out of memory\n");
+        rc = 2;
+    }
+    json_decref(obj);
+    return rc;
+}
+
 static void print_metrics(const sci_problem *p, const sci_result *r)
 {
     const int n = r->frames->n;
@@ -268,7 +308,9 @@ int cli_recon_main(int argc, char **argv)
     enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET,
            OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME, OPT_NET_LR, OPT_SPACING, OPT_DIST, OPT_PRIOR_STEPS,
            OPT_PRIOR_W, OPT_DBIAS, OPT_ZERO_GATES, OPT_SH, OPT_MASK, OPT_MASK_VAR, OPT_MEAS_VAR, OPT_TRUTH_VAR,
-           OPT_SCALE, OPT_CFA, OPT_DEMOSAIC, OPT_ALLOW_LARGE };
+           OPT_SCALE, OPT_CFA, OPT_DEMOSAIC, OPT_ALLOW_LARGE, OPT_SET };
+    const char *set_kv[32]; /* --set KEY=VALUE, applied after every named option */
+    int n_set = 0;
     const char *cfa_opt = NULL;
     sci_demosaic_method demosaic = SCI_DEMOSAIC_MHC;
     sci_mat_options mo = {0};
@@ -297,7 +339,7 @@ int cli_recon_main(int argc, char **argv)
         {"meas-var", required_argument, 0, OPT_MEAS_VAR}, {"truth-var", required_argument, 0, OPT_TRUTH_VAR},
         {"scale", required_argument, 0, OPT_SCALE},
         {"cfa", required_argument, 0, OPT_CFA}, {"demosaic", required_argument, 0, OPT_DEMOSAIC},
-        {"allow-large", no_argument, 0, OPT_ALLOW_LARGE},
+        {"allow-large", no_argument, 0, OPT_ALLOW_LARGE}, {"set", required_argument, 0, OPT_SET},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
     };
     optind = 1;
@@ -316,6 +358,16 @@ int cli_recon_main(int argc, char **argv)
         case 'o': out = optarg; break;
         case 'f': force = 1; break;
         case OPT_ALLOW_LARGE: sci_io_limits_none(&limits); break;
+        case OPT_SET:
+            if (!strchr(optarg, '=') || optarg[0] == '=') {
+                fprintf(stderr, "scicap recon: --set wants KEY=VALUE, got '%s'\n", optarg);
+                bad = -1;
+            } else if (n_set == (int)(sizeof set_kv / sizeof set_kv[0])) {
+                fprintf(stderr, "scicap recon: at most %d --set options\n", n_set);
+                bad = -1;
+            } else
+                set_kv[n_set++] = optarg;
+            break;
         case 's': bad = parse_int(optarg, "--snapshot", 1, 1 << 30, &snapshot); break;
         case 'i': bad = parse_int(optarg, "--iters", 1, 10000000, &iters); break;
         case 'l': bad = parse_double(optarg, "--lambda", &lambda); break;
@@ -478,6 +530,8 @@ int cli_recon_main(int argc, char **argv)
     int arc = apply_options(&o, ov, nov, strict);
     for (int i = 0; i < nov; i++)
         json_decref(ov[i].value);
+    if (arc == 0 && n_set)
+        arc = apply_sets(&o, set_kv, n_set);
     if (threads)
         omp_set_num_threads(threads);
     sci_error err = {0};

@@ -8,7 +8,8 @@
  * with d = ((px + 0.5 − cx)/fx, −(py + 0.5 − cy)/fy, −1) the pixel's camera-frame direction (problem.h).
  *
  * The camera-frame arrays do not depend on the pose, so one fill serves all N poses of a snapshot; the world-frame
- * positions and unit directions come from nerf_patch_to_world. Pure functions: reentrant.
+ * positions and unit directions come from nerf_patch_to_world. Reentrant: no state but the caller's jitter stream,
+ * which nerf_rays_camera advances.
  */
 #ifndef SCICAP_RECON_NERF_PATCH_SAMPLER_H
 #define SCICAP_RECON_NERF_PATCH_SAMPLER_H

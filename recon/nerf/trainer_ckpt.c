@@ -141,7 +141,9 @@ int nerf_trainer_ckpt_load(run *r, const void *blob, size_t bytes, sci_error *er
         uint64_t want = k < r->n_pass ? r->ps[k].m->n_params : 0;
         if (h.n_params[k] != want)
             return sci_error_set(err, SCI_ESHAPE,
-                                 "checkpoint: %s model has %llu parameters, this configuration %llu",
+                                 "checkpoint: %s model has %llu parameters, this configuration %llu (another "
+                                 "network: resume with the settings it was written with, e.g. its inter_gate, "
+                                 "blocks or hash table)",
                                  k ? "fine" : "coarse", (unsigned long long)h.n_params[k], (unsigned long long)want);
     }
     /* A checkpoint of a run with known poses may start a run that optimises them (scene first, poses after): the

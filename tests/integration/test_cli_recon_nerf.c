@@ -1,7 +1,7 @@
 /* `scicap recon --method rayformer|scinerf` as a user runs it, through the real binary on a tiny static3d scene
  * from `scicap sim`: periodic checkpoints, Ctrl-C (SIGINT) mid-training leaves a checkpoint and no output folder
- * (the process dies of SIGINT, as a shell expects), --resume continues from it to a full result, and the ablation switches reach the solver (they are
- * recorded in result.json). Correctness of resume itself (resumed == uninterrupted) is test_nerf_checkpoint's. */
+ * (the process dies of SIGINT, as a shell expects), --resume continues from it to a full result, and the ablation
+ * switches and --set reach the solver (they are recorded in result.json). Correctness of resume itself (resumed == uninterrupted) is test_nerf_checkpoint's. */
 #include <errno.h>
 #include <setjmp.h>
 #include <signal.h>
@@ -218,12 +218,39 @@ static void test_ablation_and_usage(void **state)
     assert_int_equal(run("grep -q 'ablation is for rayformer' %s/u3", dir), 0);
 }
 
+/* --set KEY=VALUE reaches any setting through the method's table (values as JSON, else strings); an unknown key is
+ * refused with the method's keys, an out-of-range value with its range. */
+static void test_set_any_setting(void **state)
+{
+    (void)state;
+    assert_int_equal(run("%s recon --method rayformer " SMALL " --iters 2 --set inter_gate=false --set inter_slope=2 "
+                         "--set spacing=log -q %s/prob -o %s/set >/dev/null 2>&1",
+                         scicap, dir, dir),
+                     0);
+    json_t *p = result_params("set");
+    assert_true(json_is_false(json_object_get(p, "inter_gate")));
+    assert_true(json_number_value(json_object_get(p, "inter_slope")) == 2);
+    assert_string_equal(json_string_value(json_object_get(p, "spacing")), "log");
+    json_decref(p);
+    assert_int_equal(run("%s recon --method rayformer --set bogus=1 %s/prob -o %s/x 2>%s/s1", scicap, dir, dir, dir), 2);
+    assert_int_equal(run("grep -q 'bogus: rayformer has no such setting' %s/s1 && grep -q '^  inter_gate ' %s/s1", dir,
+                         dir),
+                     0);
+    assert_int_equal(run("%s recon --method rayformer --set inter_slope=-1 %s/prob -o %s/x 2>%s/s2", scicap, dir, dir,
+                         dir),
+                     2);
+    assert_int_equal(run("grep -q 'inter_slope: must be a number in' %s/s2", dir), 0);
+    assert_int_equal(run("%s recon --set iters %s/prob -o %s/x 2>%s/s3", scicap, dir, dir, dir), 2);
+    assert_int_equal(run("grep -q 'set wants KEY=VALUE' %s/s3", dir), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_checkpoint_then_resume),
         cmocka_unit_test(test_interrupt_and_resume),
         cmocka_unit_test(test_ablation_and_usage),
+        cmocka_unit_test(test_set_any_setting),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -189,8 +189,67 @@ static void test_rayformer_gradcheck_ablation(void **state)
     c.intra_slope = 0.8f; /* the intra-ray distance bias: a fixed term in the logits, still exact */
     gradcheck(&c, "intra-ray slope 0.8");
     c = small_config();
-    c.inter_gate = 1; /* the inter-ray path behind its learned gate */
+    c.inter_gate = 1; /* the inter-ray path behind its learned gate, with the solver's city-block bias */
+    c.inter_slope = 1;
     gradcheck(&c, "inter-ray gate");
+}
+
+/* The inter-ray gate closed (its value at init) makes the path exactly the ablation's pass-through: the gated
+ * network's outputs are bitwise those of the network without inter-ray attention, for the same other parameters
+ * (random here, so the attention's output projections are not the zero-init's zeros); an open gate changes them. */
+static void test_rayformer_gate_closed_is_pass_through(void **state)
+{
+    (void)state;
+    sci_rng rng;
+    sci_rng_seed(&rng, test_seed(), 3);
+    nerf_rayformer_config c_off = small_config(), c_on = small_config();
+    c_off.inter_ray = 0, c_off.inter_gate = 0;
+    c_on.inter_ray = 1, c_on.inter_gate = 1;
+    nerf_rayformer *off, *on;
+    sci_error err = {0};
+    assert_int_equal(nerf_rayformer_new(&off, &c_off, &err), 0);
+    assert_int_equal(nerf_rayformer_new(&on, &c_on, &err), 0);
+    const size_t n_off = nerf_rayformer_param_count(off), n_on = nerf_rayformer_param_count(on);
+    const size_t nh = nerf_rayformer_hash_param_count(off);
+    assert_int_equal(n_on, n_off + (size_t)c_on.n_blocks * c_on.heads); /* one gate per head and block, nothing else */
+    float *p_off = malloc(n_off * sizeof *p_off), *p_on = malloc(n_on * sizeof *p_on);
+    nerf_rayformer_init(off, p_off, 7);
+    for (size_t j = 0; j < n_off; j++)
+        p_off[j] += (float)(j < nh ? sci_rng_uniform(&rng) - 0.5 : 0.2 * sci_rng_normal(&rng));
+    /* the same parameters in the gated layout: each block's gates follow its other parameters (block.h) */
+    const nerf_rayformer_layout lf = nerf_rayformer_layout_of(off), ln = nerf_rayformer_layout_of(on);
+    const size_t blk = lf.block[1] - lf.block[0];
+    memcpy(p_on, p_off, lf.block[0] * sizeof *p_on);
+    for (int b = 0; b < c_on.n_blocks; b++) {
+        memcpy(p_on + ln.block[b], p_off + lf.block[b], blk * sizeof *p_on);
+        memset(p_on + ln.block[b] + blk, 0, (size_t)c_on.heads * sizeof *p_on);
+    }
+    memcpy(p_on + ln.lnf_g, p_off + lf.lnf_g, (n_off - lf.lnf_g) * sizeof *p_on);
+    problem pr;
+    make_problem(&pr, &c_on, 3, &rng);
+    const int N = pr.N, nr = pr.P * pr.R;
+    float *pos = malloc(3 * N * sizeof *pos), *dir = malloc(3 * nr * sizeof *dir);
+    float *sig[2], *rgb[2];
+    for (int i = 0; i < 3 * N; i++) pos[i] = (float)pr.pos[i];
+    for (int i = 0; i < 3 * nr; i++) dir[i] = (float)pr.dir[i];
+    for (int k = 0; k < 2; k++) sig[k] = malloc(N * sizeof(float)), rgb[k] = malloc(3 * N * sizeof(float));
+    nerf_rayformer_ws *ws_off, *ws_on;
+    assert_int_equal(nerf_rayformer_ws_new(&ws_off, off, pr.P, 2, &err), 0);
+    assert_int_equal(nerf_rayformer_ws_new(&ws_on, on, pr.P, 2, &err), 0);
+    assert_int_equal(nerf_rayformer_forward(off, p_off, ws_off, pr.P, pos, dir, sig[0], rgb[0]), 0);
+    assert_int_equal(nerf_rayformer_forward(on, p_on, ws_on, pr.P, pos, dir, sig[1], rgb[1]), 0);
+    assert_memory_equal(sig[0], sig[1], N * sizeof(float));
+    assert_memory_equal(rgb[0], rgb[1], 3 * N * sizeof(float));
+    for (int b = 0; b < c_on.n_blocks; b++)
+        for (int h = 0; h < c_on.heads; h++) p_on[ln.block[b] + blk + h] = 0.5f;
+    assert_int_equal(nerf_rayformer_forward(on, p_on, ws_on, pr.P, pos, dir, sig[1], rgb[1]), 0);
+    assert_true(memcmp(sig[0], sig[1], N * sizeof(float)) != 0);
+    printf("gate closed: outputs bitwise the pass-through's; gate 0.5: they differ\n");
+    for (int k = 0; k < 2; k++) free(sig[k]), free(rgb[k]);
+    free(pos), free(dir), free(p_off), free(p_on);
+    free_problem(&pr);
+    nerf_rayformer_ws_free(ws_off), nerf_rayformer_ws_free(ws_on);
+    nerf_rayformer_free(off), nerf_rayformer_free(on);
 }
 
 /* The density/geometry head with a hidden ReLU layer (head_hidden > 0) instead of the paper's single FC layer. */
@@ -289,6 +348,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rayformer_gradcheck),
         cmocka_unit_test(test_rayformer_gradcheck_ablation),
+        cmocka_unit_test(test_rayformer_gate_closed_is_pass_through),
         cmocka_unit_test(test_rayformer_gradcheck_head_hidden),
         cmocka_unit_test(test_rayformer_deterministic),
         cmocka_unit_test(test_rayformer_config_errors),

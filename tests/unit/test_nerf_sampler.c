@@ -47,8 +47,8 @@ static void test_depths_in_their_bins(void **state)
         }
 }
 
-/* share = R: within a run every ray has the same depths; runs differ; no two samples of a ray coincide with the
- * midpoint (the draws are used). share = 1: the rays of a window differ. */
+/* share = R: within a run every ray has the same depths, and runs differ (the draws are used, not replayed for
+ * the whole batch). share = 1: the rays of a window differ. */
 static void test_window_shares_jitter(void **state)
 {
     (void)state;
