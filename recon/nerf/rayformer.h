@@ -70,7 +70,8 @@ typedef struct nerf_rayformer_config {
     int zero_gates;            /* init: 1 zeroes each block's attention and FFN output projections, so every block
                                   starts as the identity and mixes rays only as far as that lowers the loss */
     int inter_gate;            /* 1: a learned gate per inter-ray head, 0 at init, between the path's pass-through
-                                  and its attention (block.h); needs inter_ray (ignored without) */
+                                  and its attention (block.h); needs inter_ray (ignored without). 0 here, 1 in
+                                  the solver's defaults (rayformer_solve.c) */
 } nerf_rayformer_config;
 
 /* The defaults named above; the grid: 16 levels × 2 features, 2^16 entries, resolution 16 … 1024; aabb [−1, 1]³;

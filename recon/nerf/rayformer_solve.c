@@ -28,8 +28,11 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
      * of slope 2 per sample (position-free, it cost 1.1 dB on the corridor's fast preset: samples of every depth
      * mixed; slope 1 reached as far in depth at 16 samples as 2 does at 32, and 2 gained 0.15 dB on the fast
      * preset's three-scene mean over 1), inter-ray attention with a city-block bias of slope 1 inside the window
-     * (+ inter-ray rung +0.02 / +0.02 / +0.015 dB on corridor / orbit / noisy; docs/nerf-methods.md ninth round).
-     * Measured, not the default: four render tilings (+0.01 … +0.04 dB for 4× the render) */
+     * (+ inter-ray rung +0.02 / +0.02 / +0.015 dB on corridor / orbit / noisy; docs/nerf-methods.md ninth round),
+     * behind a learned gate per head that starts closed (ungated, the + inter-ray step lost 0.03 dB on the three-seed
+     * mean, gated it is +0.003; docs/nerf-methods.md twelfth round).
+     * Measured, not the default: four render tilings (+0.01 … +0.04 dB for 4× the render); a window's rays sharing
+     * their depth jitter (noisy +0.21 dB, corridor and orbit −0.14 … −0.31; docs/nerf-methods.md twelfth round) */
     *p = (sci_rayformer_params){.iters = 2500,
                                 .patch = 2,
                                 .patches_per_step = 128,
@@ -43,7 +46,7 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
                                 .head_hidden = 0,
                                 .render_tilings = 1,
                                 .window_jitter = 0,
-                                .inter_gate = 0,
+                                .inter_gate = 1,
                                 .heads_full_lr = 1,
                                 .recipe = {.spacing = NERF_SPACING_LINEAR, .distortion_weight = 0.03},
                                 /* decayed to 3e-3, not 1e-3: at 32 samples the field still gains from a large step

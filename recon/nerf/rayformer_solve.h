@@ -11,7 +11,9 @@
  *
  * The paper's ablation, each step switched on its own (sci_rayformer_params_ablation gives the ladder):
  *   patch_sampling  0: every "patch" is patch² scattered random pixels (the random-ray baseline)
- *   inter_ray       0: the inter-ray attention path passes V through (attention.h)
+ *   inter_ray       0: the inter-ray attention path passes V through (attention.h); 1: with the defaults it
+ *                   is behind a learned gate per head that starts closed (inter_gate) and carries a city-block
+ *                   bias (inter_slope) — both this project's, not the paper's
  *   intra_ray       0: the intra-ray path passes V through
  *   tv_weight       0: no TV term (TV needs patch sampling: it is ignored without it)
  * Presets (sci_rayformer_params_preset): "fast", "balanced", "best" — cost and accuracy in bench/results/.
