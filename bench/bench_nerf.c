@@ -422,11 +422,11 @@ int main(void)
     add_row("hash grid 16×2, T=2^16", NPTS, s, med, 4.0 * (3 + 32), cr);
     k.att = (nerf_i2r_shape){.C = 32, .heads = 2, .L = 32, .R = 64};
     k.qkv = falloc(big, &rng, -2, 2), k.dqkv = falloc(big, NULL, 0, 0), k.lse = falloc((size_t)NPTS * 4, NULL, 0, 0);
-    const nerf_block_shape scr_shape = {.att = k.att, .hidden = 64};
+    const nerf_block_shape scr_shape = {.att = k.att, .hidden = 64, .inter_gate = 1};
     for (int t = 0; t < NT; t++) k.scr[t] = falloc(nerf_block_scratch_floats(&scr_shape, 2048), NULL, 0, 0);
     s = time_it(run_attention, &k, reps, &cr, &med);
     add_row("I²R-MSA core (2 heads/path, L=32, R=64)", NPTS, s, med, 4.0 * (96 + 32 + 4), cr);
-    k.bs = (nerf_block_shape){.att = k.att, .hidden = 64};
+    k.bs = (nerf_block_shape){.att = k.att, .hidden = 64, .inter_gate = 1}; /* as RayFormer's default: gated */
     free(k.W);
     k.W = falloc(nerf_block_param_count(&k.bs), NULL, 0, 0);
     nerf_block_init(&k.bs, k.W, 2, &rng);
@@ -434,7 +434,8 @@ int main(void)
     k.sv_mem = falloc((size_t)NPTS * nerf_block_saved_floats(&k.bs), NULL, 0, 0);
     nerf_block_saved_bind(&k.bs, NPTS, k.sv_mem, &k.sv);
     s = time_it(run_block, &k, reps, &cr, &med);
-    add_row("I²R transformer block (C=32, FFN 64)", NPTS, s, med, 4.0 * nerf_block_saved_floats(&k.bs), cr);
+    add_row("I²R transformer block (C=32, FFN 64, gated inter-ray path)", NPTS, s, med,
+            4.0 * nerf_block_saved_floats(&k.bs), cr);
     rnd rd = {.r = {.n_rays = NPTS / 32, .L = 32, .sigma = k.x, .rgb = k.dy, .delta = k.b, .t_stop = 1e-4f}};
     float *delta = falloc(NPTS, &rng, 0.01, 0.05);
     rd.r.delta = delta;
