@@ -2,20 +2,24 @@
  * rayformer with each ablation step added in the paper's order (baseline → +patch sampling → +inter-ray →
  * +intra-ray → +TV), the patch-size study (2, 4, 8, 16), and scinerf / rayformer with the camera poses optimised
  * from a SCINeRF-style start (start/end on SE(3) from the identity plus a small perturbation: only the
- * intrinsics known). PSNR (peak = 1), SSIM and wall time per row; bench/results/nerf_compare.md is rewritten after
- * every row, so a long run shows its progress and a killed one keeps what it finished.
+ * intrinsics known). PSNR (peak = 1), SSIM, wall time and, for the NeRF rows, the measurement residual and the mean
+ * largest ray weight (the fog diagnostics of issue 15) per row; the table is rewritten after every row, so a long run
+ * shows its progress and a killed one keeps what it finished. Tables: bench/results/nerf_compare_<preset>.md by
+ * default, the presets' own comparison (`--scenes corridor,orbit,noisy,tabletop --parts classic,scinerf,full`: each
+ * preset of scinerf takes rayformer's time at that preset, so these are equal-time comparisons), and `--out NAME` for
+ * another (the ladder, patch and pose studies live in `--out nerf_ablation`, on the fast preset).
  *
  * It takes hours on the 2-core machine (every NeRF row trains a whole preset), so `make bench` only prints how to
  * run it:  build/bench/bench_nerf_compare --run [--preset fast|balanced|best] [--scenes corridor,orbit,noisy]
  *                                         [--parts classic,scinerf,ladder,patch,poses]
  *                                         [--seeds N]
- *        build/bench/bench_nerf_compare --table   (only rewrites nerf_compare.md from the stored rows)
+ *        build/bench/bench_nerf_compare --table [--preset P]   (only rewrites the preset's table from its rows)
  * (part "attention": only the ladder's rungs from + inter-ray on, the ones a change to the attention or TV moves;
- * the baseline and + patch rows are kept). --seeds N trains every NeRF row N times (seeds 1 … N) and keeps the mean
+ * the baseline and + patch rows are kept; part "full": only the ladder's last rung, the full method). --seeds N trains every NeRF row N times (seeds 1 … N) and keeps the mean
  * and the PSNR's standard deviation: one seed moves a fast-preset row by up to 0.35 dB, more than most ladder steps
  * (docs/nerf-methods.md ninth round), so the steps are judged on the mean.
  * Run from the repository root (it reads etc/scenes/ and writes bench/results/). Rows persist in
- * bench/results/nerf_compare.tsv: a run replaces the rows of the scenes it measures and keeps the others, so the
+ * the table's .tsv beside it: a run replaces the rows of the scenes it measures and keeps the others, so the
  * scenes can be measured in separate sittings; each row keeps the load average at its end.
  */
 #include <assert.h>
@@ -32,11 +36,12 @@
 #include "sim/simulate.h"
 
 #define MAX_ROWS 256
-#define TSV "bench/results/nerf_compare.tsv"
 
 typedef struct row {
     char scene[32], method[96];
     double psnr, ssim, wall_s, pose_rot, pose_trans;
+    double meas_res, max_w; /* NeRF rows: measurement residual ‖y − ΦX‖/‖y‖ and mean largest ray weight over the rays
+                             * that hit something, at the end (NaN: not a NeRF row, or stored before session 17) */
     int iters, rays;
     int seeds;      /* trainings averaged (seeds 1 … seeds); 1 for the classic rows */
     double psnr_sd; /* sample standard deviation of the PSNR over the seeds (0 for one) */
@@ -47,26 +52,31 @@ static row rows[MAX_ROWS];
 static int n_rows;
 static char preset[16] = "fast";
 static int n_seeds = 1;
+static char tsv_path[64], md_path[64]; /* bench/results/<out>.{tsv,md} (main) */
 /* The ladder's rungs in the paper's order; each ladder row's label (one_scene) contains its rung's tag, which is how
  * the stored rows are recognised (attention_rung, write_ladder_steps). */
 static const char *const ladder_tag[5] = {"baseline", "+ patch", "+ inter", "+ intra", "+ TV"};
 
 static void write_tsv(void)
 {
-    FILE *f = fopen(TSV ".tmp", "w");
+    char tmp[80];
+    snprintf(tmp, sizeof tmp, "%s.tmp", tsv_path);
+    FILE *f = fopen(tmp, "w");
     if (!f) {
-        perror(TSV ".tmp");
+        perror(tmp);
         return;
     }
-    fprintf(f, "scene\tmethod\tsteps\trays\tpsnr\tssim\twall_s\tpose_rot\tpose_trans\tload1\tseeds\tpsnr_sd\n");
+    fprintf(f, "scene\tmethod\tsteps\trays\tpsnr\tssim\twall_s\tpose_rot\tpose_trans\tload1\tseeds\tpsnr_sd\t"
+               "meas_res\tmax_w\n");
     for (int i = 0; i < n_rows; i++) {
         const row *r = &rows[i];
-        fprintf(f, "%s\t%s\t%d\t%d\t%.4f\t%.5f\t%.3f\t%.5f\t%.5f\t%s\t%d\t%.4f\n", r->scene, r->method, r->iters,
-                r->rays, r->psnr, r->ssim, r->wall_s, r->pose_rot, r->pose_trans, r->load, r->seeds, r->psnr_sd);
+        fprintf(f, "%s\t%s\t%d\t%d\t%.4f\t%.5f\t%.3f\t%.5f\t%.5f\t%s\t%d\t%.4f\t%.5f\t%.4f\n", r->scene, r->method,
+                r->iters, r->rays, r->psnr, r->ssim, r->wall_s, r->pose_rot, r->pose_trans, r->load, r->seeds,
+                r->psnr_sd, r->meas_res, r->max_w);
     }
     fclose(f);
-    if (rename(TSV ".tmp", TSV) < 0)
-        perror(TSV);
+    if (rename(tmp, tsv_path) < 0)
+        perror(tsv_path);
 }
 
 /* The part of the comparison a row belongs to, by its method label. */
@@ -90,10 +100,17 @@ static int attention_rung(const char *method)
     return strcmp(row_part(method), "ladder") == 0 && !strstr(method, ladder_tag[0]) && !strstr(method, ladder_tag[1]);
 }
 
+/* The ladder's last rung, the full method (part "full": the row the presets are judged by). */
+static int full_rung(const char *method)
+{
+    return strcmp(row_part(method), "ladder") == 0 && strstr(method, ladder_tag[4]);
+}
+
 /* Whether `parts` measures the row labelled `method` again. */
 static int redone(const char *method, const char *parts)
 {
-    return strstr(parts, row_part(method)) || (strstr(parts, "attention") && attention_rung(method));
+    return strstr(parts, row_part(method)) || (strstr(parts, "attention") && attention_rung(method)) ||
+           (strstr(parts, "full") && full_rung(method));
 }
 
 /* Rows in the order of the scenes' first appearance, then of the parts (classic, scinerf, ladder, patch, poses),
@@ -141,7 +158,7 @@ static void sort_rows(void)
  * `parts` (they are measured again). */
 static void read_tsv(const char *redo, const char *parts)
 {
-    FILE *f = fopen(TSV, "r");
+    FILE *f = fopen(tsv_path, "r");
     if (!f)
         return;
     char line[512];
@@ -151,16 +168,16 @@ static void read_tsv(const char *redo, const char *parts)
     }
     while (n_rows < MAX_ROWS && fgets(line, sizeof line, f)) {
         row r = {0};
-        char *fld[12];
+        char *fld[14];
         int k = 0;
         line[strcspn(line, "\n")] = 0;
-        for (char *s = line, *t; k < 12; s = t + 1) {
+        for (char *s = line, *t; k < 14; s = t + 1) {
             fld[k++] = s;
             if (!(t = strchr(s, '\t')))
                 break;
             *t = 0;
         }
-        if (k != 10 && k != 12) /* 10: written before --seeds, one seed */
+        if (k != 10 && k != 12 && k != 14) /* 10: written before --seeds, one seed; 12: before the diagnostics */
             continue;
         char key[40];
         snprintf(key, sizeof key, ",%s,", fld[0]);
@@ -174,8 +191,10 @@ static void read_tsv(const char *redo, const char *parts)
         r.psnr = strtod(fld[4], NULL), r.ssim = strtod(fld[5], NULL), r.wall_s = strtod(fld[6], NULL);
         r.pose_rot = strtod(fld[7], NULL), r.pose_trans = strtod(fld[8], NULL);
         snprintf(r.load, sizeof r.load, "%s", fld[9]);
-        r.seeds = k == 12 ? atoi(fld[10]) : 1;
-        r.psnr_sd = k == 12 ? strtod(fld[11], NULL) : 0;
+        r.seeds = k >= 12 ? atoi(fld[10]) : 1;
+        r.psnr_sd = k >= 12 ? strtod(fld[11], NULL) : 0;
+        r.meas_res = k == 14 ? strtod(fld[12], NULL) : NAN;
+        r.max_w = k == 14 ? strtod(fld[13], NULL) : NAN;
         rows[n_rows++] = r;
     }
     fclose(f);
@@ -223,38 +242,67 @@ static void write_ladder_steps(FILE *f)
     }
 }
 
+/* The steps the current preset trains each NeRF method for (rows that differ were measured with an earlier one). */
+static void preset_steps(int *rf, int *sn)
+{
+    sci_rayformer_params q;
+    sci_rayformer_params_default(&q);
+    sci_rayformer_params_preset(&q, preset);
+    sci_scinerf_params v;
+    sci_scinerf_params_default(&v);
+    sci_scinerf_params_preset(&v, preset);
+    *rf = q.iters, *sn = v.iters;
+}
+
 static void write_md(void)
 {
     sort_rows();
-    FILE *f = fopen("bench/results/nerf_compare.md.tmp", "w");
+    char tmp[80];
+    snprintf(tmp, sizeof tmp, "%s.tmp", md_path);
+    FILE *f = fopen(tmp, "w");
     if (!f) {
-        perror("bench/results/nerf_compare.md.tmp");
+        perror(tmp);
         return;
     }
     fprintf(f, "Measured by bench/bench_nerf_compare.c (`--run`, preset `%s`, 2 threads): each row one reconstruction "
                "of the scene's single snapshot (N = 8), PSNR with peak = 1 and SSIM averaged over the 8 frames, wall "
-               "time of the method (training and the final render; trace evaluations excluded). Known poses: the "
-               "simulator's camera poses are given; optimised: only the intrinsics, poses from the identity (pose "
-               "error = gauge-blind relative rotation and scale-aligned translation against the truth). RayFormer's "
-               "transformer learns at 0.1× the hash table's rate.\n\n",
+               "time of the method (training and the final render; trace evaluations excluded); for the NeRF rows the "
+               "measurement residual ‖y − ΦX‖/‖y‖ and the mean largest ray weight over the rays that hit something "
+               "(opacity ≥ 0.5) at the end. Known poses: the simulator's camera poses are given; optimised: only the "
+               "intrinsics, poses from the identity (pose error = gauge-blind relative rotation and scale-aligned "
+               "translation against the truth). RayFormer's transformer learns at 0.1× the hash table's rate.\n\n",
             preset);
-    fprintf(f, "| scene | method | steps | rays/step | PSNR dB | SSIM | wall s |\n"
-               "|---|---|---:|---:|---:|---:|---:|\n");
+    fprintf(f, "| scene | method | steps | rays/step | PSNR dB | SSIM | wall s | residual %% | largest weight |\n"
+               "|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    int rf_steps, sn_steps, stale = 0;
+    preset_steps(&rf_steps, &sn_steps);
     for (int i = 0; i < n_rows; i++) {
         const row *r = &rows[i];
-        char rays[16] = "", steps[16] = "";
+        char rays[16] = "", steps[16] = "", res[16] = "", mw[16] = "";
         if (r->rays)
             snprintf(rays, sizeof rays, "%d", r->rays);
         if (r->iters)
             snprintf(steps, sizeof steps, "%d", r->iters);
+        if (!isnan(r->meas_res))
+            snprintf(res, sizeof res, "%.1f", 100 * r->meas_res);
+        if (!isnan(r->max_w))
+            snprintf(mw, sizeof mw, "%.2f", r->max_w);
+        const size_t sn_len = strlen(sci_scinerf_solver.name);
+        if (strcmp(row_part(r->method), "classic") != 0)
+            stale |= r->iters != (strncmp(r->method, sci_scinerf_solver.name, sn_len) == 0 ? sn_steps : rf_steps);
         char psnr[32];
         if (r->seeds > 1)
             snprintf(psnr, sizeof psnr, "%.2f ± %.2f (%d seeds)", r->psnr, r->psnr_sd, r->seeds);
         else
             snprintf(psnr, sizeof psnr, "%.2f", r->psnr);
-        fprintf(f, "| %s | %s | %s | %s | %s | %.4f | %.*f |\n", r->scene, r->method, steps, rays, psnr, r->ssim,
-                r->wall_s < 10 ? 2 : 0, r->wall_s);
+        fprintf(f, "| %s | %s | %s | %s | %s | %.4f | %.*f | %s | %s |\n", r->scene, r->method, steps, rays, psnr,
+                r->ssim, r->wall_s < 10 ? 2 : 0, r->wall_s, res, mw);
     }
+    if (stale)
+        fprintf(f, "\nRows whose steps differ from the preset's as it is now (rayformer %d, scinerf %d) were measured "
+                   "with an earlier version of the preset; their residual and largest weight are blank if measured "
+                   "before the table had them.\n",
+                rf_steps, sn_steps);
     write_ladder_steps(f);
     int any_pose = 0;
     for (int i = 0; i < n_rows; i++)
@@ -282,8 +330,8 @@ static void write_md(void)
     fprintf(f, ".\n");
     fclose(f);
     write_tsv();
-    if (rename("bench/results/nerf_compare.md.tmp", "bench/results/nerf_compare.md") < 0)
-        perror("bench/results/nerf_compare.md");
+    if (rename(tmp, md_path) < 0)
+        perror(md_path);
 }
 
 /* One finished reconstruction as a row: its last trace entry, the load now, the pose error when poses were
@@ -296,6 +344,7 @@ static row row_measure(const char *scene, const char *method, const sci_result *
     snprintf(w.method, sizeof w.method, "%s", method);
     const sci_trace_entry *e = &r->trace.e[r->trace.len - 1];
     w.psnr = e->psnr_peak1, w.ssim = e->ssim, w.wall_s = e->wall_s, w.iters = r->iters_done, w.rays = rays;
+    w.meas_res = e->meas_residual, w.max_w = e->max_weight;
     w.seeds = 1;
     w.pose_rot = w.pose_trans = NAN;
     char la[64];
@@ -337,6 +386,8 @@ static void row_fold(row *acc, const row *w, int k, double *psnr_sq)
     acc->wall_s += (w->wall_s - acc->wall_s) / n;
     acc->pose_rot += (w->pose_rot - acc->pose_rot) / n;
     acc->pose_trans += (w->pose_trans - acc->pose_trans) / n;
+    acc->meas_res += (w->meas_res - acc->meas_res) / n;
+    acc->max_w += (w->max_w - acc->max_w) / n;
     acc->seeds = k + 1;
     snprintf(acc->load, sizeof acc->load, "%s", w->load);
 }
@@ -534,7 +585,7 @@ static void one_scene(const char *name, const char *parts)
 int main(int argc, char **argv)
 {
     int run = 0;
-    char scenes[128] = "corridor,orbit,noisy", parts[64] = "classic,scinerf,ladder,patch,poses";
+    char scenes[128] = "corridor,orbit,noisy", parts[64] = "classic,scinerf,ladder,patch,poses", out[32] = "";
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--run") == 0)
             run = 1;
@@ -546,18 +597,28 @@ int main(int argc, char **argv)
             snprintf(scenes, sizeof scenes, "%s", argv[++i]);
         else if (strcmp(argv[i], "--parts") == 0 && i + 1 < argc)
             snprintf(parts, sizeof parts, "%s", argv[++i]);
+        else if (strcmp(argv[i], "--out") == 0 && i + 1 < argc && strspn(argv[i + 1], "abcdefghijklmnopqrstuvwxyz_") ==
+                                                                       strlen(argv[i + 1]) && strlen(argv[i + 1]) < 20)
+            snprintf(out, sizeof out, "%s", argv[++i]);
         else if (strcmp(argv[i], "--seeds") == 0 && i + 1 < argc && (n_seeds = atoi(argv[++i])) >= 1 && n_seeds <= 16)
             ;
         else {
             fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c]\n"
-                            "         [--parts classic,scinerf,ladder,attention,patch,poses] [--seeds 1…16]\n"
-                            "       bench_nerf_compare --table   (bench/results/nerf_compare.md from the stored rows)\n");
+                            "         [--parts classic,scinerf,ladder,attention,full,patch,poses] [--seeds 1…16]\n"
+                            "         [--out NAME]   (bench/results/NAME.{tsv,md}, a-z and _; default nerf_compare_<preset>)\n"
+                            "       bench_nerf_compare --table [--preset P] [--out NAME]   (the table from its stored rows)\n"
+                            "  the ablation study (ladder, patch sizes, poses) lives in --out nerf_ablation\n");
             return 2;
         }
     }
+    if (!out[0])
+        snprintf(out, sizeof out, "nerf_compare_%s", preset);
+    snprintf(tsv_path, sizeof tsv_path, "bench/results/%s.tsv", out);
+    snprintf(md_path, sizeof md_path, "bench/results/%s.md", out);
     if (!run) {
         printf("bench_nerf_compare: the README's NeRF comparison takes hours; not run by make bench.\n"
-               "  run it once with: %s --run [--preset fast] (writes bench/results/nerf_compare.md)\n",
+               "  run it with: %s --run [--preset balanced] --scenes corridor,orbit,noisy,tabletop --parts classic,scinerf,full\n"
+               "  (writes bench/results/nerf_compare_<preset>.md); the ablation study: --out nerf_ablation\n",
                argv[0]);
         return 0;
     }

@@ -508,7 +508,7 @@ int cli_bench_main(int argc, char **argv)
     for (int m = 0; m < N_METHODS; m++)
         methods[m] = table[m]->name;
     /* Each method's grid is its own (solver_ops.bench_quick / bench_full): the classical methods over iterations ×
-     * TV passes; the NeRF methods on the fast preset (rayformer 1250 steps, scinerf 1000 ≈ 3.5 min each here) with
+     * TV passes; the NeRF methods on the fast preset (rayformer 900 steps, scinerf 700: ≈ 4 min each here) with
      * fewer steps, and at 300 steps one other knob at a time — about 10 minutes per scene on 2 cores; the presets
      * balanced/best (9–30 min each) are measured by bench_nerf_recon instead, to keep this report under 30
      * minutes. A method that needs a camera runs on the scenes that have one. */

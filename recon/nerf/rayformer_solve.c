@@ -33,7 +33,7 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
      * mean, gated it is +0.003; docs/nerf-methods.md twelfth round).
      * Measured, not the default: four render tilings (+0.01 … +0.04 dB for 4× the render); a window's rays sharing
      * their depth jitter (noisy +0.21 dB, corridor and orbit −0.14 … −0.31; docs/nerf-methods.md twelfth round) */
-    *p = (sci_rayformer_params){.iters = 2500,
+    *p = (sci_rayformer_params){.iters = 1800,
                                 .patch = 2,
                                 .patches_per_step = 128,
                                 .samples = 32,
@@ -83,16 +83,17 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
 
 int sci_rayformer_params_preset(sci_rayformer_params *p, const char *name)
 {
-    /* measured in bench/results/nerf_recon_curves.md; "fast" is the issue's < 5 min for 128×128×8 on 2 cores
-     * (corridor: 199 s), "balanced" its < 10 min (439 s); "best" runs the schedule on twice as long */
+    /* sized for the issue's limits on 128×128×8 on 2 cores with room for a slower host: 0.26 s a step measured on
+     * 2026-11-27 (corridor, 2 threads, idle; 0.16 s in session 13 on the same kind of machine), so fast ≈ 4 min
+     * (limit 5), balanced ≈ 8 min (limit 10), best ≈ 16 min; 1250 and 2500 steps took 283–331 s and ≈ 10 min */
     static const struct {
         const char *name;
         int iters, patches_per_step, log2_table;
         double finest_res, lr_final;
     } t[] = {
-        {"fast", 1250, 128, 19, 512, 3e-3},
-        {"balanced", 2500, 128, 19, 512, 3e-3},
-        {"best", 5000, 128, 19, 512, 2e-3},
+        {"fast", 900, 128, 19, 512, 3e-3},
+        {"balanced", 1800, 128, 19, 512, 3e-3},
+        {"best", 3600, 128, 19, 512, 2e-3},
     };
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (strcmp(name, t[i].name) == 0) {
