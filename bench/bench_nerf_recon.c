@@ -7,8 +7,9 @@
  * Part 2: PSNR and SSIM against wall time of each preset run to its end on static3d_corridor (known poses),
  * sampled every 1/8 of the run (the evaluation renders are excluded from the wall time, as in every trace).
  * Part 1 writes bench/results/nerf_recon.md, part 2 bench/results/nerf_recon_curves.md; each records the load
- * average before and after (2 shared cores: timings vary with what else runs). Part 2 takes about an hour (the
- * presets' own times: 3.5 + 3.5 + 9 + 10 + 16 + 20 min). `--quick`: part 1 only; `--curves-only
+ * average before and after (2 shared cores: timings vary with what else runs). Part 2 takes about 25 minutes for
+ * fast and balanced (session 17: 9 min for the two fast presets and ≈ 15 for the balanced ones, evaluations
+ * included), and the best presets about 16 minutes each more. `--quick`: part 1 only; `--curves-only
  * [--presets fast,balanced]`: part 2 only, for the presets named.
  * Part 3, `--ceiling [STEPS]` (alone; not in `make bench`): each method's fast preset run for STEPS steps
  * (default 10000, the learning rate decayed over all of them) on static3d_corridor, PSNR, the measurement residual
