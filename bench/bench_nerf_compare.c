@@ -13,9 +13,10 @@
  * run it:  build/bench/bench_nerf_compare --run [--preset fast|balanced|best] [--scenes corridor,orbit,noisy]
  *                                         [--parts classic,scinerf,ladder,patch,poses]
  *                                         [--seeds N]
- *        build/bench/bench_nerf_compare --table [--preset P]   (only rewrites the preset's table from its rows)
+ *        build/bench/bench_nerf_compare --table [--preset P] [--out NAME]   (only rewrites a table from its rows)
  * (part "attention": only the ladder's rungs from + inter-ray on, the ones a change to the attention or TV moves;
- * the baseline and + patch rows are kept; part "full": only the ladder's last rung, the full method). --seeds N trains every NeRF row N times (seeds 1 … N) and keeps the mean
+ * the baseline and + patch rows are kept; part "full": only the ladder's last rung, the full method). --seeds N
+ * trains every NeRF row N times (seeds 1 … N) and keeps the mean
  * and the PSNR's standard deviation: one seed moves a fast-preset row by up to 0.35 dB, more than most ladder steps
  * (docs/nerf-methods.md ninth round), so the steps are judged on the mean.
  * Run from the repository root (it reads etc/scenes/ and writes bench/results/). Rows persist in
