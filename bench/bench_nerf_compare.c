@@ -71,7 +71,7 @@ static void write_tsv(void)
                "meas_res\tmax_w\n");
     for (int i = 0; i < n_rows; i++) {
         const row *r = &rows[i];
-        fprintf(f, "%s\t%s\t%d\t%d\t%.4f\t%.5f\t%.3f\t%.5f\t%.5f\t%s\t%d\t%.4f\t%.5f\t%.4f\n", r->scene, r->method,
+        fprintf(f, "%s\t%s\t%d\t%d\t%.4f\t%.6f\t%.3f\t%.5f\t%.5f\t%s\t%d\t%.4f\t%.5f\t%.4f\n", r->scene, r->method,
                 r->iters, r->rays, r->psnr, r->ssim, r->wall_s, r->pose_rot, r->pose_trans, r->load, r->seeds,
                 r->psnr_sd, r->meas_res, r->max_w);
     }
