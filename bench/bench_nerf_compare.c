@@ -12,13 +12,15 @@
  * It takes hours on the 2-core machine (every NeRF row trains a whole preset), so `make bench` only prints how to
  * run it:  build/bench/bench_nerf_compare --run [--preset fast|balanced|best] [--scenes corridor,orbit,noisy]
  *                                         [--parts classic,scinerf,ladder,patch,poses]
- *                                         [--seeds N]
+ *                                         [--seeds N | --more-seeds N]
  *        build/bench/bench_nerf_compare --table [--preset P] [--out NAME]   (only rewrites a table from its rows)
  * (part "attention": only the ladder's rungs from + inter-ray on, the ones a change to the attention or TV moves;
  * the baseline and + patch rows are kept; part "full": only the ladder's last rung, the full method). --seeds N
  * trains every NeRF row N times (seeds 1 … N) and keeps the mean
  * and the PSNR's standard deviation: one seed moves a fast-preset row by up to 0.35 dB, more than most ladder steps
- * (docs/nerf-methods.md ninth round), so the steps are judged on the mean.
+ * (docs/nerf-methods.md ninth round), so the steps are judged on the mean. --more-seeds N adds seeds n+1 … n+N to
+ * each row the run measures that the table holds with n seeds at the same steps and rays (a row it does not hold:
+ * seeds 1 … N), so a third seed costs one training per row, not three.
  * Run from the repository root (it reads etc/scenes/ and writes bench/results/). Rows persist in
  * the table's .tsv beside it: a run replaces the rows of the scenes it measures and keeps the others, so the
  * scenes can be measured in separate sittings; each row keeps the load average at its end.
@@ -53,6 +55,11 @@ static row rows[MAX_ROWS];
 static int n_rows;
 static char preset[16] = "fast";
 static int n_seeds = 1;
+/* --more-seeds N: rows the run measures that the table already holds (same steps and rays) are extended by seeds
+ * n+1 … n+N, folded into the stored mean and standard deviation; `prior` keeps those stored rows. 0: off. */
+static int more_seeds;
+static row prior[MAX_ROWS];
+static int n_prior;
 static char tsv_path[64], md_path[64]; /* bench/results/<out>.{tsv,md} (main) */
 /* The ladder's rungs in the paper's order; each ladder row's label (one_scene) contains its rung's tag, which is how
  * the stored rows are recognised (attention_rung, write_ladder_steps). */
@@ -184,7 +191,8 @@ static void read_tsv(const char *redo, const char *parts)
         snprintf(key, sizeof key, ",%s,", fld[0]);
         char list[160];
         snprintf(list, sizeof list, ",%s,", redo);
-        if (strstr(list, key) && redone(fld[1], parts))
+        const int redo_row = strstr(list, key) && redone(fld[1], parts);
+        if (redo_row && !more_seeds)
             continue;
         snprintf(r.scene, sizeof r.scene, "%s", fld[0]);
         snprintf(r.method, sizeof r.method, "%s", fld[1]);
@@ -196,7 +204,11 @@ static void read_tsv(const char *redo, const char *parts)
         r.psnr_sd = k >= 12 ? strtod(fld[11], NULL) : 0;
         r.meas_res = k == 14 ? strtod(fld[12], NULL) : NAN;
         r.max_w = k == 14 ? strtod(fld[13], NULL) : NAN;
-        rows[n_rows++] = r;
+        if (redo_row) {
+            if (n_prior < MAX_ROWS)
+                prior[n_prior++] = r;
+        } else
+            rows[n_rows++] = r;
     }
     fclose(f);
 }
@@ -364,10 +376,10 @@ static row row_measure(const char *scene, const char *method, const sci_result *
 }
 
 /* With several seeds, each training's result as it finishes (the row's mean comes after the last). */
-static void seed_done(const row *w, int seed)
+static void seed_done(const row *w, int seed, int last)
 {
-    if (n_seeds > 1)
-        fprintf(stderr, "  %s, %s, seed %d of %d: PSNR %.2f dB, %.0f s\n", w->scene, w->method, seed, n_seeds, w->psnr,
+    if (last > 1)
+        fprintf(stderr, "  %s, %s, seed %d of %d: PSNR %.2f dB, %.0f s\n", w->scene, w->method, seed, last, w->psnr,
                 w->wall_s);
 }
 
@@ -440,15 +452,36 @@ static int train_scinerf(const sci_problem *p, const void *params, unsigned long
     return sci_scinerf_solve_ex(p, &v, r, progress, NULL, poses);
 }
 
-/* Trains the row once per seed (1 … n_seeds) and adds the mean; a failed training drops the row (a mean over fewer
- * seeds than the table says would mislead). `learned`: the poses are optimised (the row reports their error). */
-static void seeded_row(const char *scene, const sci_problem *p, const char *name, int rays, int learned,
+/* The stored row of `scene` and `method` measured with `steps` and `rays`, or NULL (--more-seeds). */
+static const row *prior_find(const char *scene, const char *method, int steps, int rays)
+{
+    for (int i = 0; i < n_prior; i++)
+        if (strcmp(prior[i].scene, scene) == 0 && strcmp(prior[i].method, method) == 0 && prior[i].iters == steps &&
+            prior[i].rays == rays)
+            return &prior[i];
+    return NULL;
+}
+
+/* Trains the row once per seed (1 … n_seeds, or with --more-seeds the stored row's next ones) and adds the mean; a
+ * failed training drops the row (a mean over fewer seeds than the table says would mislead). `learned`: the poses
+ * are optimised (the row reports their error). */
+static void seeded_row(const char *scene, const sci_problem *p, const char *name, int steps, int rays, int learned,
                        train_fn train, const void *params)
 {
     double(*poses)[12] = malloc((size_t)p->mask->n * sizeof *poses);
+    const row *old = more_seeds ? prior_find(scene, name, steps, rays) : NULL;
+    const int first = old ? old->seeds + 1 : 1, last = old ? old->seeds + more_seeds : more_seeds ? more_seeds : n_seeds;
     row acc;
     double sq = 0;
-    for (int s = 1; s <= n_seeds; s++) {
+    if (old) {
+        /* the stored sd is the sample sd over its seeds: back to Welford's sum of squared deviations */
+        acc = *old, sq = old->psnr_sd * old->psnr_sd * (old->seeds - 1);
+        fprintf(stderr, "  %s, %s: the stored mean of %d seed%s, %.2f dB, extended by seeds %d … %d\n", scene, name,
+                old->seeds, old->seeds > 1 ? "s" : "", old->psnr, first, last);
+    } else if (more_seeds)
+        fprintf(stderr, "  %s, %s: no stored row of %d steps and %d rays: seeds 1 … %d\n", scene, name, steps, rays,
+                last);
+    for (int s = first; s <= last; s++) {
         sci_result r = {0};
         if (train(p, params, (unsigned long long)s, &r, poses) < 0) {
             fail(scene, name, &r);
@@ -457,7 +490,7 @@ static void seeded_row(const char *scene, const sci_problem *p, const char *name
             return;
         }
         row w = row_measure(scene, name, &r, rays, p, learned ? (const double(*)[12])poses : NULL);
-        seed_done(&w, s);
+        seed_done(&w, s, last);
         row_fold(&acc, &w, s - 1, &sq);
         sci_result_free_contents(&r);
     }
@@ -467,13 +500,13 @@ static void seeded_row(const char *scene, const sci_problem *p, const char *name
 
 static void rayformer_row(const char *scene, const sci_problem *p, const char *name, const sci_rayformer_params *q)
 {
-    seeded_row(scene, p, name, q->patches_per_step * q->patch * q->patch, q->pose_mode != NERF_POSES_KNOWN,
+    seeded_row(scene, p, name, q->iters, q->patches_per_step * q->patch * q->patch, q->pose_mode != NERF_POSES_KNOWN,
                train_rayformer, q);
 }
 
 static void scinerf_row(const char *scene, const sci_problem *p, const char *name, const sci_scinerf_params *q)
 {
-    seeded_row(scene, p, name, q->rays_per_step, q->pose_mode != NERF_POSES_KNOWN, train_scinerf, q);
+    seeded_row(scene, p, name, q->iters, q->rays_per_step, q->pose_mode != NERF_POSES_KNOWN, train_scinerf, q);
 }
 
 /* SCINeRF-style pose start: start and end on SE(3) from the identity plus U(±0.005) per twist component; the
@@ -603,9 +636,12 @@ int main(int argc, char **argv)
             snprintf(out, sizeof out, "%s", argv[++i]);
         else if (strcmp(argv[i], "--seeds") == 0 && i + 1 < argc && (n_seeds = atoi(argv[++i])) >= 1 && n_seeds <= 16)
             ;
+        else if (strcmp(argv[i], "--more-seeds") == 0 && i + 1 < argc && (more_seeds = atoi(argv[++i])) >= 1 &&
+                 more_seeds <= 16)
+            ;
         else {
             fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c]\n"
-                            "         [--parts classic,scinerf,ladder,attention,full,patch,poses] [--seeds 1…16]\n"
+                            "         [--parts classic,scinerf,ladder,attention,full,patch,poses] [--seeds 1…16 | --more-seeds 1…16]\n"
                             "         [--out NAME]   (bench/results/NAME.{tsv,md}, a-z and _; default nerf_compare_<preset>)\n"
                             "       bench_nerf_compare --table [--preset P] [--out NAME]   (the table from its stored rows)\n"
                             "  the ablation study (ladder, patch sizes, poses) lives in --out nerf_ablation\n");
