@@ -74,8 +74,8 @@ static int print_clean_fit(const char *dir, const sci_problem *p, const sci_cube
     return rc;
 }
 
-/* key=value → settings through the table; exits with a message on a bad argument. */
-static void set_key(const solver_ops *m, void *settings, const char *arg)
+/* Adds "key=value" to the settings object `obj` (the value read as JSON when it parses, else as a string). */
+static void add_key(json_t *obj, const char *arg)
 {
     char key[64];
     const char *eq = strchr(arg, '=');
@@ -86,18 +86,7 @@ static void set_key(const solver_ops *m, void *settings, const char *arg)
     memcpy(key, arg, (size_t)(eq - arg));
     key[eq - arg] = 0;
     json_t *v = json_loads(eq + 1, JSON_DECODE_ANY, NULL);
-    if (!v) v = json_string(eq + 1);
-    sci_error err = {0};
-    int rc = solver_settings_set(m, settings, key, v, NULL, key, &err);
-    json_decref(v);
-    if (rc == 1) {
-        fprintf(stderr, "%s has no setting %s\n", m->name, key);
-        exit(2);
-    }
-    if (rc < 0) {
-        fprintf(stderr, "%s\n", err.msg);
-        exit(2);
-    }
+    json_object_set_new(obj, key, v ? v : json_string(eq + 1));
 }
 
 int main(int argc, char **argv)
@@ -115,23 +104,22 @@ int main(int argc, char **argv)
     }
     void *settings = solver_settings_new(m);
     if (!settings) return 1;
-    for (int i = 3; i < argc; i++) /* the preset first, whatever its position, then the other keys in order */
-        if (strncmp(argv[i], "preset=", 7) == 0) {
-            solver_preset p;
-            if (solver_preset_parse(argv[i] + 7, &p, NULL, &err) < 0) {
-                fprintf(stderr, "%s\n", err.msg);
-                return 2;
-            }
-            solver_settings_preset(m, settings, p);
-        }
-    set_key(m, settings, "metrics_every=100");
-    set_key(m, settings, "ssim_every=0");
+    /* one settings object, applied as `scicap recon` applies a file's: the preset first, the keys in order, then
+     * the method's rules (rayformer's patch=8 without patches_per_step keeps the rays per step) */
+    json_t *obj = json_object();
     const char *clean = NULL;
+    add_key(obj, "metrics_every=100");
+    add_key(obj, "ssim_every=0");
     for (int i = 3; i < argc; i++)
         if (strncmp(argv[i], "clean=", 6) == 0)
             clean = argv[i] + 6;
-        else if (strncmp(argv[i], "preset=", 7) != 0)
-            set_key(m, settings, argv[i]);
+        else
+            add_key(obj, argv[i]);
+    if (solver_settings_from_json(m, settings, obj, NULL, "arguments", &err) < 0) {
+        fprintf(stderr, "%s\n", err.msg);
+        return 2;
+    }
+    json_decref(obj);
     sci_problem **probs = NULL;
     int k = 0;
     if (sci_source_read(argv[1], &probs, &k, &err) < 0) {
