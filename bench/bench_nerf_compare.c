@@ -463,8 +463,8 @@ static const row *prior_find(const char *scene, const char *method, int steps, i
 }
 
 /* Trains the row once per seed (1 … n_seeds, or with --more-seeds the stored row's next ones) and adds the mean; a
- * failed training drops the row (a mean over fewer seeds than the table says would mislead). `learned`: the poses
- * are optimised (the row reports their error). */
+ * failed training drops the row (a mean over fewer seeds than the table says would mislead), or keeps the stored
+ * row unchanged when it was extending one. `learned`: the poses are optimised (the row reports their error). */
 static void seeded_row(const char *scene, const sci_problem *p, const char *name, int steps, int rays, int learned,
                        train_fn train, const void *params)
 {
@@ -487,6 +487,8 @@ static void seeded_row(const char *scene, const sci_problem *p, const char *name
             fail(scene, name, &r);
             sci_result_free_contents(&r);
             free(poses);
+            if (old) /* the stored row stands as it was */
+                add(old);
             return;
         }
         row w = row_measure(scene, name, &r, rays, p, learned ? (const double(*)[12])poses : NULL);
