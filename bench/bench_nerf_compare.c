@@ -470,7 +470,7 @@ static void seeded_row(const char *scene, const sci_problem *p, const char *name
 {
     double(*poses)[12] = malloc((size_t)p->mask->n * sizeof *poses);
     const row *old = more_seeds ? prior_find(scene, name, steps, rays) : NULL;
-    const int first = old ? old->seeds + 1 : 1, last = old ? old->seeds + more_seeds : more_seeds ? more_seeds : n_seeds;
+    const int first = old ? old->seeds + 1 : 1, last = first - 1 + (more_seeds ? more_seeds : n_seeds);
     row acc;
     double sq = 0;
     if (old) {
