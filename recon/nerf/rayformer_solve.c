@@ -85,7 +85,8 @@ int sci_rayformer_params_preset(sci_rayformer_params *p, const char *name)
 {
     /* sized for the issue's limits on 128×128×8 on 2 cores with room for a slower host: 0.26 s a step measured on
      * 2026-11-27 (corridor, 2 threads, idle; 0.16 s in session 13 on the same kind of machine), so fast ≈ 4 min
-     * (limit 5), balanced ≈ 8 min (limit 10), best ≈ 16 min; 1250 and 2500 steps took 283–331 s and ≈ 10 min */
+     * (limit 5), balanced ≈ 8 min (limit 10), best ≈ 15 min (880 s measured on the corridor, session 20); 1250
+     * and 2500 steps took 283–331 s and ≈ 10 min */
     static const struct {
         const char *name;
         int iters, patches_per_step, log2_table;

@@ -46,14 +46,17 @@ int sci_scinerf_params_preset(sci_scinerf_params *p, const char *name)
     /* all three on the hash-encoded field: SCINeRF's own 8 × 256 frequency network runs at ≈ 0.05 Mpoints/s on the
      * two cores (docs/nerf-methods.md), minutes per hundred steps; set pos_enc etc. to use it. Fast and balanced
      * take RayFormer's time at the same preset (0.34 s a step at 1024 rays, 0.59 at 2048, corridor, 2 threads,
-     * 2026-11-27), so that each preset's comparison is at equal wall time */
+     * 2026-11-27), so that each preset's comparison is at equal wall time. Best likewise takes RayFormer's best
+     * time (880 s, corridor): with 32 fine samples (1000 × 2048 rays) a step cost 1.44 s and the run 1441 s for
+     * 23.83 dB, no better than the fast settings run that long (23.83 dB at 1094 s, bench/results/nerf_ceiling.md),
+     * so best spends the time on steps instead: 1900 × 2048 rays took 916 s for 23.92 dB (session 21) */
     static const struct {
         const char *name;
         int iters, rays, fine;
     } t[] = {
         {"fast", 700, 1024, 0},
         {"balanced", 800, 2048, 0},
-        {"best", 1000, 2048, 32},
+        {"best", 1900, 2048, 0},
     };
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (strcmp(name, t[i].name) == 0) {
