@@ -36,7 +36,7 @@ LDLIBS_ALL   = $(PKG_LIBS) -lgif -lstdc++ -lm -lpthread $(LDLIBS)
 VERSION := $(shell git describe --always --dirty 2>/dev/null || echo 0.1)
 
 # Every .c under these folders goes into libscicap.a: adding a module needs no Makefile edit.
-LIB_DIRS := base io recon recon/nerf sim drivers daemon
+LIB_DIRS := base io recon recon/cnn recon/nerf sim drivers daemon
 LIB_C    := $(filter-out daemon/main.c,$(foreach d,$(LIB_DIRS),$(wildcard $(d)/*.c)))
 LIB_CXX  := $(foreach d,$(LIB_DIRS),$(wildcard $(d)/*.cpp))
 LIB_OBJ  := $(LIB_C:%.c=$(BUILD)/%.o) $(LIB_CXX:%.cpp=$(BUILD)/%.o)

@@ -34,6 +34,21 @@ static int solve_plane(const sci_problem *plane, sci_result *r, void *user)
     return rc;
 }
 
+/* A method with SOLVER_BAYER: the whole mosaic in one run, RGB frames from the method. */
+static int solve_whole(const cli_color_job *job, const sci_problem *p, sci_result *r, sci_cube **rgb)
+{
+    cli_progress prog;
+    cli_progress_init(&prog, job->quiet ? -1 : 2, solver_settings_iters(job->method, job->settings));
+    prog.stop = job->stop;
+    const solver_io io = {.progress = cli_progress_update, .user = &prog, .cfa = (int)job->cfa,
+                          .demosaic = (int)job->demosaic, .rgb_out = rgb};
+    int rc = solver_run(job->method, p, job->settings, &io, r);
+    cli_progress_done(&prog);
+    if (rc == 0 && !*rgb)
+        rc = sci_error_set(&r->error, -EINVAL, "%s handed out no RGB frames", job->method->name);
+    return rc;
+}
+
 /* The four planes' traces one after another, wall and CPU time accumulated: what the colour result cost. */
 static int join_traces(const sci_result res[4], sci_trace *out)
 {
@@ -78,26 +93,43 @@ static int add_color_record(const char *dir, json_t *color, sci_error *err)
 int cli_recon_color(const cli_color_job *job, const sci_problem *p, const sci_cube *truth_rgb, const char *dir,
                     int force, sci_error *err)
 {
-    sci_result res[4];
+    sci_result res[4] = {{0}};
     sci_cube *rgb = NULL, *raw = NULL;
-    plane_ctx ctx = {job, 0};
-    int rc = sci_bayer_solve(p, job->cfa, job->demosaic, solve_plane, &ctx, &rgb, &raw, res, err);
-    if (rc < 0)
-        return rc;
-    sci_result r = {.frames = raw, .iters_done = 0};
-    snprintf(r.method, sizeof r.method, "%s", res[0].method);
-    for (int i = 0; i < 4; i++)
-        r.iters_done += res[i].iters_done;
+    sci_result r = {0};
     json_t *color = NULL;
-    if ((rc = join_traces(res, &r.trace)) < 0) {
-        sci_error_set(err, rc, "out of memory");
-        goto out;
+    int rc;
+    const int whole = (job->method->caps & SOLVER_BAYER) != 0;
+    if (whole) {
+        /* the method reconstructs the mosaic itself (e.g. pnp-ffdnet: demosaic, colour denoiser, mosaic) */
+        if ((rc = solve_whole(job, p, &r, &rgb)) < 0) {
+            sci_error_set(err, rc, "%s", r.error.msg);
+            sci_result_free_contents(&r);
+            return rc;
+        }
+        raw = r.frames;
+    } else {
+        plane_ctx ctx = {job, 0};
+        if ((rc = sci_bayer_solve(p, job->cfa, job->demosaic, solve_plane, &ctx, &rgb, &raw, res, err)) < 0)
+            return rc;
+        r.frames = raw;
+        snprintf(r.method, sizeof r.method, "%s", res[0].method);
+        for (int i = 0; i < 4; i++)
+            r.iters_done += res[i].iters_done;
+        if ((rc = join_traces(res, &r.trace)) < 0) {
+            sci_error_set(err, rc, "out of memory");
+            goto out;
+        }
     }
     const int n = raw->n;
     const double solver_s = r.trace.len ? r.trace.e[r.trace.len - 1].wall_s : NAN;
-    printf("  colour: Bayer %s, 4 planes of %dx%d, %d iterations in %.3f s solver time, %s demosaic\n",
-           sci_cfa_name(job->cfa), p->mask->w / 2, p->mask->h / 2, r.iters_done, solver_s,
-           sci_demosaic_name(job->demosaic));
+    if (whole)
+        printf("  colour: Bayer %s, %dx%d mosaic reconstructed whole, %d iterations in %.3f s solver time, %s "
+               "demosaic in each\n", sci_cfa_name(job->cfa), p->mask->w, p->mask->h, r.iters_done, solver_s,
+               sci_demosaic_name(job->demosaic));
+    else
+        printf("  colour: Bayer %s, 4 planes of %dx%d, %d iterations in %.3f s solver time, %s demosaic\n",
+               sci_cfa_name(job->cfa), p->mask->w / 2, p->mask->h / 2, r.iters_done, solver_s,
+               sci_demosaic_name(job->demosaic));
     color = json_pack("{s:s, s:s, s:s}", "cfa", sci_cfa_name(job->cfa), "demosaic", sci_demosaic_name(job->demosaic),
                       "frames", "rgb_NNN.exr (RGB float), preview_rgb_NNN.png");
     if (truth_rgb) {

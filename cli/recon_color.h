@@ -1,6 +1,7 @@
-/* cli/recon_color.h — `scicap recon` on a colour (Bayer) problem: the four CFA planes solved one after another
- * with a method that needs no camera (recon/solver.h; gap-tv, admm-tv) (recon/bayer.h), demosaiced, RGB PSNR printed (mean over R, G, B), and the outputs of a
- * grey reconstruction (frames = the raw mosaic, trace = the four planes in turn, result.json) plus RGB ones:
+/* cli/recon_color.h — `scicap recon` on a colour (Bayer) problem: a method with SOLVER_BAYER reconstructs the
+ * mosaic whole and hands out RGB frames (recon/solver.h); any other method that needs no camera solves the four
+ * CFA planes one after another (recon/bayer.h), demosaiced. RGB PSNR printed (mean over R, G, B), and the outputs
+ * of a grey reconstruction (frames = the raw mosaic, trace, result.json) plus RGB ones:
  * rgb_NNN.exr (float, 3 channels), preview_rgb_NNN.png (colour, 8-bit), and a "color" record in result.json. */
 #ifndef SCICAP_CLI_RECON_COLOR_H
 #define SCICAP_CLI_RECON_COLOR_H

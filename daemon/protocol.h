@@ -93,7 +93,7 @@ void scicapd_request_clear(scicapd_request *r);
 /* ---- check 5: typed arguments of each command, defaults from the configuration in force ---- */
 
 /* Largest settings struct of a method (recon/solver.h) a spec can hold by value. */
-#define SCICAPD_SETTINGS_MAX 1024
+#define SCICAPD_SETTINGS_MAX SOLVER_SETTINGS_MAX
 
 /* A reconstruction fully resolved: method, preset, parameters. Plain data: copied by value through the queues. */
 typedef struct scicapd_recon_spec {

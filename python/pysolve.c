@@ -27,7 +27,7 @@ static PyObject *json_to_py(const json_t *j)
     return v;
 }
 
-static const char *const field_type_names[] = {"int", "float", "bool", "seed", "enum", "action"};
+static const char *const field_type_names[] = {"int", "float", "bool", "seed", "enum", "action", "string", "list"};
 
 static PyObject *field_to_dict(const solver_field *f)
 {
@@ -48,7 +48,7 @@ static PyObject *field_to_dict(const solver_field *f)
     }
     const int ranged = f->type == SOLVER_FIELD_INT || f->type == SOLVER_FIELD_DOUBLE || f->type == SOLVER_FIELD_SEED;
     return Py_BuildValue("{s:s,s:s,s:N,s:N,s:N,s:O,s:s}", "key", f->key, "type",
-                         field_type_names[f->type < 6 ? f->type : 0], "min",
+                         field_type_names[f->type < 8 ? f->type : 0], "min",
                          ranged ? PyFloat_FromDouble(f->lo) : Py_NewRef(Py_None), "max",
                          ranged ? PyFloat_FromDouble(f->hi) : Py_NewRef(Py_None), "choices", names, "alias",
                          (f->flags & SOLVER_FIELD_ALIAS) ? Py_True : Py_False, "help", f->help ? f->help : "");

@@ -11,6 +11,7 @@
 
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
+#include "recon/pnp_ffdnet.h"
 #include "recon/nerf/rayformer_solve.h"
 #include "recon/nerf/scinerf_solve.h"
 
@@ -18,6 +19,7 @@
 static const solver_ops *const solvers[] = {
     &sci_gaptv_solver,
     &sci_admmtv_solver,
+    &sci_pnp_ffdnet_solver,
     &sci_rayformer_solver,
     &sci_scinerf_solver,
     NULL,
@@ -59,6 +61,26 @@ const solver_ops *const *solver_list(size_t *count)
     if (count)
         *count = sizeof solvers / sizeof solvers[0] - 1;
     return solvers;
+}
+
+int solver_list_check(sci_error *err)
+{
+    for (size_t i = 0; solvers[i]; i++) {
+        const solver_ops *m = solvers[i];
+        const solver_field *it = solver_field_find(m, "iters", NULL);
+        if (m->settings_size > SOLVER_SETTINGS_MAX)
+            return sci_error_set(err, -EINVAL, "%s: settings of %zu bytes exceed SOLVER_SETTINGS_MAX (%d)", m->name,
+                                 m->settings_size, SOLVER_SETTINGS_MAX);
+        if (!it || it->type != SOLVER_FIELD_INT)
+            return sci_error_set(err, -EINVAL, "%s: no integer \"iters\" setting", m->name);
+        if (!m->defaults || !m->preset || !m->run || !m->summary || !m->bench_quick || !m->bench_full)
+            return sci_error_set(err, -EINVAL, "%s: the row lacks defaults, preset, run, summary or bench grids",
+                                 m->name);
+        for (size_t j = 0; j < i; j++)
+            if (strcmp(solvers[j]->name, m->name) == 0)
+                return sci_error_set(err, -EINVAL, "%s: two rows of that name", m->name);
+    }
+    return 0;
 }
 
 const solver_ops *solver_find(const char *name)
@@ -157,6 +179,47 @@ static void names_list(char *buf, size_t n, const char *const *names)
         off += (size_t)snprintf(buf + off, n - off, "%s%s", i ? ", " : "", names[i]);
 }
 
+/* A LIST value: a JSON array of numbers, or a string of numbers separated by commas (--set sigma=50,25,12). */
+static int list_set(const solver_ops *m, const solver_field *f, solver_values *out, const json_t *v,
+                    const sci_json_doc *doc, const char *path, const char *got, sci_error *err)
+{
+    solver_values l = {0};
+    int ok = 1;
+    if (json_is_array(v)) {
+        size_t i;
+        const json_t *e;
+        ok = json_array_size(v) >= 1 && json_array_size(v) <= SOLVER_LIST_MAX;
+        json_array_foreach(v, i, e) {
+            if (!ok || !json_is_number(e))
+                ok = 0;
+            else
+                l.v[l.n++] = json_number_value(e);
+        }
+    } else if (json_is_string(v)) {
+        const char *p = json_string_value(v);
+        while (ok && *p) {
+            char *end;
+            double d = strtod(p, &end);
+            ok = end != p && l.n < SOLVER_LIST_MAX;
+            if (ok)
+                l.v[l.n++] = d;
+            p = end;
+            while (ok && (*p == ',' || *p == ' '))
+                p++;
+        }
+        ok = ok && l.n >= 1;
+    } else {
+        ok = 0;
+    }
+    for (int i = 0; ok && i < l.n; i++)
+        ok = isfinite(l.v[i]) && l.v[i] >= f->lo && l.v[i] <= f->hi;
+    if (!ok)
+        return fail(doc, err, m->name, path, "must be a list of 1 to %d numbers in [%g, %g] (got %s)",
+                    SOLVER_LIST_MAX, f->lo, f->hi, got);
+    *out = l;
+    return 0;
+}
+
 int solver_settings_set(const solver_ops *m, void *settings, const char *key, const json_t *v,
                         const sci_json_doc *doc, const char *path, sci_error *err)
 {
@@ -214,6 +277,14 @@ int solver_settings_set(const solver_ops *m, void *settings, const char *key, co
         int rc = m->action ? m->action(settings, key, i, err) : -EINVAL;
         return rc < 0 ? fail(doc, err, m->name, path, "%s", err && err->msg[0] ? err->msg : "cannot be applied") : 0;
     }
+    case SOLVER_FIELD_STRING:
+        if (!json_is_string(v) || json_string_length(v) >= SOLVER_STRING_MAX)
+            return fail(doc, err, m->name, path, "must be a string of fewer than %d bytes (got %s)",
+                        SOLVER_STRING_MAX, got);
+        snprintf(at, SOLVER_STRING_MAX, "%s", json_string_value(v));
+        return 0;
+    case SOLVER_FIELD_LIST:
+        return list_set(m, f, (solver_values *)(void *)at, v, doc, path, got, err);
     }
     return -EINVAL;
 }
@@ -303,6 +374,14 @@ json_t *solver_settings_to_json(const solver_ops *m, const void *settings)
                 break;
             }
             case SOLVER_FIELD_ACTION: continue;
+            case SOLVER_FIELD_STRING: v = json_string(at); break;
+            case SOLVER_FIELD_LIST: {
+                const solver_values *l = (const void *)at;
+                v = json_array();
+                for (int k = 0; v && k < l->n && k < SOLVER_LIST_MAX; k++)
+                    json_array_append_new(v, json_real(l->v[k]));
+                break;
+            }
             }
             if (!v || json_object_set_new(j, f->key, v) < 0) {
                 json_decref(j);
@@ -319,6 +398,22 @@ int solver_settings_check(const solver_ops *m, const void *settings, sci_error *
             const solver_field *f = &m->fields[g].f[i];
             const char *at = (const char *)settings + m->fields[g].base + f->offset;
             double v;
+            if (f->type == SOLVER_FIELD_LIST) {
+                const solver_values *l = (const void *)at;
+                if (l->n < 1 || l->n > SOLVER_LIST_MAX)
+                    return sci_error_set(err, -EINVAL, "%s: %s must hold 1 to %d values (has %d)", m->name, f->key,
+                                         SOLVER_LIST_MAX, l->n);
+                for (int k = 0; k < l->n; k++)
+                    if (!(l->v[k] >= f->lo && l->v[k] <= f->hi))
+                        return sci_error_set(err, -EINVAL, "%s: %s[%d] must be in [%.15g, %.15g] (got %.17g)",
+                                             m->name, f->key, k, f->lo, f->hi, l->v[k]);
+                continue;
+            }
+            if (f->type == SOLVER_FIELD_STRING) {
+                if (!memchr(at, 0, SOLVER_STRING_MAX))
+                    return sci_error_set(err, -EINVAL, "%s: %s is not terminated", m->name, f->key);
+                continue;
+            }
             if (f->type == SOLVER_FIELD_INT)
                 v = *(const int *)at;
             else if (f->type == SOLVER_FIELD_DOUBLE)

@@ -52,6 +52,8 @@ enum {
     SOLVER_NEEDS_CAMERA = 1, /* the problem must carry a camera (sci_camera): a static scene seen by a moving camera */
     SOLVER_CHECKPOINTS = 2,  /* honours solver_io's checkpoint hooks and resume blob */
     SOLVER_POSES = 4,        /* can write the final camera poses (solver_io.poses_out) */
+    SOLVER_BAYER = 8,        /* reconstructs a Bayer mosaic whole (solver_io.cfa) and hands out RGB frames
+                                (solver_io.rgb_out); other methods are run per CFA plane (recon/bayer.h) */
 };
 
 typedef enum solver_field_type {
@@ -61,7 +63,20 @@ typedef enum solver_field_type {
     SOLVER_FIELD_SEED,   /* unsigned long long; JSON integer >= 0 */
     SOLVER_FIELD_ENUM,   /* an int-sized enum; JSON string among names[] (or its index); value = index */
     SOLVER_FIELD_ACTION, /* no storage: names[] (or an index) passed to the method's action(); not written out */
+    SOLVER_FIELD_STRING, /* char[SOLVER_STRING_MAX], NUL-terminated; JSON string (e.g. a file path) */
+    SOLVER_FIELD_LIST,   /* solver_values; JSON array of 1..SOLVER_LIST_MAX numbers in [lo, hi], or a string "50,25" */
 } solver_field_type;
+
+#define SOLVER_STRING_MAX 256 /* bytes of a STRING field, the NUL included */
+#define SOLVER_LIST_MAX 8     /* values of a LIST field */
+typedef struct solver_values {
+    int n;                     /* values in use, 1..SOLVER_LIST_MAX */
+    double v[SOLVER_LIST_MAX];
+} solver_values;
+
+/* The largest settings struct of any method. Interfaces that hold settings by value (scicapd's queues) size their
+ * buffers by it; a row whose settings_size exceeds it is refused by solver_list_check (tests/unit/test_solver.c). */
+#define SOLVER_SETTINGS_MAX 2048
 
 enum { SOLVER_FIELD_ALIAS = 1 }; /* solver_field.flags: another name of a field listed before it; not written out */
 
@@ -96,6 +111,11 @@ typedef struct solver_io {
     const void *resume;            /* borrowed checkpoint blob to continue from (same problem and settings) */
     size_t resume_bytes;
     double (*poses_out)[12];       /* SOLVER_POSES: N camera-to-world poses written at the end, or NULL */
+    int cfa;                       /* SOLVER_BAYER: a sci_cfa (recon/demosaic.h) when the problem is a raw Bayer
+                                      mosaic (frames and truth mosaicked), SCI_CFA_NONE (0) for grey */
+    int demosaic;                  /* SOLVER_BAYER: the sci_demosaic_method the method demosaics with */
+    sci_cube **rgb_out;            /* SOLVER_BAYER with a cfa: receives the w×h×3N RGB frames (frame f's channel c
+                                      is frame 3f + c; caller frees), or NULL */
 } solver_io;
 
 typedef struct solver_ops {
@@ -125,6 +145,9 @@ typedef struct solver_ops {
 
 /* The methods in table order (NULL-terminated); *count (nullable) receives how many. */
 const solver_ops *const *solver_list(size_t *count);
+/* 0, or -EINVAL naming the first row of the table that breaks a rule every interface relies on (settings_size
+ * within SOLVER_SETTINGS_MAX, an "iters" field, names unique, presets and bench grids present). */
+int solver_list_check(sci_error *err);
 /* The method called `name`, or NULL. */
 const solver_ops *solver_find(const char *name);
 /* The method called `name`, or NULL with -EINVAL in err: "unknown method 'x' (gap-tv, admm-tv, ...)". */

@@ -19,6 +19,8 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include "recon/solver.h"
+
 static char build[1024];
 
 /* Which command each getopt table in cli/ belongs to. Every table found must be listed here. */
@@ -161,10 +163,14 @@ static void test_top_level_help(void **state)
 {
     static char help[16384];
     assert_int_equal(capture(help, sizeof help, "%s/scicap --help", build), 0);
-    const char *methods[] = {"gap-tv", "admm-tv", "rayformer", "scinerf"};
-    for (size_t i = 0; i < 4; i++)
-        if (!strstr(help, methods[i]))
-            fail_msg("scicap --help does not list the method %s", methods[i]);
+    size_t nm = 0;
+    const solver_ops *const *methods = solver_list(&nm);
+    for (size_t i = 0; i < nm; i++) {
+        char want[160];
+        snprintf(want, sizeof want, "  %-11s %s\n", methods[i]->name, methods[i]->summary);
+        if (!strstr(help, want))
+            fail_msg("scicap --help does not list the method %s with its summary", methods[i]->name);
+    }
     for (size_t c = 0; c < NCMD; c++) {
         char want[64];
         snprintf(want, sizeof want, "\n  %s ", commands[c]);

@@ -26,7 +26,7 @@ static void test_lookup(void **state)
     (void)state;
     size_t n = 0;
     const solver_ops *const *l = solver_list(&n);
-    assert_int_equal(n, 4);
+    assert_true(n >= 4);
     assert_null(l[n]);
     for (size_t i = 0; i < n; i++) {
         assert_ptr_equal(solver_find(l[i]->name), l[i]);
@@ -40,7 +40,13 @@ static void test_lookup(void **state)
     sci_error err = {0};
     assert_null(solver_find_err("nope", &err));
     printf("%s\n", err.msg);
-    assert_non_null(strstr(err.msg, "unknown method 'nope' (gap-tv, admm-tv, rayformer, scinerf)"));
+    /* the list in the message is the table's, in its order */
+    char names[256], want[300];
+    solver_names_text(names, sizeof names, ", ");
+    snprintf(want, sizeof want, "unknown method 'nope' (%s)", names);
+    assert_non_null(strstr(err.msg, want));
+    assert_non_null(strstr(names, "gap-tv, admm-tv"));
+    assert_int_equal(solver_list_check(&err), 0);
     /* only the NeRF methods need a camera and checkpoint */
     assert_false(sci_gaptv_solver.caps & SOLVER_NEEDS_CAMERA);
     assert_true(sci_scinerf_solver.caps & SOLVER_NEEDS_CAMERA);
