@@ -34,6 +34,7 @@
 #include "bench/bench_load.h"
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
+#include "recon/pnp_ffdnet.h"
 #include "recon/nerf/rayformer_solve.h"
 #include "recon/nerf/scinerf_solve.h"
 #include "sim/simulate.h"
@@ -90,7 +91,7 @@ static void write_tsv(void)
 /* The part of the comparison a row belongs to, by its method label. */
 static const char *row_part(const char *method)
 {
-    if (strncmp(method, "GAP-TV", 6) == 0 || strncmp(method, "ADMM-TV", 7) == 0)
+    if (strncmp(method, "GAP-TV", 6) == 0 || strncmp(method, "ADMM-TV", 7) == 0 || strncmp(method, "PnP-FFDNet", 10) == 0)
         return "classic";
     if (strstr(method, "poses optimised"))
         return "poses";
@@ -574,6 +575,23 @@ static void one_scene(const char *name, const char *parts)
         if (sci_admmtv_solve(p, &a, &r, NULL, NULL) == 0) {
             row w = row_measure(name, "ADMM-TV (100 iterations)", &r, 0, p, NULL);
             add(&w);
+        }
+        sci_result_free_contents(&r);
+        /* the learned 2-D prior (the paper's Table 1 row between GAP-TV and SCINeRF), at the same preset */
+        r = (sci_result){0};
+        sci_pnp_params f;
+        sci_pnp_params_default(&f);
+        solver_preset pp = SOLVER_PRESET_BALANCED;
+        solver_preset_parse(preset, &pp, NULL, NULL);
+        sci_pnp_ffdnet_solver.preset(&f, pp);
+        f.metrics_every = 0;
+        char label[64];
+        snprintf(label, sizeof label, "PnP-FFDNet (%d iterations)", f.iters);
+        if (sci_pnp_solve(p, &f, &r, NULL, NULL) == 0) {
+            row w = row_measure(name, label, &r, 0, p, NULL);
+            add(&w);
+        } else {
+            printf("%s: pnp-ffdnet: %s\n", name, r.error.msg);
         }
         sci_result_free_contents(&r);
     }

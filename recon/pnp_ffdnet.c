@@ -9,16 +9,22 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "recon/bayer.h"
 #include "recon/cnn/ffdnet.h"
+#include "recon/gaptv.h"
 #include "recon/demosaic.h"
 #include "recon/sci_ops.h"
 #include "recon/tracer.h"
 
 static const char *const projection_names[] = {"gap", "admm", NULL};
 
+/* GAP-TV iterations that start the colour route when tv_init is auto (see start_point). */
+#define PNP_TV_INIT_BAYER 50
+
 void sci_pnp_params_default(sci_pnp_params *p)
 {
-    *p = (sci_pnp_params){.iters = 40, .sigma = {4, {50, 25, 12, 6}}, .projection = SCI_PNP_GAP, .lambda = 1.0,
+    *p = (sci_pnp_params){.iters = 40, .sigma = {4, {50, 25, 12, 6}},
+                          .sigma_rgb = {3, {50, 40, 30}}, .tv_init = -1, .projection = SCI_PNP_GAP, .lambda = 1.0,
                           .accelerate = 1, .gamma = 0.01, .metrics_every = 1, .ssim_every = 10};
 }
 
@@ -40,6 +46,15 @@ int sci_pnp_params_check(const sci_pnp_params *p, sci_error *err)
         return sci_error_set(err, -EINVAL, "pnp-ffdnet: gamma must be >= 0 (got %g)", p->gamma);
     if (p->projection != SCI_PNP_GAP && p->projection != SCI_PNP_ADMM)
         return sci_error_set(err, -EINVAL, "pnp-ffdnet: projection must be gap or admm");
+    if (p->tv_init < -1 || p->tv_init > 100000)
+        return sci_error_set(err, -EINVAL, "pnp-ffdnet: tv_init must be in [-1 (auto), 1e5] (got %d)", p->tv_init);
+    for (int i = 0; i < p->sigma_rgb.n; i++)
+        if (!(p->sigma_rgb.v[i] > 0 && p->sigma_rgb.v[i] <= 255))
+            return sci_error_set(err, -EINVAL, "pnp-ffdnet: sigma_rgb[%d] must be in (0, 255] (got %g)", i,
+                                 p->sigma_rgb.v[i]);
+    if (p->iters < p->sigma_rgb.n)
+        return sci_error_set(err, -EINVAL, "pnp-ffdnet: iters must be at least one per sigma_rgb stage (%d)",
+                             p->sigma_rgb.n);
     if (p->threads < 0 || p->threads > 1024 || p->metrics_every < 0 || p->ssim_every < 0)
         return sci_error_set(err, -EINVAL, "pnp-ffdnet: threads and metrics intervals must be >= 0");
     return 0;
@@ -121,6 +136,43 @@ static void denoise_frames(denoiser *d, sci_cube *x, double sigma255)
     }
 }
 
+static int tv_plane(const sci_problem *plane, sci_result *r, void *user)
+{
+    return sci_gaptv_solve(plane, user, r, NULL, NULL);
+}
+
+/* x⁰: Aᵀy, or tv_init iterations of GAP-TV (per CFA plane for a mosaic) — the colour route needs it: from Aᵀy the
+ * demosaiced half-empty frames lead the colour denoiser to a maze-patterned fixed point (≈ 8 dB on the colour scene). */
+static int start_point(const sci_problem *p, const sci_pnp_params *q, int cfa, sci_cube *x, sci_error *err)
+{
+    const int k = q->tv_init >= 0 ? q->tv_init : cfa == SCI_CFA_NONE ? 0 : PNP_TV_INIT_BAYER;
+    if (k == 0) {
+        sci_op_adjoint(p->mask, p->meas, x);
+        return 0;
+    }
+    sci_gaptv_params tv;
+    sci_gaptv_params_default(&tv);
+    tv.iters = k;
+    tv.metrics_every = tv.ssim_every = 0;
+    tv.tv_weight *= p->peak > 0 ? p->peak : 1.0; /* its weight is on the [0, 1] scale */
+    sci_result r = {0}, planes[4] = {{0}};
+    sci_cube *rgb = NULL, *raw = NULL;
+    int rc = cfa == SCI_CFA_NONE ? sci_gaptv_solve(p, &tv, &r, NULL, NULL)
+                                 : sci_bayer_solve(p, (sci_cfa)cfa, SCI_DEMOSAIC_MHC, tv_plane, &tv, &rgb, &raw, planes,
+                                                   err);
+    const sci_cube *got = cfa == SCI_CFA_NONE ? r.frames : raw;
+    if (rc == 0 && got)
+        memcpy(x->data, got->data, sci_cube_count(x) * sizeof *x->data);
+    else if (cfa == SCI_CFA_NONE)
+        sci_error_set(err, rc < 0 ? rc : -EINVAL, "pnp-ffdnet: GAP-TV start: %s", r.error.msg);
+    sci_result_free_contents(&r);
+    for (int i = 0; i < 4; i++)
+        sci_result_free_contents(&planes[i]);
+    sci_cube_free(rgb);
+    sci_cube_free(raw);
+    return rc < 0 ? rc : 0;
+}
+
 static int solve(const sci_problem *problem, const sci_pnp_params *params, int cfa, int demosaic, sci_cube **rgb_out,
                  sci_result *result, sci_progress_fn progress, void *user)
 {
@@ -148,7 +200,7 @@ static int solve(const sci_problem *problem, const sci_pnp_params *params, int c
     sci_cube *x = NULL, *b = NULL, *v = NULL, *yhat = NULL, *ybar = NULL, *den = NULL, *r = NULL;
     double *rowbuf = NULL;
     if ((rc = cnn_ffdnet_load(path, &net, err)) < 0)
-        return rc;
+        return sci_error_prefix(err, "pnp-ffdnet: %s: ", colour ? "weights_rgb" : "weights");
     if (cnn_ffdnet_channels(net) != (colour ? 3 : 1)) {
         rc = sci_error_set(err, -EINVAL, "pnp-ffdnet: %s is the %s FFDNet; %s problems need %s", path,
                            colour ? "grey" : "colour", colour ? "Bayer" : "grey",
@@ -172,12 +224,13 @@ static int solve(const sci_problem *problem, const sci_pnp_params *params, int c
     if (admm)
         for (size_t i = 0; i < fs; i++)
             den->data[i] += (float)params->gamma;
-    sci_op_adjoint(mask, y, x); /* x is θ for ADMM */
-
     sci_tracer tr;
     sci_tracer_start(&tr, problem, result, progress, user, params->iters, params->metrics_every, params->ssim_every);
+    if ((rc = start_point(problem, params, cfa, x, err)) < 0) /* x is θ for ADMM; its time counts in the trace's */
+        goto out;
     for (int it = 1; it <= params->iters; it++) {
-        const double sigma = params->sigma.v[stage_of(it, params->iters, params->sigma.n)];
+        const solver_values *sv = colour ? &params->sigma_rgb : &params->sigma;
+        const double sigma = sv->v[stage_of(it, params->iters, sv->n)];
         const float lambda = (float)params->lambda;
         if (admm) {
             for (size_t i = 0; i < count; i++)
@@ -264,6 +317,10 @@ static const solver_field pnp_fields[] = {
               "FFDNet weights file (net_gray.pth); empty: $SCICAP_DATA/ffdnet/"),
     PNP_FIELD("weights_rgb", SOLVER_FIELD_STRING, weights_rgb, 0, 0, NULL,
               "colour FFDNet weights (net_rgb.pth) for Bayer problems; empty: $SCICAP_DATA/ffdnet/"),
+    PNP_FIELD("tv_init", SOLVER_FIELD_INT, tv_init, -1, 1e5, NULL,
+              "GAP-TV iterations for the starting point (per CFA plane for Bayer); 0: Aᵀy; -1: 0 grey, 50 Bayer"),
+    PNP_FIELD("sigma_rgb", SOLVER_FIELD_LIST, sigma_rgb, 0.001, 255, NULL,
+              "Bayer problems: the colour denoiser's sigma of each stage, e.g. 50,40,30"),
     PNP_FIELD("threads", SOLVER_FIELD_INT, threads, 0, 1024, NULL, "denoiser threads (0: all)"),
     PNP_FIELD("metrics_every", SOLVER_FIELD_INT, metrics_every, 0, 1e9, NULL, "PSNR in the trace every k iterations"),
     PNP_FIELD("ssim_every", SOLVER_FIELD_INT, ssim_every, 0, 1e9, NULL, "SSIM in the trace every k iterations"),

@@ -39,6 +39,9 @@ typedef struct sci_pnp_params {
     double gamma;                     /* ADMM: added to Φ_sum */
     char weights[SOLVER_STRING_MAX];  /* grey FFDNet weights file; "" = the default search above */
     char weights_rgb[SOLVER_STRING_MAX]; /* colour FFDNet (net_rgb.pth), for Bayer problems; "" = as above */
+    solver_values sigma_rgb;          /* Bayer problems: σ per stage of the colour denoiser (50, 40, 30) */
+    int tv_init;                      /* GAP-TV iterations for the starting point (0: x⁰ = Aᵀy; -1: 0 for grey,
+                                         50 for Bayer, whose route needs it) */
     int threads;                      /* OpenMP threads of the denoiser; 0 = all */
     int metrics_every, ssim_every;    /* as sci_gaptv_params */
 } sci_pnp_params;
