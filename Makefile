@@ -121,7 +121,7 @@ PY_INFO  := $(shell $(PYTHON) -c 'import sysconfig, numpy; print(sysconfig.get_p
 PY_CFLAGS := $(addprefix -I,$(wordlist 1,2,$(PY_INFO)))
 PY_EXT   := $(BUILD)/python/scicap/_scicap$(word 3,$(PY_INFO))
 PY_SITE  ?= $(PREFIX)/lib/python$(word 4,$(PY_INFO))/dist-packages
-PIC_DIRS := base io recon recon/nerf sim
+PIC_DIRS := $(filter-out drivers daemon,$(LIB_DIRS))
 PIC_OBJ  := $(patsubst %.c,$(BUILD)/pic/%.o,$(foreach d,$(PIC_DIRS),$(wildcard $(d)/*.c))) \
             $(patsubst %.cpp,$(BUILD)/pic/%.o,$(foreach d,$(PIC_DIRS),$(wildcard $(d)/*.cpp)))
 PIC_LIB  := $(BUILD)/pic/libscicap.a
