@@ -240,6 +240,20 @@ static int add_point(bench_point **pts, int *n, int *cap, int scene, const char 
         if (json_is_string(v))
             off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%s", off ? " " : "", key,
                                     json_string_value(v));
+        else if (json_is_array(v)) {
+            /* a list setting (e.g. sigma) as 50/25/12: no commas in a CSV column, and read back as the list */
+            size_t i;
+            json_t *e;
+            off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=", off ? " " : "", key);
+            json_array_foreach(v, i, e) {
+                if (off >= sizeof p->setting)
+                    break;
+                off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%g", i ? "/" : "",
+                                        json_number_value(e));
+            }
+        } else if (json_is_real(v))
+            off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%g", off ? " " : "", key,
+                                    json_real_value(v));
         else
             off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%lld", off ? " " : "", key,
                                     (long long)json_integer_value(v));

@@ -52,9 +52,7 @@ int sci_pnp_params_check(const sci_pnp_params *p, sci_error *err)
         if (!(p->sigma_rgb.v[i] > 0 && p->sigma_rgb.v[i] <= 255))
             return sci_error_set(err, -EINVAL, "pnp-ffdnet: sigma_rgb[%d] must be in (0, 255] (got %g)", i,
                                  p->sigma_rgb.v[i]);
-    if (p->iters < p->sigma_rgb.n)
-        return sci_error_set(err, -EINVAL, "pnp-ffdnet: iters must be at least one per sigma_rgb stage (%d)",
-                             p->sigma_rgb.n);
+
     if (p->threads < 0 || p->threads > 1024 || p->metrics_every < 0 || p->ssim_every < 0)
         return sci_error_set(err, -EINVAL, "pnp-ffdnet: threads and metrics intervals must be >= 0");
     return 0;
@@ -186,6 +184,9 @@ static int solve(const sci_problem *problem, const sci_pnp_params *params, int c
     if (rc == 0 && colour && (problem->mask->w % 2 || problem->mask->h % 2))
         rc = sci_error_set(err, SCI_ESHAPE, "pnp-ffdnet: %s: a Bayer mosaic must have even sizes (%dx%d)",
                            problem->name, problem->mask->w, problem->mask->h);
+    if (rc == 0 && colour && params->iters < params->sigma_rgb.n)
+        rc = sci_error_set(err, -EINVAL, "pnp-ffdnet: a Bayer problem needs iters >= one per sigma_rgb stage (%d)",
+                           params->sigma_rgb.n);
     if (rc == 0)
         rc = sci_pnp_weights_path(params, colour, path, sizeof path, err);
     if (rc < 0)
@@ -348,7 +349,7 @@ static int pnp_run(const sci_problem *p, const void *s, const solver_io *io, sci
 }
 
 /* The bench grid: whole σ stages of about ten iterations, then the presets. */
-static const char *const pnp_bench_quick[] = {"{\"iters\":10,\"sigma\":[50]}", NULL};
+static const char *const pnp_bench_quick[] = {"{\"iters\":5,\"sigma\":[50]}", NULL};
 static const char *const pnp_bench_full[] = {"{\"iters\":10,\"sigma\":[50]}", "{\"iters\":20,\"sigma\":[50,25]}",
                                              "{\"preset\":\"fast\"}", "{\"preset\":\"balanced\"}",
                                              "{\"preset\":\"best\"}", NULL};

@@ -179,7 +179,8 @@ static void names_list(char *buf, size_t n, const char *const *names)
         off += (size_t)snprintf(buf + off, n - off, "%s%s", i ? ", " : "", names[i]);
 }
 
-/* A LIST value: a JSON array of numbers, or a string of numbers separated by commas (--set sigma=50,25,12). */
+/* A LIST value: a JSON array of numbers, or a string of numbers separated by commas, spaces or slashes
+ * (--set sigma=50,25,12; bench/results.csv's setting column writes 50/25/12). */
 static int list_set(const solver_ops *m, const solver_field *f, solver_values *out, const json_t *v,
                     const sci_json_doc *doc, const char *path, const char *got, sci_error *err)
 {
@@ -204,7 +205,7 @@ static int list_set(const solver_ops *m, const solver_field *f, solver_values *o
             if (ok)
                 l.v[l.n++] = d;
             p = end;
-            while (ok && (*p == ',' || *p == ' '))
+            while (ok && (*p == ',' || *p == ' ' || *p == '/'))
                 p++;
         }
         ok = ok && l.n >= 1;

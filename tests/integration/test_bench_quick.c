@@ -14,6 +14,8 @@
 #include <errno.h>
 
 #include "io/curves.h"
+#include "recon/pnp_ffdnet.h"
+#include "recon/solver.h"
 
 static void test_quick_report(void **state)
 {
@@ -66,7 +68,7 @@ static void test_quick_report(void **state)
     fclose(f);
     printf("%d points, %d on fronts, %d scene/method pairs\n", rows, fronts, nk);
     assert_true(rows >= 8);
-    assert_true(nk >= 6); /* gap-tv and admm-tv on both scenes, rayformer and scinerf on static3d */
+    assert_true(nk >= 6); /* the classical methods on every scene, rayformer and scinerf on static3d */
     for (int k = 0; k < nk; k++)
         if (rec[k] != 1)
             fail_msg("%s has %d recommended settings, expected exactly 1", keys[k], rec[k]);
@@ -95,6 +97,15 @@ static void test_quick_report(void **state)
     assert_non_null(js);
     assert_string_equal(json_string_value(json_object_get(js, "preset")), "fast");
     assert_int_equal(json_integer_value(json_object_get(js, "iters")), 20);
+    json_decref(js);
+    /* a list setting is written 50/25 (no comma in a CSV column) and reads back as the list */
+    js = sci_curves_setting_json("iters=10 sigma=50/25");
+    const solver_ops *pnp = solver_find("pnp-ffdnet");
+    void *ps = solver_settings_new(pnp);
+    assert_int_equal(solver_settings_from_json(pnp, ps, js, NULL, "setting", &err), 0);
+    assert_int_equal(((const sci_pnp_params *)ps)->sigma.n, 2);
+    assert_true(((const sci_pnp_params *)ps)->sigma.v[1] == 25);
+    solver_settings_free(ps);
     json_decref(js);
     assert_null(sci_curves_setting_json("iters="));
     assert_null(sci_curves_setting_json("=5"));
