@@ -33,9 +33,8 @@ int sci_pnp_params_check(const sci_pnp_params *p, sci_error *err)
     if (p->sigma.n < 1 || p->sigma.n > SOLVER_LIST_MAX)
         return sci_error_set(err, -EINVAL, "pnp-ffdnet: sigma needs 1 to %d stages (has %d)", SOLVER_LIST_MAX,
                              p->sigma.n);
-    if (p->iters < p->sigma.n || p->iters > 1000000)
-        return sci_error_set(err, -EINVAL, "pnp-ffdnet: iters must be in [%d (one per sigma stage), 1e6] (got %d)",
-                             p->sigma.n, p->iters);
+    if (p->iters < 1 || p->iters > 1000000)
+        return sci_error_set(err, -EINVAL, "pnp-ffdnet: iters must be in [1, 1e6] (got %d)", p->iters);
     for (int i = 0; i < p->sigma.n; i++)
         if (!(p->sigma.v[i] > 0 && p->sigma.v[i] <= 255))
             return sci_error_set(err, -EINVAL, "pnp-ffdnet: sigma[%d] must be in (0, 255] (got %g)", i,
@@ -184,9 +183,10 @@ static int solve(const sci_problem *problem, const sci_pnp_params *params, int c
     if (rc == 0 && colour && (problem->mask->w % 2 || problem->mask->h % 2))
         rc = sci_error_set(err, SCI_ESHAPE, "pnp-ffdnet: %s: a Bayer mosaic must have even sizes (%dx%d)",
                            problem->name, problem->mask->w, problem->mask->h);
-    if (rc == 0 && colour && params->iters < params->sigma_rgb.n)
-        rc = sci_error_set(err, -EINVAL, "pnp-ffdnet: a Bayer problem needs iters >= one per sigma_rgb stage (%d)",
-                           params->sigma_rgb.n);
+    const solver_values *stages = colour ? &params->sigma_rgb : &params->sigma;
+    if (rc == 0 && params->iters < stages->n)
+        rc = sci_error_set(err, -EINVAL, "pnp-ffdnet: iters (%d) must be at least one per %s stage (%d)",
+                           params->iters, colour ? "sigma_rgb" : "sigma", stages->n);
     if (rc == 0)
         rc = sci_pnp_weights_path(params, colour, path, sizeof path, err);
     if (rc < 0)

@@ -1,7 +1,8 @@
 /* recon/pnp_ffdnet: PnP-FFDNet through the solver table. drop40 snapshot 1 reaches the PyTorch reference's 39.57 dB
  * (≥ 39.5, peak = frame max); ADMM runs; the colour route beats GAP-TV per plane on the colour scene; missing or
  * wrong weights and bad settings are refused with messages. Under AddressSanitizer (≈ 10× slower) the quality cases
- * run on fewer iterations and assert only that the estimate improves on GAP-TV's starting level, and say so. */
+ * run on fewer iterations (one σ stage) and assert less: drop40 above GAP-TV at the same iterations, the colour
+ * route finite and above 10 dB; each says so when it runs. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -89,7 +90,8 @@ static void test_drop40_reaches_reference(void **state)
         assert_int_equal(sci_gaptv_solve(p[0], &g, &r, NULL, NULL), 0);
         const double tv = r.trace.e[r.trace.len - 1].psnr;
         sci_result_free_contents(&r);
-        assert_true(run(p[0], "{\"iters\":4}", NULL) > tv);
+        /* one σ stage of 4 iterations: 7.8 dB at -O3, GAP-TV's 4 iterations ≈ 6 dB */
+        assert_true(run(p[0], "{\"iters\":4,\"sigma\":[50]}", NULL) > tv);
     }
     sci_problem_array_free(p, k);
 }
@@ -117,7 +119,9 @@ static void test_colour_beats_gaptv(void **state)
 
     sci_pnp_params q;
     sci_pnp_params_default(&q);
-    q.iters = SANITIZED ? 3 : 40;
+    q.iters = SANITIZED ? 2 : 40;
+    if (SANITIZED)
+        q.sigma = q.sigma_rgb = (solver_values){1, {50}};
     q.tv_init = SANITIZED ? 5 : -1;
     q.metrics_every = q.ssim_every = 0;
     sci_result r = {0};
@@ -136,7 +140,7 @@ static void test_colour_beats_gaptv(void **state)
     assert_int_equal(sci_bayer_solve(p, SCI_CFA_RGGB, SCI_DEMOSAIC_MHC, tv_plane, &g, &tv_rgb, &raw, planes, &err), 0);
     const double tv = sci_psnr_rgb(tv_rgb, truth, SCI_PEAK_FRAME_MAX, 0, NULL);
     printf("  colour scene, RGB PSNR (peak = frame max): pnp-ffdnet %.2f dB, GAP-TV per plane %.2f dB%s\n", pnp, tv,
-           SANITIZED ? " (AddressSanitizer build: 3 iterations against 5)" : "");
+           SANITIZED ? " (AddressSanitizer build: 2 iterations against 5)" : "");
     if (SANITIZED)
         assert_true(isfinite(pnp) && pnp > 10);
     else
@@ -182,9 +186,19 @@ static void test_bad_weights_and_settings(void **state)
     assert_non_null(strstr(r.error.msg, "colour FFDNet"));
     sci_result_free_contents(&r);
 
+    /* fewer iterations than σ stages: refused when the run starts */
+    j = json_pack("{s:s,s:i,s:[iii]}", "weights", "", "iters", 2, "sigma", 50, 25, 12);
+    assert_int_equal(solver_settings_from_json(m, s, j, NULL, "params", &err), 0);
+    json_decref(j);
+    r = (sci_result){0};
+    assert_true(solver_run(m, p[0], s, NULL, &r) < 0);
+    printf("  %s\n", r.error.msg);
+    assert_non_null(strstr(r.error.msg, "at least one per sigma stage"));
+    sci_result_free_contents(&r);
+
     /* σ lists: a string or an array, values in (0, 255], no more stages than iterations */
     const char *bad[] = {"{\"sigma\":[]}", "{\"sigma\":[50,300]}", "{\"sigma\":\"50,x\"}", "{\"sigma\":[1,2,3,4,5,6,7,8,9]}",
-                         "{\"iters\":2,\"sigma\":[50,25,12]}", "{\"weights\":5}", "{\"projection\":\"pgd\"}"};
+                         "{\"iters\":0}", "{\"weights\":5}", "{\"projection\":\"pgd\"}"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         j = json_loads(bad[i], 0, NULL);
         err = (sci_error){0};
