@@ -30,9 +30,9 @@ void sci_pnp_params_default(sci_pnp_params *p)
 
 int sci_pnp_params_check(const sci_pnp_params *p, sci_error *err)
 {
-    if (p->sigma.n < 1 || p->sigma.n > SOLVER_LIST_MAX)
-        return sci_error_set(err, -EINVAL, "pnp-ffdnet: sigma needs 1 to %d stages (has %d)", SOLVER_LIST_MAX,
-                             p->sigma.n);
+    if (p->sigma.n < 1 || p->sigma.n > SOLVER_LIST_MAX || p->sigma_rgb.n < 1 || p->sigma_rgb.n > SOLVER_LIST_MAX)
+        return sci_error_set(err, -EINVAL, "pnp-ffdnet: sigma and sigma_rgb need 1 to %d stages (have %d, %d)",
+                             SOLVER_LIST_MAX, p->sigma.n, p->sigma_rgb.n);
     if (p->iters < 1 || p->iters > 1000000)
         return sci_error_set(err, -EINVAL, "pnp-ffdnet: iters must be in [1, 1e6] (got %d)", p->iters);
     for (int i = 0; i < p->sigma.n; i++)
@@ -51,7 +51,6 @@ int sci_pnp_params_check(const sci_pnp_params *p, sci_error *err)
         if (!(p->sigma_rgb.v[i] > 0 && p->sigma_rgb.v[i] <= 255))
             return sci_error_set(err, -EINVAL, "pnp-ffdnet: sigma_rgb[%d] must be in (0, 255] (got %g)", i,
                                  p->sigma_rgb.v[i]);
-
     if (p->threads < 0 || p->threads > 1024 || p->metrics_every < 0 || p->ssim_every < 0)
         return sci_error_set(err, -EINVAL, "pnp-ffdnet: threads and metrics intervals must be >= 0");
     return 0;
