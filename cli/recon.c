@@ -100,12 +100,18 @@ static void usage(FILE *f)
             "              --mask-var NAME    the masks' variable (default mask): H×W×N shared, H×W×N×k per snapshot\n"
             "              --meas-var NAME    the measurements' variable (default meas), H×W×k\n"
             "              --truth-var NAME   the truth's variable (default orig, optional), H×W×(k·N)\n"
-            "              --scale auto|N     the value of white in the file (default 255); meas and truth are\n"
-            "                                 divided by it; auto reads the data's range and says what it chose\n"
+            "              --frames N         use the first N mask frames (the capture's compression ratio, when\n"
+            "                                 the mask sequence is longer)\n"
+            "              --scale auto|N     the value of white in meas and truth (default auto: from the truth's\n"
+            "                                 range, else from meas over the sum of masks; the line printed says)\n"
+            "              --mask-scale auto|N  the value of a fully open mask pixel (default auto: the masks'\n"
+            "                                 maximum when above 1, so measured grey masks land on [0, 1])\n"
             "  colour:      --cfa PATTERN      RGGB, BGGR, GRBG or GBRG: the Bayer pattern of a raw mosaic input (a\n"
             "                                 colour folder from 'scicap sim' names its own); none: treat it as grey\n"
             "              --demosaic M       mhc (default, Malvar-He-Cutler) or bilinear, after the 4 CFA planes\n"
             "                                 are solved; writes rgb_NNN.exr, colour preview_rgb_NNN.png, RGB PSNR\n"
+            "      --preview-range fixed|auto  previews on [0, white] (default) or auto-contrast to the frames'\n"
+            "                         99.5th percentile (stated in result.json and each PNG's description)\n"
             "      --metrics-every K  PSNR against truth in the trace every K iterations (default 1)\n"
             "      --ssim-every K     SSIM in the trace every K iterations (default 10; 0 = last only)\n"
             "  -j, --threads N        OpenMP threads (default: all cores)\n"
@@ -288,6 +294,32 @@ static void print_metrics(const sci_problem *p, const sci_result *r)
     free(v);
 }
 
+/* The frames' levels against white, and a warning when the scale looks wrong (io/recon_store.h). */
+static void print_levels(const sci_problem *p, const sci_result *r)
+{
+    double p1, p99;
+    char warn[320];
+    int bad = sci_recon_levels(p, r->frames, &p1, &p99, warn, sizeof warn);
+    printf("  frames: 1st percentile %.3f, 99th %.3f of white\n", p1, p99);
+    if (bad)
+        fprintf(stderr, "scicap recon: WARNING: %s\n", warn);
+}
+
+/* result.json's "input": how a .mat was read (scales and frames, what was inferred, any warning); NULL for a
+ * problem folder, which states its own. */
+static json_t *input_json(const sci_mat_info *mi)
+{
+    if (!(mi->white > 0))
+        return NULL;
+    json_t *in = json_pack("{s:f, s:f, s:f, s:i, s:i}", "white", mi->white, "meas_white", mi->meas_white,
+                           "mask_white", mi->mask_white, "frames", mi->frames, "mask_frames", mi->mask_frames);
+    if (mi->how[0])
+        json_object_set_new(in, "inferred", json_string(mi->how));
+    if (mi->warning[0])
+        json_object_set_new(in, "warnings", json_pack("[s]", mi->warning));
+    return json_pack("{s:o}", "input", in);
+}
+
 int cli_recon_main(int argc, char **argv)
 {
     /* `scicap recon --capture ID` asks the daemon to reconstruct one of its captures. */
@@ -303,12 +335,12 @@ int cli_recon_main(int argc, char **argv)
     int nf_prior_steps = -1, nf_zero_gates = -1, nf_sh = 0, plain = 0;
     double gamma = NAN;
     const char *out = NULL;
-    int force = 0, snapshot = 0, threads = 0, iters = -1, tv_iters = -1, metrics_every = -1, ssim_every = -1;
+    int force = 0, preview_auto = 0, snapshot = 0, threads = 0, iters = -1, tv_iters = -1, metrics_every = -1, ssim_every = -1;
     double lambda = NAN, tv_weight = NAN;
     enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET,
            OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME, OPT_NET_LR, OPT_SPACING, OPT_DIST, OPT_PRIOR_STEPS,
            OPT_PRIOR_W, OPT_DBIAS, OPT_ZERO_GATES, OPT_SH, OPT_MASK, OPT_MASK_VAR, OPT_MEAS_VAR, OPT_TRUTH_VAR,
-           OPT_SCALE, OPT_CFA, OPT_DEMOSAIC, OPT_ALLOW_LARGE, OPT_SET };
+           OPT_SCALE, OPT_CFA, OPT_DEMOSAIC, OPT_ALLOW_LARGE, OPT_SET, OPT_FRAMES, OPT_MASK_SCALE, OPT_PREVIEW };
     const char *set_kv[32]; /* --set KEY=VALUE, applied after every named option */
     int n_set = 0;
     const char *cfa_opt = NULL;
@@ -337,7 +369,8 @@ int cli_recon_main(int argc, char **argv)
         {"sh-degree", required_argument, 0, OPT_SH},
         {"mask", required_argument, 0, OPT_MASK}, {"mask-var", required_argument, 0, OPT_MASK_VAR},
         {"meas-var", required_argument, 0, OPT_MEAS_VAR}, {"truth-var", required_argument, 0, OPT_TRUTH_VAR},
-        {"scale", required_argument, 0, OPT_SCALE},
+        {"scale", required_argument, 0, OPT_SCALE}, {"frames", required_argument, 0, OPT_FRAMES},
+        {"mask-scale", required_argument, 0, OPT_MASK_SCALE}, {"preview-range", required_argument, 0, OPT_PREVIEW},
         {"cfa", required_argument, 0, OPT_CFA}, {"demosaic", required_argument, 0, OPT_DEMOSAIC},
         {"allow-large", no_argument, 0, OPT_ALLOW_LARGE}, {"set", required_argument, 0, OPT_SET},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
@@ -433,6 +466,24 @@ int cli_recon_main(int argc, char **argv)
             else if ((bad = parse_double(optarg, "--scale", &mo.white)) == 0 && !(mo.white > 0)) {
                 fprintf(stderr, "scicap recon: --scale wants auto or a number > 0 (the value of white), got '%s'\n",
                         optarg);
+                bad = -1;
+            }
+            break;
+        case OPT_FRAMES: bad = parse_int(optarg, "--frames", 1, 1 << 16, &mo.frames); break;
+        case OPT_MASK_SCALE:
+            if (strcmp(optarg, "auto") == 0)
+                mo.mask_white = 0;
+            else if ((bad = parse_double(optarg, "--mask-scale", &mo.mask_white)) == 0 && !(mo.mask_white > 0)) {
+                fprintf(stderr, "scicap recon: --mask-scale wants auto or a number > 0 (a fully open mask pixel), "
+                                "got '%s'\n", optarg);
+                bad = -1;
+            }
+            break;
+        case OPT_PREVIEW:
+            if (strcmp(optarg, "auto") == 0 || strcmp(optarg, "fixed") == 0)
+                preview_auto = optarg[0] == 'a';
+            else {
+                fprintf(stderr, "scicap recon: --preview-range wants fixed or auto, got '%s'\n", optarg);
                 bad = -1;
             }
             break;
@@ -594,8 +645,10 @@ int cli_recon_main(int argc, char **argv)
         fprintf(stderr, "scicap recon: %s\n", err.msg);
         return rrc == -EINVAL ? 2 : 1;
     }
-    if (mo.white == SCI_MAT_WHITE_AUTO)
-        fprintf(stderr, "scicap recon: --scale auto: %s; values divided by %g\n", minfo.how, minfo.white);
+    if (minfo.how[0])
+        fprintf(stderr, "scicap recon: scale: %s (override with --scale / --mask-scale)\n", minfo.how);
+    if (minfo.warning[0])
+        fprintf(stderr, "scicap recon: WARNING: %s\n", minfo.warning);
     /* Colour: a folder from a colour scene names its CFA and keeps the RGB truth; --cfa overrides (none: grey). */
     int cfa_i = SCI_CFA_NONE, kc = 0;
     sci_cube **truth_rgb = NULL;
@@ -652,7 +705,7 @@ int cli_recon_main(int argc, char **argv)
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, &old_int);
     sigaction(SIGTERM, &sa, &old_term);
-    json_t *params = params_json(&o, resume_blob != NULL);
+    json_t *params = params_json(&o, resume_blob != NULL), *input_info = input_json(&minfo);
     /* Several snapshots: all of them go into OUTDIR.tmp-PID, renamed to OUTDIR once the last is written (one alone
      * is staged by the store itself). Nothing is published on failure or on a signal. */
     char stage[4096] = "";
@@ -679,7 +732,8 @@ int cli_recon_main(int argc, char **argv)
             snprintf(dir, sizeof dir, "%s/snap_%03d", stage, j + 1);
         if (cfa != SCI_CFA_NONE) {
             const cli_color_job job = {.cfa = cfa, .demosaic = demosaic, .method = o.method, .settings = o.settings,
-                                       .params = params, .quiet = o.quiet, .stop = &stop_requested};
+                                       .params = params, .quiet = o.quiet, .preview_auto = preview_auto,
+                                       .extra = input_info, .stop = &stop_requested};
             int crc = cli_recon_color(&job, p, truth_rgb && j < kc ? truth_rgb[j] : NULL, dir, force, &err);
             if (crc == SCI_ECANCELED || stop_requested) {
                 fprintf(stderr, "scicap recon: interrupted; %s not written\n", out);
@@ -717,9 +771,12 @@ int cli_recon_main(int argc, char **argv)
         double solver_s = r.trace.len ? r.trace.e[r.trace.len - 1].wall_s : secs;
         printf("  %d iterations in %.3f s solver time (%.3f s with trace metrics), final residual %.3g\n",
                r.iters_done, solver_s, secs, r.trace.len ? r.trace.e[r.trace.len - 1].residual : NAN);
+        print_levels(p, &r);
         if (p->truth)
             print_metrics(p, &r);
-        int wrc = sci_recon_store_write_opt(dir, p, &r, params, first == last ? force : 0, &stop_requested, &err);
+        const sci_recon_store_opts so = {.extra = input_info, .stop = &stop_requested, .preview_auto = preview_auto,
+                                         .flags = first == last && force ? SCI_STAGING_OVERWRITE : 0};
+        int wrc = sci_recon_store_write_with(dir, p, &r, params, &so, &err);
         if (wrc == SCI_ECANCELED) {
             fprintf(stderr, "scicap recon: interrupted while writing; %s not written\n", out);
             status = 1;
@@ -748,6 +805,7 @@ int cli_recon_main(int argc, char **argv)
     if (ckpt_path && ck.written && status == 0)
         printf("  checkpoint of step %d in %s\n", ck.iter, ckpt_path);
     json_decref(params);
+    json_decref(input_info);
     for (int j = 0; truth_rgb && j < kc; j++)
         sci_cube_free(truth_rgb[j]);
     free(truth_rgb);

@@ -49,28 +49,28 @@ static int solve_whole(const cli_color_job *job, const sci_problem *p, sci_resul
     return rc;
 }
 
-/* The four planes' traces one after another, wall and CPU time accumulated: what the colour result cost. */
+/* The four planes' traces one after another, each row naming its plane (iterations count from 1 in each; a
+ * plane's metrics are its own), wall and CPU time accumulated: what the colour result cost. */
 static int join_traces(const sci_result res[4], sci_trace *out)
 {
     double wall = 0, cpu = 0;
-    int iter = 0;
     for (int i = 0; i < 4; i++) {
         double w_end = 0, c_end = 0;
         for (size_t e = 0; e < res[i].trace.len; e++) {
             sci_trace_entry t = res[i].trace.e[e];
             w_end = t.wall_s, c_end = t.cpu_s;
             t.wall_s += wall, t.cpu_s += cpu;
-            t.iter += iter;
+            t.plane = i + 1;
             if (sci_trace_push(out, &t) < 0)
                 return -ENOMEM;
         }
         wall += w_end, cpu += c_end;
-        iter += res[i].iters_done;
     }
     return 0;
 }
 
-/* Add the colour record to dir/result.json (atomically: a temporary file renamed over it). */
+/* Add the colour record to dir/result.json (atomically: a temporary file renamed over it). With an RGB truth the
+ * top-level PSNR is the RGB one (what the user sees); the raw mosaic's metrics move under "mosaic". */
 static int add_color_record(const char *dir, json_t *color, sci_error *err)
 {
     char path[4200], tmp[4300];
@@ -81,6 +81,18 @@ static int add_color_record(const char *dir, json_t *color, sci_error *err)
     if (!j)
         return sci_error_set(err, SCI_EFORMAT, "%s: %s", path, je.text);
     json_object_set(j, "color", color);
+    if (json_object_get(color, "psnr_rgb_frame_max_db")) {
+        static const char *const keys[] = {"psnr_frame_max_db", "psnr_peak1_db", "ssim"};
+        json_t *mosaic = json_object();
+        for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
+            if (json_object_get(j, keys[i])) {
+                json_object_set(mosaic, keys[i], json_object_get(j, keys[i]));
+                json_object_del(j, keys[i]);
+            }
+        json_object_set_new(j, "mosaic", mosaic);
+        json_object_set(j, "psnr_frame_max_db", json_object_get(color, "psnr_rgb_frame_max_db"));
+        json_object_set(j, "psnr_peak1_db", json_object_get(color, "psnr_rgb_peak1_db"));
+    }
     int rc = json_dump_file(j, tmp, JSON_INDENT(2)) == 0 && rename(tmp, path) == 0
                  ? 0
                  : sci_error_set(err, -EIO, "%s: cannot write", path);
@@ -166,7 +178,8 @@ int cli_recon_color(const cli_color_job *job, const sci_problem *p, const sci_cu
         rc = sci_error_set(err, -ENAMETOOLONG, "%s: name too long", dir);
         goto out;
     }
-    if ((rc = sci_recon_store_write_opt(stage, p, &r, job->params, 0, job->stop, err)) < 0)
+    const sci_recon_store_opts so = {.extra = job->extra, .stop = job->stop, .preview_auto = job->preview_auto};
+    if ((rc = sci_recon_store_write_with(stage, p, &r, job->params, &so, err)) < 0)
         goto out;
     for (int f = 0; f < n && rc == 0; f++) {
         char path[4200];

@@ -19,6 +19,8 @@ typedef struct cli_color_job {
     const void *settings;               /* the method's settings (borrowed) */
     const json_t *params;               /* the run's parameters for result.json (borrowed) */
     int quiet;
+    int preview_auto;                   /* previews auto-contrast (io/recon_store.h) */
+    const json_t *extra;                /* added to result.json (borrowed, may be NULL): the input's scales */
     const volatile sig_atomic_t *stop;  /* set by a signal: stop (SCI_ECANCELED) */
 } cli_color_job;
 

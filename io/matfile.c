@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <math.h>
 #include <matio.h>
+#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -196,44 +197,148 @@ static double var_max(const matvar_t *v, const size_t d[4])
     return m;
 }
 
-/* Largest y / Σ_f M_f over the pixels where the masks let at least half their largest total through (the
- * noisier few-open pixels would overstate it). For each snapshot j the masks are mask frames mf0 + N·j·per. */
-static double meas_range(const matvar_t *mask, const size_t dm[4], const matvar_t *meas, const size_t dy[4], int n,
-                         int per_snapshot)
+/* Where the masks of snapshot j, frame f are in the mask variable: each set holds `nset` frames, of which the
+ * first n are used. */
+typedef struct mask_layout {
+    size_t px;  /* pixels per frame */
+    int nset;   /* frames per set in the variable */
+    int n;      /* frames used */
+    int per;    /* one set per snapshot */
+    double mw;  /* the masks' white level */
+} mask_layout;
+
+static double mask_at(const matvar_t *mask, const mask_layout *L, size_t j, int f, size_t i)
 {
-    const size_t px = dm[0] * dm[1];
-    double best = 0;
-    double *phi = malloc(px * sizeof *phi);
-    if (!phi)
-        return NAN;
-    for (size_t j = 0; j < dy[2]; j++) {
-        if (j == 0 || per_snapshot) {
-            double pmax = 0;
-            for (size_t i = 0; i < px; i++) {
-                double acc = 0;
-                for (int f = 0; f < n; f++)
-                    acc += mat_elem(mask, i + px * ((per_snapshot ? j * n : 0) + f));
-                phi[i] = acc;
-                pmax = acc > pmax ? acc : pmax;
-            }
-            for (size_t i = 0; i < px; i++)
-                phi[i] = phi[i] >= 0.5 * pmax && pmax > 0 ? phi[i] : 0;
-        }
-        for (size_t i = 0; i < px; i++)
-            if (phi[i] > 0) {
-                double r = mat_elem(meas, i + px * j) / phi[i];
-                best = r > best ? r : best;
-            }
+    return mat_elem(mask, i + L->px * ((L->per ? j * (size_t)L->nset : 0) + (size_t)f)) / L->mw;
+}
+
+/* Σ_f M̂_f over the n frames used, for snapshot j, into phi (px values); returns its maximum. */
+static double mask_sum(const matvar_t *mask, const mask_layout *L, size_t j, double *phi)
+{
+    double pmax = 0;
+    for (size_t i = 0; i < L->px; i++) {
+        double acc = 0;
+        for (int f = 0; f < L->n; f++)
+            acc += mask_at(mask, L, j, f, i);
+        phi[i] = acc;
+        pmax = acc > pmax ? acc : pmax;
+    }
+    return pmax;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* The 99.9th percentile of y / Σ_f M̂_f over the pixels where the masks let at least half their largest total
+ * through (the few-open pixels are noisy), over the first 8 snapshots: how bright the frames are, in meas units
+ * (a weighted mean of the frames at a pixel, so at most their maximum). NAN when nothing is lit. */
+static double meas_range(const matvar_t *mask, const mask_layout *L, const matvar_t *meas, size_t nsnap)
+{
+    const size_t ns = nsnap < 8 ? nsnap : 8;
+    double *phi = malloc(L->px * sizeof *phi), *r = malloc(L->px * ns * sizeof *r);
+    size_t nr = 0;
+    double pmax = 0;
+    for (size_t j = 0; phi && r && j < ns; j++) {
+        if (j == 0 || L->per)
+            pmax = mask_sum(mask, L, j, phi);
+        for (size_t i = 0; i < L->px; i++)
+            if (pmax > 0 && phi[i] >= 0.5 * pmax)
+                r[nr++] = mat_elem(meas, i + L->px * j) / phi[i];
+    }
+    double v = NAN;
+    if (nr) {
+        qsort(r, nr, sizeof *r, cmp_double);
+        v = r[(size_t)(0.999 * (double)(nr - 1))];
     }
     free(phi);
+    free(r);
+    return v;
+}
+
+/* The least-squares gain ρ of meas against A(truth) (masks normalised, both in file units), over the first 8
+ * snapshots that have a truth: 1 when the measurement is what the truth and masks make. NAN if undefined. */
+static double meas_gain(const matvar_t *mask, const mask_layout *L, const matvar_t *meas, size_t nsnap,
+                        const matvar_t *orig, size_t truth_frames)
+{
+    double num = 0, den = 0;
+    for (size_t j = 0; j < nsnap && j < 8 && truth_frames >= (size_t)L->n * (j + 1); j++)
+        for (size_t i = 0; i < L->px; i++) {
+            double ax = 0;
+            for (int f = 0; f < L->n; f++)
+                ax += mask_at(mask, L, j, f, i) * mat_elem(orig, i + L->px * ((size_t)L->n * j + (size_t)f));
+            num += ax * mat_elem(meas, i + L->px * j);
+            den += ax * ax;
+        }
+    return den > 0 ? num / den : NAN;
+}
+
+/* The high-pass (4-neighbour Laplacian) of an h×w image at its interior pixels, into hp; returns the count. */
+static size_t laplacian(const double *img, size_t h, size_t w, double *hp)
+{
+    size_t m = 0;
+    for (size_t x = 1; x + 1 < w; x++)
+        for (size_t y = 1; y + 1 < h; y++) {
+            size_t i = y + h * x;
+            hp[m++] = 4 * img[i] - img[i - 1] - img[i + 1] - img[i - h] - img[i + h];
+        }
+    return m;
+}
+
+static double correlation(const double *a, const double *b, size_t m)
+{
+    double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+    for (size_t i = 0; i < m; i++)
+        sa += a[i], sb += b[i], saa += a[i] * a[i], sbb += b[i] * b[i], sab += a[i] * b[i];
+    double va = saa - sa * sa / (double)m, vb = sbb - sb * sb / (double)m;
+    return va > 0 && vb > 0 ? (sab - sa * sb / (double)m) / sqrt(va * vb) : 0;
+}
+
+/* How many of the first mask frames the first snapshot's measurement was made with: a coded snapshot carries the
+ * masks' pixel pattern, so its high-pass correlates best with the high-pass of the sum of the masks actually
+ * shown (more frames add patterns it lacks, fewer miss some). Returns that count and its correlation in *best_c,
+ * and the correlation of the count in use in *used_c; 0 when it cannot tell (one frame, or a tiny image). */
+static int frames_guess(const matvar_t *mask, const mask_layout *L, const matvar_t *meas, size_t h, size_t w,
+                        double *best_c, double *used_c)
+{
+    *best_c = *used_c = 0;
+    if (L->nset < 2 || h < 8 || w < 8)
+        return 0;
+    double *phi = calloc(L->px, sizeof *phi), *img = malloc(L->px * sizeof *img);
+    double *hy = malloc(L->px * sizeof *hy), *hp = malloc(L->px * sizeof *hp);
+    int best = 0;
+    if (phi && img && hy && hp) {
+        for (size_t i = 0; i < L->px; i++)
+            img[i] = mat_elem(meas, i);
+        size_t m = laplacian(img, h, w, hy);
+        mask_layout all = *L;
+        all.n = L->nset;
+        for (int f = 0; f < L->nset; f++) {
+            for (size_t i = 0; i < L->px; i++)
+                phi[i] += mask_at(mask, &all, 0, f, i);
+            laplacian(phi, h, w, hp);
+            double c = correlation(hy, hp, m);
+            if (c > *best_c)
+                *best_c = c, best = f + 1;
+            if (f + 1 == L->n)
+                *used_c = c;
+        }
+    }
+    free(phi);
+    free(img);
+    free(hy);
+    free(hp);
     return best;
 }
 
-/* The white level for a data maximum: the nearest usual full scale at or above it. The 5 % margin on 1 lets noise
- * on [0, 1] data stay [0, 1]; a 0–255 image whose brightest value is 1.05 counts does not occur in practice. */
+/* The white level for a data maximum: the nearest usual full scale at or above it. Data up to 1.5 count as
+ * [0, 1] (noise and a slight overshoot of calibrated data): a 0–255 image whose brightest value is 1.5 counts would
+ * be black whatever is chosen. */
 static double white_for(double range)
 {
-    if (range <= 1.05)
+    if (range <= 1.5)
         return 1;
     static const double levels[] = {255, 1023, 4095, 65535};
     for (size_t i = 0; i < sizeof levels / sizeof levels[0]; i++)
@@ -318,15 +423,117 @@ int sci_mat_probe(const char *path, const sci_mat_options *opts, long long *w, l
         rc = missing_var(msrc, o->mask_path ? o->mask_path : path, mask_name, MASK_OPTION(o->mask_path), err);
     else if (probe_open(mat, msrc, path, mask_name, meas_name, o->truth_var ? o->truth_var : "orig", w, h, n, k) < 0)
         rc = sci_error_set(err, SCI_EFORMAT, "%s: variable '%s' or '%s' is unreadable", path, meas_name, mask_name);
+    else if (o->frames > 0 && o->frames < *n)
+        *n = o->frames;
     if (mmat)
         Mat_Close(mmat);
     Mat_Close(mat);
     return rc;
 }
 
-/* The common reader: values divided by `divisor`, problems' peak set to `peak` (auto: divisor chosen here). */
-static int mat_read(const char *path, const sci_mat_options *o, double divisor, double peak, sci_problem ***out,
-                    int *k, sci_mat_info *info, sci_error *err)
+/* 1 when every value of v is a whole number. */
+static int var_integral(const matvar_t *v, const size_t d[4])
+{
+    const size_t total = d[0] * d[1] * d[2];
+    for (size_t i = 0; i < total; i++) {
+        double x = mat_elem(v, i);
+        if (x != floor(x))
+            return 0;
+    }
+    return 1;
+}
+
+/* x rounded up to two significant digits (97.7 → 98, 122.2 → 130). */
+static double round_up2(double x)
+{
+    if (!(x > 0))
+        return x;
+    double e = pow(10, floor(log10(x)) - 1);
+    return ceil(x / e - 1e-9) * e;
+}
+
+/* Append a sentence to info->how ("; " between). */
+static void how_add(sci_mat_info *info, const char *fmt, ...)
+{
+    size_t l = strlen(info->how);
+    if (l && l + 2 < sizeof info->how)
+        l += (size_t)snprintf(info->how + l, sizeof info->how - l, "; ");
+    va_list ap;
+    va_start(ap, fmt);
+    if (l < sizeof info->how)
+        vsnprintf(info->how + l, sizeof info->how - l, fmt, ap);
+    va_end(ap);
+}
+
+/* The masks' white level, meas's and truth's (io/matfile.h, Scales), into L->mw and info; `legacy` > 0 fixes meas
+ * and truth to it and the masks to 1. Also the warning when the measurement matches fewer mask frames. */
+static int infer_scales(const sci_mat_options *o, double legacy, const matvar_t *mask, const size_t dm[4],
+                        const matvar_t *meas, const size_t dy[4], const matvar_t *orig, const size_t dt[4],
+                        mask_layout *L, const char *mask_name, const char *meas_name, const char *truth_name,
+                        sci_mat_info *info, const char *path, sci_error *err)
+{
+    if (legacy > 0) {
+        info->white = info->meas_white = legacy;
+        info->mask_white = L->mw = 1;
+        return 0;
+    }
+    if (o->mask_white > 0) {
+        L->mw = o->mask_white;
+    } else {
+        double mmax = var_max(mask, dm);
+        L->mw = mmax > 1.0001 ? mmax : 1;
+        if (L->mw != 1)
+            how_add(info, "masks '%s' peak at %g, divided by it", mask_name, mmax);
+    }
+    info->mask_white = L->mw;
+    double guess_c, used_c;
+    int guess = frames_guess(mask, L, meas, dm[0], dm[1], &guess_c, &used_c);
+    if (guess && guess != L->n && guess_c > 0.2 && used_c < 0.8 * guess_c)
+        snprintf(info->warning, sizeof info->warning,
+                 "the measurement matches the first %d of the %d mask frames best (high-pass correlation %.2f, "
+                 "against %.2f for the %d in use): if the capture's compression ratio is %d, give --frames %d",
+                 guess, L->nset, guess_c, used_c, L->n, guess, guess);
+    if (o->white > 0) {
+        info->white = info->meas_white = o->white;
+        return 0;
+    }
+    double range;
+    if (orig) {
+        range = var_max(orig, dt);
+        info->white = info->meas_white = white_for(range);
+        double g = meas_gain(mask, L, meas, dy[2], orig, dt[2]);
+        if (isfinite(g) && g > 0 && fabs(g - 1) > 0.2) {
+            info->meas_white = info->white * g;
+            how_add(info, "truth '%s' peaks at %g, so white is %g; meas '%s' is %.3g times what the truth makes "
+                          "through the masks, so it is divided by %g",
+                    truth_name, range, info->white, meas_name, g, info->meas_white);
+        } else {
+            how_add(info, "truth '%s' peaks at %g, so white is %g", truth_name, range, info->white);
+        }
+        return 0;
+    }
+    range = meas_range(mask, L, meas, dy[2]);
+    if (!(range > 0) || !isfinite(range))
+        return sci_error_set(err, SCI_EFORMAT,
+                             "%s: cannot infer the white level (meas '%s' over the sum of masks is %g where they "
+                             "open); give --scale N (the value of white)",
+                             path, meas_name, range);
+    /* Integer counts come from an ADC of a usual depth: its full scale. Processed (fractional) values have no such
+     * scale: a quarter of headroom over the estimate (a weighted mean, below the frames' peaks), 2 digits. */
+    const int counts = var_integral(meas, dy);
+    info->white = info->meas_white = counts || range <= 1.5 ? white_for(range) : round_up2(1.25 * range);
+    how_add(info, "meas '%s' over the sum of the %d masks reaches %.4g (99.9th percentile), so white is %g%s",
+            meas_name, L->n, range, info->white,
+            info->white == 1 ? " (data already on [0, 1])"
+            : counts         ? " (integer counts: the usual full scale at or above it)"
+                             : " (fractional values: that with a quarter of headroom)");
+    return 0;
+}
+
+/* The common reader. `legacy` > 0: meas and truth divided by it, masks as stored, peak 255 / legacy (sci_mat_read);
+ * else the scales of `o`, inferred where not given, and peak 1. */
+static int mat_read(const char *path, const sci_mat_options *o, double legacy, sci_problem ***out, int *k,
+                    sci_mat_info *info, sci_error *err)
 {
     *out = NULL;
     *k = 0;
@@ -408,28 +615,28 @@ static int mat_read(const char *path, const sci_mat_options *o, double divisor, 
                            mask_file, mask_name, dm[2], nsnap);
         goto out;
     }
-    const int n = (int)nsplit;
+    mask_layout L = {.px = dm[0] * dm[1], .nset = (int)nsplit, .n = (int)nsplit, .per = per, .mw = 1};
     info->mask_per_snapshot = per;
-    if (divisor == SCI_MAT_WHITE_AUTO) {
-        double range;
-        if (orig) {
-            range = var_max(orig, dt);
-            snprintf(info->how, sizeof info->how, "truth '%s' peaks at %g", truth_name, range);
-        } else {
-            range = meas_range(mask, dm, meas, dy, n, per);
-            snprintf(info->how, sizeof info->how, "meas '%s' / sum of masks peaks at %g", meas_name, range);
-        }
-        if (!(range > 0) || !isfinite(range)) {
-            rc = sci_error_set(err, SCI_EFORMAT, "%s: --scale auto: %s; give --scale N (the value of white)", path,
-                               info->how);
-            goto out;
-        }
-        divisor = white_for(range);
-        size_t l = strlen(info->how);
-        snprintf(info->how + l, sizeof info->how - l, ", so white is %g%s", divisor,
-                 divisor == 1 ? " (data already on [0, 1])" : "");
+    info->mask_frames = L.nset;
+    if (o->frames > L.nset) {
+        rc = sci_error_set(err, SCI_ESHAPE, "%s: --frames %d, but the masks '%s' hold %d frames%s", path, o->frames,
+                           mask_name, L.nset, per ? " per snapshot" : "");
+        goto out;
     }
-    info->white = divisor;
+    if (o->frames > 0)
+        L.n = o->frames;
+    const int n = L.n;
+    info->frames = n;
+    if (orig && (dt[2] < (size_t)n || (dt[2] % (size_t)n != 0 && dt[2] < (size_t)n * (size_t)nsnap))) {
+        rc = sci_error_set(err, SCI_ESHAPE,
+                           "%s: truth '%s' has %zu frames but the masks '%s' %d per snapshot (%d snapshot(s)); if the "
+                           "capture used the first %zu masks, give --frames %zu",
+                           path, truth_name, dt[2], mask_name, n, nsnap, dt[2] / (size_t)nsnap, dt[2] / (size_t)nsnap);
+        goto out;
+    }
+    if ((rc = infer_scales(o, legacy, mask, dm, meas, dy, orig, dt, &L, mask_name, meas_name, truth_name, info,
+                           path, err)) < 0)
+        goto out;
     probs = calloc((size_t)nsnap, sizeof *probs);
     if (!probs) {
         rc = sci_error_set(err, -ENOMEM, "%s: out of memory", path);
@@ -443,13 +650,13 @@ static int mat_read(const char *path, const sci_mat_options *o, double divisor, 
             goto out;
         }
         probs[nprob++] = p;
-        p->peak = peak > 0 ? peak : 255.0 / divisor;
+        p->peak = legacy > 0 ? 255.0 / legacy : 1.0;
         snprintf(p->name, sizeof p->name, "%s#%d", base, j + 1);
-        if ((rc = to_cube(mask, dm, per ? (size_t)n * j : 0, n, 1.0, mask_file, mask_name, &p->mask, err)) < 0 ||
-            (rc = to_cube(meas, dy, (size_t)j, 1, divisor, path, meas_name, &p->meas, err)) < 0)
+        if ((rc = to_cube(mask, dm, per ? (size_t)L.nset * j : 0, n, L.mw, mask_file, mask_name, &p->mask, err)) < 0 ||
+            (rc = to_cube(meas, dy, (size_t)j, 1, info->meas_white, path, meas_name, &p->meas, err)) < 0)
             goto out;
         if (orig && dt[2] >= (size_t)n * (j + 1) &&
-            (rc = to_cube(orig, dt, (size_t)n * j, n, divisor, path, truth_name, &p->truth, err)) < 0)
+            (rc = to_cube(orig, dt, (size_t)n * j, n, info->white, path, truth_name, &p->truth, err)) < 0)
             goto out;
     }
     *out = probs;
@@ -471,7 +678,7 @@ out:
 int sci_mat_read(const char *path, double scale, sci_problem ***out, int *k, sci_error *err)
 {
     const sci_mat_options o = {0};
-    return mat_read(path, &o, scale == 0 ? 255 : scale, 0, out, k, NULL, err);
+    return mat_read(path, &o, scale == 0 ? 255 : scale, out, k, NULL, err);
 }
 
 int sci_mat_read_opts(const char *path, const sci_mat_options *opts, sci_problem ***out, int *k,
@@ -479,9 +686,10 @@ int sci_mat_read_opts(const char *path, const sci_mat_options *opts, sci_problem
 {
     const sci_mat_options none = {0};
     const sci_mat_options *o = opts ? opts : &none;
-    if (o->white != SCI_MAT_WHITE_AUTO && o->white < 0)
-        return sci_error_set(err, -EINVAL, "%s: the white level must be > 0 (got %g)", path, o->white);
-    return mat_read(path, o, o->white == 0 ? 255 : o->white, 1.0, out, k, info, err);
+    if ((o->white != SCI_MAT_WHITE_AUTO && o->white < 0) || !(o->mask_white >= 0) || o->frames < 0)
+        return sci_error_set(err, -EINVAL, "%s: the white levels must be > 0 and the frames ≥ 1 (got %g, %g, %d)", path,
+                             o->white, o->mask_white, o->frames);
+    return mat_read(path, o, 0, out, k, info, err);
 }
 
 /* Column-major double copy of `nframes` cubes' frames (each w×h×n), multiplied by scale. */

@@ -2,10 +2,15 @@
  *
  *     DIR/frame_000.exr ...   the N frames, float32 EXR (uncompressed: they compress by 2 %), on the problem's
  *                             scale (+ frame.json sidecar)
- *     DIR/preview_000.png ... 8-bit previews, value/peak·255 clamped
+ *     DIR/preview_000.png ... 8-bit previews, value/peak·255 clamped (or auto-contrast: value/top·255, top the
+ *                             frames' 99.5th percentile; the range is stated in each PNG's description and in
+ *                             result.json "preview")
+ *     DIR/compare.png         with a truth: truth | reconstruction | difference (|x − truth|·4), a row per frame
  *     DIR/preview.gif         animated preview of the N frames
  *     DIR/trace.csv           the solver trace (iteration, wall and CPU time, residual, PSNR, SSIM)
- *     DIR/result.json         method, parameters, status, final metrics (both PSNR conventions named), timings
+ *     DIR/result.json         method, parameters, status, final metrics (both PSNR conventions named), timings,
+ *                             the frames' levels ("levels": 1st and 99th percentile, fraction of white) and
+ *                             "warnings" when they sit far below or above white (a wrong scale)
  *
  * The folder is written under DIR.tmp-<pid> and renamed at the end (io/staging.h): a reader sees all of it or
  * nothing, and on any failure the temporary is removed. `params` (may be NULL, borrowed) is copied into
@@ -35,6 +40,22 @@ int sci_recon_store_write_opt(const char *dir, const sci_problem *p, const sci_r
  * SCI_STAGING_* of io/staging.h (OVERWRITE; DURABLE: on disk, name included, before it returns 0). */
 int sci_recon_store_write_ex(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
                              const json_t *extra, int flags, const volatile sig_atomic_t *stop, sci_error *err);
+
+/* Every option of the writers above, and the preview's range. */
+typedef struct sci_recon_store_opts {
+    const json_t *extra;                /* as sci_recon_store_write_ex (may be NULL, borrowed) */
+    int flags;                          /* SCI_STAGING_* */
+    const volatile sig_atomic_t *stop;  /* may be NULL */
+    int preview_auto;                   /* 1: previews auto-contrast (top = the 99.5th percentile); 0: [0, peak] */
+} sci_recon_store_opts;
+
+int sci_recon_store_write_with(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
+                               const sci_recon_store_opts *o, sci_error *err);
+
+/* The levels of a reconstruction against its white (p->peak): *p1 and *p99 the 1st and 99th percentiles of the
+ * frames over peak (NaN without frames), and into buf (n bytes) a warning when the frames are nearly black
+ * (p99 < 0.05) or far above white (p99 > 2), else "". Returns 1 when it wrote a warning. */
+int sci_recon_levels(const sci_problem *p, const sci_cube *frames, double *p1, double *p99, char *buf, size_t n);
 
 /* What sci_recon_store_write makes for `snapshots` reconstructions of w×h×n: *bytes (an upper estimate: float
  * EXR frames uncompressed, 8-bit previews, a block of file-system overhead per file) and *files (files and

@@ -20,7 +20,7 @@ int sci_source_read(const char *path, sci_problem ***out, int *k, sci_error *err
     if (S_ISDIR(st.st_mode) || (l > 5 && strcmp(path + l - 5, ".json") == 0))
         return sci_problem_dir_read_opts(path, NULL, out, k, err);
     if (l > 4 && strcasecmp(path + l - 4, ".mat") == 0)
-        return sci_mat_read(path, 255, out, k, err);
+        return sci_mat_read_opts(path, NULL, out, k, NULL, err);
     return sci_error_set(err, SCI_EFORMAT,
                          "%s: unknown input format (expected a .mat benchmark file or a scicap problem folder)", path);
 }
@@ -34,14 +34,15 @@ int sci_source_is_mat(const char *path)
 /* Options that only a .mat takes (the limits apply to every input). */
 static int mat_opts_set(const sci_mat_options *o)
 {
-    return o && (o->mask_path || o->mask_var || o->meas_var || o->truth_var || o->white);
+    return o && (o->mask_path || o->mask_var || o->meas_var || o->truth_var || o->white || o->mask_white ||
+                 o->frames);
 }
 
 static int refuse_mat_opts(const char *path, sci_error *err)
 {
     return sci_error_set(err, -EINVAL,
-                         "%s: --mask, --mask-var, --meas-var, --truth-var and --scale are for .mat input (a "
-                         "problem folder names its parts and scale in problem.json)",
+                         "%s: --mask, --mask-var, --meas-var, --truth-var, --frames, --scale and --mask-scale are for "
+                         ".mat input (a problem folder names its parts, frames and scale in problem.json)",
                          path);
 }
 

@@ -123,11 +123,11 @@ int sci_trace_write_csv(const sci_trace *t, const char *path, sci_error *err)
     FILE *f = fopen(tmp, "w");
     if (!f)
         return sci_error_set(err, -errno, "%s: %s", tmp, strerror(errno));
-    fprintf(f, "iter,wall_s,cpu_s,residual,loss,psnr_db,psnr_peak1_db,ssim,meas_residual,max_weight\n");
+    fprintf(f, "iter,wall_s,cpu_s,residual,loss,psnr_db,psnr_peak1_db,ssim,meas_residual,max_weight,plane\n");
     for (size_t i = 0; i < t->len; i++) {
         const sci_trace_entry *e = &t->e[i];
-        fprintf(f, "%d,%.6f,%.6f,%.9g,%.9g,%.4f,%.4f,%.5f,%.6g,%.4f\n", e->iter, e->wall_s, e->cpu_s, e->residual,
-                e->loss, e->psnr, e->psnr_peak1, e->ssim, e->meas_residual, e->max_weight);
+        fprintf(f, "%d,%.6f,%.6f,%.9g,%.9g,%.4f,%.4f,%.5f,%.6g,%.4f,%d\n", e->iter, e->wall_s, e->cpu_s,
+                e->residual, e->loss, e->psnr, e->psnr_peak1, e->ssim, e->meas_residual, e->max_weight, e->plane);
     }
     int bad = ferror(f);
     if (fclose(f) != 0 || bad) {

@@ -64,6 +64,8 @@ typedef struct sci_trace_entry {
     double meas_residual; /* NeRF methods, at full renders: ‖y − A x‖/‖y‖ over the whole snapshot; else NaN */
     double max_weight;    /* NeRF methods, at full renders: mean over the rays that hit something (opacity ≥ 0.5)
                              of the ray's largest sample weight (1: a surface, ≲ 0.3: fog); else NaN */
+    int plane;            /* 0: the whole problem; 1-4: the CFA plane of a colour run solved plane by plane (its
+                             iterations count from 1 again, its metrics are the plane's) */
 } sci_trace_entry;
 
 typedef struct sci_trace {

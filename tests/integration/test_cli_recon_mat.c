@@ -1,9 +1,11 @@
-/* `scicap recon` on any .mat (issue 18): the drop40 benchmark rewritten by this test as a lab would ship it —
- * values already on [0, 1], variables named y (measurements) and X (truth), the masks as Phi in a separate file,
- * in MATLAB v5 and in v7.3 (HDF5) — reconstructs through --mask/--mask-var/--meas-var/--truth-var/--scale to the
- * same PSNR as the original file (34.63 dB, peak = frame max, snapshot 1, GAP-TV defaults); --scale auto finds
- * white = 1 here and 255 on the original, from the truth and from the measurements alone; a missing variable is
- * refused with the list of what the file holds and the option to use. Runs the real binary. */
+/* `scicap recon` on any .mat: the drop40 benchmark rewritten by this test as a lab would ship it — values already
+ * on [0, 1], variables named y (measurements) and X (truth), the masks as Phi in a separate file, in MATLAB v5 and
+ * in v7.3 (HDF5), or with grey masks — reconstructs through --mask/--mask-var/--meas-var/--truth-var and the
+ * inferred scales to the same PSNR as the original file (34.63 dB, peak = frame max, snapshot 1, GAP-TV defaults),
+ * with no scale option; a wrong scale is warned about; a capture that used the first 10 of 50 masks needs
+ * --frames 10 (a truth of 10 frames is an error without it, no truth a warning); the real capture of
+ * data/real reconstructs to frames neither black nor saturated; a missing variable is refused with the list of
+ * what the file holds and the option to use. Runs the real binary. */
 #include <errno.h>
 #include <math.h>
 #include <setjmp.h>
@@ -203,13 +205,213 @@ static void test_scale_auto_from_meas(void **state)
                      0);
     const char *e = read_stderr();
     printf("no truth: %s", e);
-    assert_non_null(strstr(e, "meas 'y' / sum of masks peaks at"));
+    assert_non_null(strstr(e, "meas 'y' over the sum of the 8 masks reaches"));
     assert_non_null(strstr(e, "white is 1 "));
     assert_int_equal(run("%s recon %s --scale auto -o %s/orig-auto", scicap, drop40, dir), 0);
     e = read_stderr();
     printf("original: %s", e);
     assert_non_null(strstr(e, "white is 255"));
     assert_true(fabs(psnr_of("orig-auto") - reference_psnr()) < 1e-9);
+}
+
+static json_t *result_of(const char *out)
+{
+    char path[2048];
+    snprintf(path, sizeof path, "%s/%s/result.json", dir, out);
+    json_error_t je;
+    json_t *j = json_load_file(path, 0, &je);
+    if (!j)
+        fail_msg("%s: %s", path, je.text);
+    return j;
+}
+
+/* One .mat with the benchmark's names: masks × mask_gain, meas and truth × gain (drop40 read on [0, 1]). */
+static void write_scaled(const char *name, double mask_gain, double gain)
+{
+    sci_problem **p;
+    int k;
+    sci_error err = {0};
+    if (sci_mat_read(drop40, 255, &p, &k, &err) < 0)
+        fail_msg("%s", err.msg);
+    for (int j = 0; j < k; j++) {
+        for (size_t i = 0; i < sci_cube_count(p[j]->meas); i++)
+            p[j]->meas->data[i] *= (float)gain;
+        for (size_t i = 0; i < sci_cube_count(p[j]->truth); i++)
+            p[j]->truth->data[i] *= (float)gain;
+    }
+    for (size_t i = 0; i < sci_cube_count(p[0]->mask); i++)
+        p[0]->mask->data[i] *= (float)mask_gain;
+    char path[2048];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    if (sci_mat_write(path, p, k, 1.0, &err) < 0)
+        fail_msg("%s", err.msg);
+    sci_problem_array_free(p, k);
+}
+
+/* drop40 as stored (0–255), as [0, 1] doubles, and with masks of 0–115 grey: 34.63 dB each with no scale option,
+ * the inferred scales printed in one line. */
+static void test_scales_inferred_without_options(void **state)
+{
+    REQUIRE_DROP40();
+    const double ref = reference_psnr();
+    assert_int_equal(run("%s recon %s --iters 1 -o %s/one", scicap, drop40, dir), 0);
+    assert_non_null(strstr(read_stderr(), "scale: truth 'orig' peaks at 255, so white is 255"));
+    write_scaled("unit.mat", 1, 1);
+    write_scaled("grey.mat", 115, 255);
+    assert_int_equal(run("%s recon %s/unit.mat -o %s/unit", scicap, dir, dir), 0);
+    printf("[0, 1]: %s", read_stderr());
+    assert_non_null(strstr(read_stderr(), "white is 1 "));
+    assert_int_equal(run("%s recon %s/grey.mat -o %s/grey", scicap, dir, dir), 0);
+    printf("grey masks: %s", read_stderr());
+    assert_non_null(strstr(read_stderr(), "masks 'mask' peak at 115, divided by it"));
+    printf("PSNR: stored %.4f, [0, 1] %.4f, masks 0-115 %.4f dB\n", ref, psnr_of("unit"), psnr_of("grey"));
+    assert_true(fabs(psnr_of("unit") - ref) < 1e-3);
+    assert_true(fabs(psnr_of("grey") - ref) < 1e-3);
+    json_t *j = result_of("grey");
+    assert_true(json_number_value(json_object_get(json_object_get(j, "input"), "mask_white")) == 115);
+    json_decref(j);
+    /* The same masks with the measurement made through them (×115 too): the gain against the truth is found. */
+    write_scaled("both.mat", 115, 255);
+    {
+        sci_problem **p;
+        int k;
+        sci_error err = {0};
+        char path[2048];
+        snprintf(path, sizeof path, "%s/both.mat", dir);
+        sci_mat_options o = {.white = 1, .mask_white = 1};
+        assert_int_equal(sci_mat_read_opts(path, &o, &p, &k, NULL, &err), 0);
+        for (int jj = 0; jj < k; jj++)
+            for (size_t i = 0; i < sci_cube_count(p[jj]->meas); i++)
+                p[jj]->meas->data[i] *= 115;
+        assert_int_equal(sci_mat_write(path, p, k, 1.0, &err), 0);
+        sci_problem_array_free(p, k);
+    }
+    assert_int_equal(run("%s recon %s/both.mat -o %s/both", scicap, dir, dir), 0);
+    printf("meas x115 too: %s", read_stderr());
+    assert_non_null(strstr(read_stderr(), "times what the truth makes through the masks"));
+    assert_true(fabs(psnr_of("both") - ref) < 1e-3);
+}
+
+/* A scale given wrong: the frames' levels say so, on stderr and in result.json. */
+static void test_wrong_scale_warned(void **state)
+{
+    REQUIRE_DROP40();
+    assert_int_equal(run("%s recon %s --scale 65535 --iters 20 -o %s/dark", scicap, drop40, dir), 0);
+    printf("%s", read_stderr());
+    assert_non_null(strstr(read_stderr(), "WARNING: the frames' 99th percentile is"));
+    assert_non_null(strstr(read_stderr(), "nearly black"));
+    json_t *j = result_of("dark");
+    assert_int_equal(json_array_size(json_object_get(j, "warnings")), 1);
+    assert_true(json_number_value(json_object_get(json_object_get(j, "levels"), "p99")) < 0.05);
+    json_decref(j);
+    /* and none on the right scale; a compare sheet with the truth; auto-contrast previews state their range */
+    assert_int_equal(run("%s recon %s --iters 20 --preview-range auto -o %s/lit", scicap, drop40, dir), 0);
+    assert_null(strstr(read_stderr(), "WARNING"));
+    j = result_of("lit");
+    assert_null(json_object_get(j, "warnings"));
+    json_t *pr = json_object_get(j, "preview");
+    assert_string_equal(json_string_value(json_object_get(pr, "mode")), "auto");
+    double top = json_number_value(json_array_get(json_object_get(pr, "range"), 1));
+    printf("auto-contrast top %.3f of white\n", top);
+    assert_true(top > 0.3 && top < 1.5);
+    json_decref(j);
+    char path[2048];
+    snprintf(path, sizeof path, "%s/lit/compare.png", dir);
+    assert_int_equal(access(path, R_OK), 0);
+}
+
+/* 50 masks, a measurement made with the first 10 (drop40 frames 1–10 at 0–255, random binary masks). */
+static void write_cr10(const char *name, int with_truth)
+{
+    sci_problem **p;
+    int k;
+    sci_error err = {0};
+    if (sci_mat_read(drop40, 1.0, &p, &k, &err) < 0)
+        fail_msg("%s", err.msg);
+    const int w = p[0]->mask->w, h = p[0]->mask->h;
+    sci_problem q = {.peak = 255};
+    snprintf(q.name, sizeof q.name, "cr10");
+    assert_int_equal(sci_cube_new(&q.mask, w, h, 50, &err), 0);
+    assert_int_equal(sci_cube_new(&q.meas, w, h, 1, &err), 0);
+    if (with_truth)
+        assert_int_equal(sci_cube_new(&q.truth, w, h, 10, &err), 0);
+    unsigned seed = 7;
+    for (size_t i = 0; i < sci_cube_count(q.mask); i++)
+        q.mask->data[i] = (float)((rand_r(&seed) >> 7) & 1);
+    const size_t px = (size_t)w * h;
+    for (int f = 0; f < 10; f++) {
+        const float *x = (f < 8 ? p[0]->truth->data + px * f : p[1]->truth->data + px * (f - 8));
+        for (size_t i = 0; i < px; i++) {
+            q.meas->data[i] += q.mask->data[px * f + i] * x[i];
+            if (with_truth)
+                q.truth->data[px * f + i] = x[i];
+        }
+    }
+    char path[2048];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    sci_problem *qs[1] = {&q};
+    assert_int_equal(sci_mat_write(path, qs, 1, 1.0, &err), 0);
+    sci_cube_free(q.mask), sci_cube_free(q.meas), sci_cube_free(q.truth);
+    sci_problem_array_free(p, k);
+}
+
+static int count_frames(const char *out)
+{
+    json_t *j = result_of(out);
+    int n = (int)json_integer_value(json_object_get(json_object_get(j, "input"), "frames"));
+    json_decref(j);
+    char path[2048];
+    snprintf(path, sizeof path, "%s/%s/frame_%03d.exr", dir, out, n - 1);
+    assert_int_equal(access(path, R_OK), 0);
+    snprintf(path, sizeof path, "%s/%s/frame_%03d.exr", dir, out, n);
+    assert_int_not_equal(access(path, R_OK), 0);
+    return n;
+}
+
+static void test_frames_of_a_longer_mask(void **state)
+{
+    REQUIRE_DROP40();
+    write_cr10("cr10.mat", 1);
+    write_cr10("cr10nt.mat", 0);
+    /* a truth of 10 frames beside 50 masks: an error naming both counts and the option */
+    assert_int_equal(run("%s recon %s/cr10.mat --iters 5 -o %s/x", scicap, dir, dir), 1);
+    printf("%s", read_stderr());
+    assert_non_null(strstr(read_stderr(), "has 10 frames but the masks 'mask' 50 per snapshot"));
+    assert_non_null(strstr(read_stderr(), "--frames 10"));
+    assert_int_equal(run("%s recon %s/cr10.mat --frames 10 -o %s/cr10", scicap, dir, dir), 0);
+    assert_int_equal(count_frames("cr10"), 10);
+    printf("--frames 10: %.2f dB\n", psnr_of("cr10"));
+    assert_true(psnr_of("cr10") > 20);
+    /* no truth: the measurement's pattern gives the count away; a warning names it before the work */
+    assert_int_equal(run("%s recon %s/cr10nt.mat --iters 5 -o %s/nt50", scicap, dir, dir), 0);
+    printf("%s", read_stderr());
+    assert_non_null(strstr(read_stderr(), "WARNING: the measurement matches the first 10 of the 50 mask frames"));
+    assert_int_equal(run("%s recon %s/cr10nt.mat --frames 10 --iters 5 -o %s/nt10", scicap, dir, dir), 0);
+    assert_null(strstr(read_stderr(), "WARNING"));
+    assert_int_equal(count_frames("nt10"), 10);
+    assert_int_equal(run("%s recon %s/cr10nt.mat --frames 51 -o %s/x", scicap, dir, dir), 1);
+    assert_non_null(strstr(read_stderr(), "--frames 51, but the masks 'mask' hold 50 frames"));
+}
+
+/* The real capture of data/real (float counts to ~945, measured grey masks 0–113, no truth): no options, frames
+ * neither black nor saturated, the measurement fitted. */
+static void test_real_capture(void **state)
+{
+    char real[4096];
+    TESTDATA_REQUIRE("real/6fan14_cacti.mat", real);
+    assert_int_equal(run("%s recon %s -o %s/real", scicap, real, dir), 0);
+    printf("%s", read_stderr());
+    assert_non_null(strstr(read_stderr(), "masks 'mask' peak at 113, divided by it"));
+    json_t *j = result_of("real");
+    json_t *lv = json_object_get(j, "levels");
+    double p1 = json_number_value(json_object_get(lv, "p1")), p99 = json_number_value(json_object_get(lv, "p99"));
+    double res = json_number_value(json_object_get(j, "residual"));
+    printf("real capture: frames 1st percentile %.3f, 99th %.3f of white; residual %.2g\n", p1, p99, res);
+    assert_true(p1 >= 0 && p1 < 0.2);
+    assert_true(p99 > 0.3 && p99 < 1.0);
+    assert_true(res < 0.05);
+    assert_null(json_object_get(j, "warnings"));
+    json_decref(j);
 }
 
 /* A missing variable: exit 1, every variable listed with shape and class, the option named. */
@@ -246,6 +448,10 @@ int main(void)
         cmocka_unit_test(test_lab_v73_single),
         cmocka_unit_test(test_scale_auto_from_meas),
         cmocka_unit_test(test_missing_variable_lists_present),
+        cmocka_unit_test(test_scales_inferred_without_options),
+        cmocka_unit_test(test_wrong_scale_warned),
+        cmocka_unit_test(test_frames_of_a_longer_mask),
+        cmocka_unit_test(test_real_capture),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
