@@ -492,6 +492,22 @@ static int parse_long(const char *s, const char *opt, long lo, long hi, long *ou
     return 0;
 }
 
+/* The inputs, checked before OUTDIR is made: a bad input leaves no folder behind, and its error comes before
+ * any about OUTDIR. 0, or 2 (usage) after saying why. */
+static int batch_check_inputs(char *const *inputs, int n, const char *store, const char *who)
+{
+    if (n == 0)
+        return 0;
+    batch t;
+    memset(&t, 0, sizeof t);
+    sci_error err = {0};
+    int rc = batch_add_inputs(&t, inputs, n, store, &err);
+    if (rc < 0)
+        fprintf(stderr, "%s: %s\n", who, err.msg);
+    batch_free(&t);
+    return rc < 0 ? 2 : 0;
+}
+
 /* b->outdir and b->bin from `out` and /proc/self/exe. */
 static int batch_init(batch *b, const char *out)
 {
@@ -594,6 +610,8 @@ int cli_batch_main(int argc, char **argv)
         fprintf(stderr, "scicap batch: %s: no such batch folder\n", out);
         return 2;
     }
+    if (!status && !task && batch_check_inputs(inputs, ninputs, store, "scicap batch") != 0)
+        return 2;
     if (batch_init(&b, out) < 0)
         return 1;
     sci_error err = {0};
@@ -677,6 +695,10 @@ int cli_batch_recon(int nopts, char **opts, int ninputs, char **inputs)
     if (!out) {
         free(a);
         fprintf(stderr, "scicap recon: -o OUTDIR is required\n");
+        return 2;
+    }
+    if (batch_check_inputs(inputs, ninputs, NULL, "scicap recon") != 0) {
+        free(a);
         return 2;
     }
     batch b;

@@ -11,6 +11,21 @@
 #include "io/matfile.h"
 #include "io/problem_dir.h"
 
+/* What an input that is neither a .mat nor a problem folder gets told: an image alone holds no masks. */
+static int unknown_format(const char *path, sci_error *err)
+{
+    static const char *const images[] = {".png", ".tif", ".tiff", ".exr", ".jpg", ".jpeg", ".pgm", ".gif"};
+    const char *dot = strrchr(path, '.');
+    for (size_t i = 0; dot && i < sizeof images / sizeof images[0]; i++)
+        if (strcasecmp(dot, images[i]) == 0)
+            return sci_error_set(err, SCI_EFORMAT,
+                                 "%s: an image alone cannot be reconstructed (it holds no masks): give a .mat with "
+                                 "the masks and measurements, or a problem folder (scicap sim, a capture)",
+                                 path);
+    return sci_error_set(err, SCI_EFORMAT,
+                         "%s: unknown input format (expected a .mat file or a scicap problem folder)", path);
+}
+
 int sci_source_read(const char *path, sci_problem ***out, int *k, sci_error *err)
 {
     struct stat st;
@@ -21,8 +36,7 @@ int sci_source_read(const char *path, sci_problem ***out, int *k, sci_error *err
         return sci_problem_dir_read_opts(path, NULL, out, k, err);
     if (l > 4 && strcasecmp(path + l - 4, ".mat") == 0)
         return sci_mat_read_opts(path, NULL, out, k, NULL, err);
-    return sci_error_set(err, SCI_EFORMAT,
-                         "%s: unknown input format (expected a .mat benchmark file or a scicap problem folder)", path);
+    return unknown_format(path, err);
 }
 
 int sci_source_is_mat(const char *path)
@@ -73,10 +87,15 @@ int sci_source_probe(const char *path, const sci_mat_options *opts, long long *w
         return refuse_mat_opts(path, err);
     char man[4200];
     size_t l = strlen(path);
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
     if (l > 5 && strcmp(path + l - 5, ".json") == 0)
         snprintf(man, sizeof man, "%s", path);
-    else
+    else if (S_ISDIR(st.st_mode))
         snprintf(man, sizeof man, "%s/problem.json", path);
+    else
+        return unknown_format(path, err);
     json_error_t je;
     json_t *j = json_load_file(man, 0, &je);
     if (!j) {

@@ -1,7 +1,8 @@
-/* Colour SCI end to end through the real binary (issue 18): the colour scene etc/scenes/cacti_color.json (Bayer
+/* Colour SCI end to end through the real binary: the colour scene etc/scenes/cacti_color.json (Bayer
  * RGGB behind random masks) is simulated by `scicap sim` and reconstructed by `scicap recon` per CFA plane with
  * GAP-TV then demosaiced: RGB PSNR (mean over R, G, B) printed and recorded, RGB EXR frames and colour PNG
- * previews written. Treating the same mosaic as a grey image (--cfa none) is far worse — that is what the colour
+ * previews written; result.json's top-level PSNR is the RGB one (the mosaic's under "mosaic"), and trace.csv names
+ * each row's CFA plane, iterations counting from 1 in each. Treating the same mosaic as a grey image (--cfa none) is far worse — that is what the colour
  * path is for. A grey scene writes no colour files (nothing is paid by monochrome scenes). */
 #include <math.h>
 #include <setjmp.h>
@@ -95,8 +96,18 @@ static void test_color_scene_end_to_end(void **state)
     assert_string_equal(json_string_value(json_object_get(color, "demosaic")), "mhc");
     const double rgb1 = json_number_value(json_object_get(json_object_get(color, "psnr_rgb_peak1_db"), "mean"));
     const double rgbm = json_number_value(json_object_get(json_object_get(color, "psnr_rgb_frame_max_db"), "mean"));
+    /* the top-level PSNR is what the user sees: the RGB one; the raw mosaic's is kept under "mosaic" */
+    assert_true(json_number_value(json_object_get(json_object_get(res, "psnr_peak1_db"), "mean")) == rgb1);
+    assert_true(json_number_value(json_object_get(json_object_get(res, "psnr_frame_max_db"), "mean")) == rgbm);
+    assert_non_null(json_object_get(json_object_get(res, "mosaic"), "psnr_peak1_db"));
     json_decref(res);
     printf("RGB PSNR %.2f dB (peak 1), %.2f dB (peak = frame max)\n", rgb1, rgbm);
+    /* trace.csv: a plane column; each plane's iterations 1..100 */
+    assert_int_equal(run("head -1 %s/rgb/trace.csv | grep -q ',plane$'", dir), 0);
+    for (int pl = 1; pl <= 4; pl++)
+        assert_int_equal(run("awk -F, -v p=%d 'NR > 1 && $NF == p { n++; if ($1 != n) bad = 1 } END { exit !(n == 100 "
+                             "&& !bad) }' %s/rgb/trace.csv", pl, dir),
+                         0);
     assert_true(rgb1 > 22.0); /* measured 24.00 */
     for (int f = 0; f < 8; f++) {
         char name[64];

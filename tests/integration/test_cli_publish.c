@@ -1,6 +1,8 @@
-/* `scicap recon` publishes its output only once complete (issue 17, item 3). Runs the real binary ($BUILD/scicap)
- * in a child: SIGTERM while the output is being written (one snapshot; and between snapshots of three) leaves
- * neither OUTDIR nor OUTDIR.tmp-PID and the child dies of SIGTERM (before: OUTDIR published, death by SIGTERM). */
+/* `scicap recon` publishes its output only once complete. Runs the real binary ($BUILD/scicap) in a child: SIGTERM
+ * while the output is being written (one snapshot; and between snapshots of three) leaves neither OUTDIR nor
+ * OUTDIR.tmp-PID and the child dies of SIGTERM. Bad inputs are refused before OUTDIR is made: an empty folder of
+ * inputs (a batch) leaves no OUTDIR; an image alone says it holds no masks; a missing input is named before a
+ * missing output folder. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -142,6 +144,60 @@ static void test_sigterm_between_snapshots_publishes_nothing(void **state)
     assert_nothing_at(out);
 }
 
+/* Run a command with stderr into dir/err.txt; its exit status. */
+static int sh(const char *fmt, ...)
+{
+    char cmd[8192], full[8400];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(cmd, sizeof cmd, fmt, ap);
+    va_end(ap);
+    snprintf(full, sizeof full, "%s >/dev/null 2>%s/err.txt", cmd, dir);
+    int rc = system(full);
+    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+static int err_has(const char *what)
+{
+    char path[2048], buf[4096];
+    snprintf(path, sizeof path, "%s/err.txt", dir);
+    FILE *f = fopen(path, "r");
+    size_t n = f ? fread(buf, 1, sizeof buf - 1, f) : 0;
+    buf[n] = 0;
+    if (f)
+        fclose(f);
+    printf("stderr: %s", buf);
+    return strstr(buf, what) != NULL;
+}
+
+static void test_bad_inputs_leave_nothing(void **state)
+{
+    char p[2048];
+    snprintf(p, sizeof p, "%s/emptydir", dir);
+    assert_int_equal(mkdir(p, 0755), 0);
+    assert_int_equal(sh("%s recon %s/emptydir -o %s/o5", scicap, dir, dir), 2);
+    assert_true(err_has("no .mat file or problem folder in it"));
+    snprintf(p, sizeof p, "%s/o5", dir);
+    assert_false(exists(p));
+    assert_int_equal(sh("%s batch %s/emptydir -o %s/o6", scicap, dir, dir), 2);
+    snprintf(p, sizeof p, "%s/o6", dir);
+    assert_false(exists(p));
+    /* an image: what it lacks, not "img.png/problem.json: Not a directory" */
+    snprintf(p, sizeof p, "%s/img.png", dir);
+    sci_cube *c = NULL;
+    sci_error err = {0};
+    assert_int_equal(sci_cube_new(&c, 8, 8, 1, &err), 0);
+    assert_int_equal(sci_image_write(p, c, 0, SCI_PIXEL_U8, 255, NULL, &err), 0);
+    sci_cube_free(c);
+    assert_int_equal(sh("%s recon %s/img.png -o %s/o7", scicap, dir, dir), 1);
+    assert_true(err_has("an image alone cannot be reconstructed (it holds no masks)"));
+    /* the input is checked before the output's folder */
+    assert_int_equal(sh("%s recon %s/missing.mat -o %s/nope/o8", scicap, dir, dir), 1);
+    assert_true(err_has("missing.mat: No such file or directory"));
+    assert_int_not_equal(sh("%s recon %s/emptydir -o %s/nope/o9", scicap, dir, dir), 0);
+    assert_true(err_has("no .mat file or problem folder in it"));
+}
+
 static int setup(void **state) { return cli_child_setup(scicap, sizeof scicap, "scicap", dir); }
 static int teardown(void **state) { return cli_child_remove_dir(dir); }
 
@@ -150,6 +206,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_sigterm_while_writing_publishes_nothing),
         cmocka_unit_test(test_sigterm_between_snapshots_publishes_nothing),
+        cmocka_unit_test(test_bad_inputs_leave_nothing),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
