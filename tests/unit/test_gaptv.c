@@ -1,5 +1,6 @@
-/* GAP-TV and ADMM-TV against the MATLAB reference on the drop40 benchmark (sci-reconstruction.md §6), plus
- * the orientation identity that catches a transposed mask. */
+/* GAP-TV and ADMM-TV against the MATLAB reference on the drop40 benchmark (sci-reconstruction.md §6), the
+ * orientation identity that catches a transposed mask, and the presets as points of the measured curve: fast within
+ * 1 dB of best, balanced within 0.3 dB (no preset is a trap for live preview). */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -12,6 +13,7 @@
 #include "recon/gaptv.h"
 #include "recon/metrics.h"
 #include "recon/sci_ops.h"
+#include "recon/solver.h"
 #include "tests/helpers/testdata.h"
 
 static sci_problem **load_drop_scaled(int *k, double scale)
@@ -99,11 +101,42 @@ static void test_gaptv_golden(void **state)
     sci_problem_array_free(p, k);
 }
 
+static double preset_psnr(const sci_problem *p, const solver_ops *op, solver_preset pr)
+{
+    void *s = solver_settings_new(op);
+    assert_non_null(s);
+    solver_settings_preset(op, s, pr);
+    sci_result r = {0};
+    const solver_io io = {0};
+    assert_int_equal(solver_run(op, p, s, &io, &r), 0);
+    double v = sci_psnr(r.frames, p->truth, SCI_PEAK_FRAME_MAX, 0, NULL);
+    sci_result_free_contents(&r);
+    solver_settings_free(s);
+    return v;
+}
+
+static void test_presets_on_the_curve(void **state)
+{
+    int k;
+    sci_problem **p = load_drop(&k);
+    const solver_ops *ops[2] = {&sci_gaptv_solver, &sci_admmtv_solver};
+    for (int m = 0; m < 2; m++) {
+        double f = preset_psnr(p[0], ops[m], SOLVER_PRESET_FAST), b = preset_psnr(p[0], ops[m], SOLVER_PRESET_BALANCED),
+               x = preset_psnr(p[0], ops[m], SOLVER_PRESET_BEST);
+        printf("%s drop40#1 presets: fast %.2f, balanced %.2f, best %.2f dB\n", ops[m]->name, f, b, x);
+        assert_true(f >= x - 1.0);
+        assert_true(b >= x - 0.3);
+        assert_true(x >= 34.6);
+    }
+    sci_problem_array_free(p, k);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_orientation),
         cmocka_unit_test(test_gaptv_golden),
+        cmocka_unit_test(test_presets_on_the_curve),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
