@@ -51,12 +51,15 @@ typedef struct bench_point {
     char error[256];
     double psnr, psnr1, ssim, wall_s, cpu_s, rss_mib;
     int pareto, recommended;
+    int threads;       /* threads per point it ran with */
+    int kept;          /* read back from the previous CSV (a method not re-run), not measured now */
 } bench_point;
 
 static void usage(FILE *f)
 {
     fprintf(f,
-            "usage: scicap bench [--quick | --full] [--out DIR] [--csv FILE] [--data DIR] [--methods LIST]\n"
+            "usage: scicap bench [--quick | --full] [--out DIR] [--csv FILE] [--data DIR] [--scenes DIR]\n"
+            "                   [--methods LIST] [-j N]\n"
             "\n"
             "Runs every reconstruction method over a grid of its cost knobs on a fixed suite — the drop40 benchmark\n"
             "(.mat, snapshot 1) when present and the simulator's example scenes of each kind, with and without\n"
@@ -71,7 +74,9 @@ static void usage(FILE *f)
             "  --data DIR        where drop40_cacti.mat is (default $SCICAP_DATA, else ../shared/data)\n"
             "  --scenes DIR      example scenes (default: ./etc/scenes in a checkout, else the build tree's, else the\n"
             "                    installed ones in $SCICAP_DATADIR/scenes, default " SCICAP_DATADIR "/scenes)\n"
-            "  --methods LIST    comma-separated subset of the methods (scicap recon --help lists them)\n"
+            "  --methods LIST    comma-separated subset of the methods (scicap recon --help lists them); the other\n"
+            "                    methods' points are kept from the existing CSV (--full), so the report and plots\n"
+            "                    still show every method\n"
             "  -j, --threads N   OpenMP threads per point (default: all cores)\n"
             "  --point SPEC      internal: run one grid point in this process (the runner starts one per point)\n"
             "  -h, --help        this text\n");
@@ -236,6 +241,8 @@ static int add_point(bench_point **pts, int *n, int *cap, int scene, const char 
     const char *key;
     json_t *v;
     size_t off = 0;
+    if (!params)
+        return 0;
     json_object_foreach(params, key, v) {
         if (json_is_string(v))
             off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%s", off ? " " : "", key,
@@ -397,6 +404,42 @@ static int prepare_scene(bench_scene *sc, const char *scene_path, const char *na
     return 0;
 }
 
+static int method_enabled(const char *list, const char *m);
+
+/* The points of the methods not re-run (not in `methods`), from the previous CSV, for the scenes of this suite:
+ * appended as kept points. A missing CSV keeps nothing; returns how many were kept. */
+static int keep_previous(const char *csv, const char *methods, const bench_scene *sc, int ns, bench_point **pts,
+                         int *n, int *cap)
+{
+    FILE *f = fopen(csv, "r");
+    if (!f)
+        return 0;
+    char line[1024];
+    int kept = 0;
+    while (fgets(line, sizeof line, f)) {
+        char *col[14], *save = NULL;
+        int nc = 0;
+        for (char *t = strtok_r(line, ",\n", &save); t && nc < 14; t = strtok_r(NULL, ",\n", &save))
+            col[nc++] = t;
+        if (nc < 12 || strcmp(col[0], "scene") == 0 || method_enabled(methods, col[1]))
+            continue;
+        int s = 0;
+        while (s < ns && strcmp(sc[s].name, col[0]) != 0)
+            s++;
+        if (s == ns || add_point(pts, n, cap, s, col[1], NULL) < 0)
+            continue;
+        bench_point *p = &(*pts)[*n - 1];
+        snprintf(p->setting, sizeof p->setting, "%s", col[2]);
+        p->psnr = atof(col[3]), p->psnr1 = atof(col[4]), p->ssim = atof(col[5]);
+        p->wall_s = atof(col[6]), p->cpu_s = atof(col[7]), p->rss_mib = atof(col[8]);
+        p->threads = atoi(col[11]);
+        p->ok = p->kept = 1;
+        kept++;
+    }
+    fclose(f);
+    return kept;
+}
+
 static int method_enabled(const char *list, const char *m)
 {
     if (!list)
@@ -541,18 +584,24 @@ int cli_bench_main(int argc, char **argv)
             }
         }
 
-    fprintf(stderr, "scicap bench: %d points on %d scenes, %d threads each\n", np, ns, threads);
+    const int nrun = np;
+    const int nkept = methods_arg && !quick ? keep_previous(csv, methods_arg, sc, ns, &pts, &np, &cap) : 0;
+    fprintf(stderr, "scicap bench: %d points on %d scenes, %d threads each", nrun, ns, threads);
+    if (nkept)
+        fprintf(stderr, "; %d points of the other methods kept from %s", nkept, csv);
+    fprintf(stderr, "\n");
     int64_t t0 = sci_clock_mono_ns();
     int failed = 0;
-    for (int i = 0; i < np; i++) {
+    for (int i = 0; i < nrun; i++) {
         bench_point *p = &pts[i];
+        p->threads = threads;
         spawn_point(self, &sc[p->scene], p, threads);
         double el = sci_clock_s(t0, sci_clock_mono_ns());
         if (p->ok)
             fprintf(stderr, "[%3d/%d] %-14s %-9s %-34s %7.2f dB  SSIM %.4f  %8.3f s  %6.1f MiB   (%.0f s elapsed)\n",
-                    i + 1, np, sc[p->scene].name, p->method, p->setting, p->psnr, p->ssim, p->wall_s, p->rss_mib, el);
+                    i + 1, nrun, sc[p->scene].name, p->method, p->setting, p->psnr, p->ssim, p->wall_s, p->rss_mib, el);
         else {
-            fprintf(stderr, "[%3d/%d] %-14s %-9s %-34s FAILED: %s\n", i + 1, np, sc[p->scene].name, p->method,
+            fprintf(stderr, "[%3d/%d] %-14s %-9s %-34s FAILED: %s\n", i + 1, nrun, sc[p->scene].name, p->method,
                     p->setting, p->error);
             failed++;
         }
@@ -573,7 +622,7 @@ int cli_bench_main(int argc, char **argv)
             continue;
         fprintf(f, "%s,%s,%s,%.4f,%.4f,%.5f,%.6f,%.6f,%.1f,%d,%d,%d,%.0f,%d\n", sc[p->scene].name, p->method,
                 p->setting, p->psnr, p->psnr1, p->ssim, p->wall_s, p->cpu_s, p->rss_mib, p->pareto, p->recommended,
-                threads, sc[p->scene].voxels, sc[p->scene].has_camera);
+                p->threads, sc[p->scene].voxels, sc[p->scene].has_camera);
     }
     fclose(f);
 
@@ -585,10 +634,15 @@ int cli_bench_main(int argc, char **argv)
         fprintf(stderr, "scicap bench: %s: %s\n", mdpath, strerror(errno));
         return 1;
     }
-    fprintf(md, "Produced by `scicap bench%s` (%d points, %.0f s, %d threads per point). PSNR: mean over frames, peak = "
-                "per-frame max of the truth; SSIM: Gaussian 11×11, σ 1.5; wall and CPU time: the solver's own; "
-                "memory: peak RSS of the point's process. Every point is in `bench/results.csv`.\n\n",
-            quick ? " --quick" : "", np, sci_clock_s(t0, sci_clock_mono_ns()), threads);
+    double la[3] = {NAN, NAN, NAN};
+    getloadavg(la, 3);
+    fprintf(md, "Produced by `scicap bench%s%s%s` (%d points, %.0f s, %d threads per point; load average %.2f %.2f "
+                "%.2f at the end, %ld cores)%s. PSNR: mean over frames, peak = per-frame max of the truth; SSIM: "
+                "Gaussian 11×11, σ 1.5; wall and CPU time: the solver's own; memory: peak RSS of the point's "
+                "process. Every point is in `bench/results.csv`.\n\n",
+            quick ? " --quick" : "", methods_arg ? " --methods " : "", methods_arg ? methods_arg : "", nrun,
+            sci_clock_s(t0, sci_clock_mono_ns()), threads, la[0], la[1], la[2], sysconf(_SC_NPROCESSORS_ONLN),
+            nkept ? "; the other methods' points are kept from the previous full run" : "");
     for (int s = 0; s < ns; s++) {
         fprintf(md, "#### %s\n\n![PSNR against wall time: %s](%s/psnr_time_%s.png)\n\n", sc[s].what, sc[s].name,
                 out, sc[s].name);

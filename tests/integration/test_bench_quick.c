@@ -125,8 +125,49 @@ static void test_quick_report(void **state)
     assert_int_equal(system(cmd), 0);
 }
 
+/* Re-measuring one method keeps the others' points from the previous CSV: the report and plots still show them. */
+static void test_methods_keep_the_others(void **state)
+{
+    const char *build = getenv("BUILD");
+    char dir[] = "/tmp/scicap-test-bench-keep-XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char path[2200], cmd[4096];
+    snprintf(path, sizeof path, "%s/results.csv", dir);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fprintf(f, "scene,method,setting,psnr_db,psnr_peak1_db,ssim,wall_s,cpu_s,peak_rss_mib,pareto,recommended,threads,"
+               "voxels,camera\n"
+               "static3d,rayformer,preset=fast,23.0400,23.1000,0.85940,227.5,450.1,546.0,1,1,2,131072,1\n"
+               "static3d,gap-tv,iters=1 tv_iters=1,1.0,1.0,0.1,0.001,0.001,10.0,1,1,2,131072,1\n"
+               "nosuchscene,admm-tv,iters=5 tv_iters=2,9.0,9.0,0.1,0.01,0.01,10.0,1,1,2,131072,0\n");
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "%s/scicap bench --full --methods gap-tv --out %s --csv %s 2>%s/log",
+             build ? build : "build", dir, path, dir);
+    if (system(cmd) != 0) {
+        snprintf(cmd, sizeof cmd, "cat %s/log", dir);
+        assert_int_equal(system(cmd), 0);
+        fail_msg("scicap bench --full --methods gap-tv failed");
+    }
+    /* the rayformer row is kept as it was; the old gap-tv row is replaced by the measured ones; a row of a scene
+     * not in the suite is dropped */
+    snprintf(cmd, sizeof cmd, "grep -c '^static3d,rayformer,preset=fast,23.0400,' %s | grep -qx 1", path);
+    assert_int_equal(system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "grep -q 'iters=1 tv_iters=1' %s", path);
+    assert_int_not_equal(system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "grep -q nosuchscene %s", path);
+    assert_int_not_equal(system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "grep -c ',gap-tv,' %s | awk '$1 >= 15 { ok = 1 } END { exit !ok }'", path);
+    assert_int_equal(system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "grep -q '| rayformer | preset=fast | 23.04 |' %s/report.md && grep -q 'kept from the "
+             "previous full run' %s/report.md", dir, dir);
+    assert_int_equal(system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
 int main(void)
 {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_quick_report)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_quick_report),
+                                       cmocka_unit_test(test_methods_keep_the_others)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
