@@ -229,6 +229,9 @@ int main(int argc, char **argv)
     const solver_ops *m = &sci_pnp_ffdnet_solver;
     sci_pnp_params q;
     sci_pnp_params_default(&q);
+    /* PnP-SCI's recipe, the one the PyTorch script runs: 40 iterations over σ 50, 25, 12, 6 */
+    q.iters = 40;
+    q.sigma = (solver_values){4, {50, 25, 12, 6}};
     snprintf(q.weights, sizeof q.weights, "%s", weights);
     q.threads = threads;
     q.ssim_every = 0;
