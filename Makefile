@@ -216,6 +216,8 @@ install: all python
 	install -d $(DESTDIR)$(PREFIX)/share/scicap/scenes
 	install -m 644 bench/results.csv $(DESTDIR)$(PREFIX)/share/scicap/results.csv
 	install -m 644 etc/scenes/*.json etc/scenes/*.pgm $(DESTDIR)$(PREFIX)/share/scicap/scenes/
+	install -d $(DESTDIR)$(PREFIX)/share/scicap/scenes/textures
+	install -m 644 etc/scenes/textures/*.png etc/scenes/textures/README.md $(DESTDIR)$(PREFIX)/share/scicap/scenes/textures/
 	install -d $(DESTDIR)$(PREFIX)/share/scicap/examples
 	install -m 644 etc/scicapd-aravis.json etc/scicapd-v4l2.json $(DESTDIR)$(PREFIX)/share/scicap/examples/
 	install -d $(DESTDIR)$(PREFIX)/share/man/man1

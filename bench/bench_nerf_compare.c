@@ -1,9 +1,9 @@
-/* bench/bench_nerf_compare.c — the README's comparison on static3d scenes (issue 6): GAP-TV, ADMM-TV, scinerf and
+/* bench/bench_nerf_compare.c — the README's comparison on static3d scenes: GAP-TV, ADMM-TV, scinerf and
  * rayformer with each ablation step added in the paper's order (baseline → +patch sampling → +inter-ray →
  * +intra-ray → +TV), the patch-size study (2, 4, 8, 16), and scinerf / rayformer with the camera poses optimised
  * from a SCINeRF-style start (start/end on SE(3) from the identity plus a small perturbation: only the
  * intrinsics known). PSNR (peak = 1), SSIM, wall time and, for the NeRF rows, the measurement residual and the mean
- * largest ray weight (the fog diagnostics of issue 15) per row; the table is rewritten after every row, so a long run
+ * largest ray weight (the fog diagnostics) per row; the table is rewritten after every row, so a long run
  * shows its progress and a killed one keeps what it finished. Tables: bench/results/nerf_compare_<preset>.md by
  * default, the presets' own comparison (`--scenes corridor,orbit,noisy,tabletop --parts classic,scinerf,full`: each
  * preset of scinerf takes rayformer's time at that preset, so these are equal-time comparisons), and `--out NAME` for
@@ -11,6 +11,7 @@
  *
  * It takes hours on the 2-core machine (every NeRF row trains a whole preset), so `make bench` only prints how to
  * run it:  build/bench/bench_nerf_compare --run [--preset fast|balanced|best] [--scenes corridor,orbit,noisy]
+ *          (a scene is etc/scenes/static3d_NAME.json, else etc/scenes/NAME.json: photo_llff, photo_orbit, photo_noisy)
  *                                         [--parts classic,scinerf,ladder,patch,poses]
  *                                         [--seeds N | --more-seeds N]
  *        build/bench/bench_nerf_compare --table [--preset P] [--out NAME]   (only rewrites a table from its rows)
@@ -28,6 +29,7 @@
 #include <assert.h>
 #include <math.h>
 #include <stdio.h>
+#include <unistd.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -544,7 +546,9 @@ static void patch_study(const char *name, const sci_problem *p, const sci_rayfor
 static void one_scene(const char *name, const char *parts)
 {
     char path[256];
-    snprintf(path, sizeof path, "etc/scenes/static3d_%s.json", name);
+    snprintf(path, sizeof path, "etc/scenes/static3d_%s.json", name); /* corridor, ...; else photo_llff, ... */
+    if (access(path, R_OK) != 0)
+        snprintf(path, sizeof path, "etc/scenes/%s.json", name);
     sim_scene *sc = NULL;
     sci_error err = {0};
     sci_problem **ps;
