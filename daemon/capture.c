@@ -3,8 +3,27 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stdio.h>
 
 #include "daemon/package.h"
+
+/* Snapshot `index` of job j taken and packaged for the store (*out; its id not yet set). */
+static int shoot(scicapd_acquire *a, const scicapd_job *j, int index, const sci_cube *masks, uint32_t exposure,
+                 scicapd_snapshot **out, sci_error *err)
+{
+    const scicapd_capture_args *c = &j->capture;
+    int rc;
+    if ((rc = scicapd_acquire_program(a, c->mask_set.name, masks, c->pattern_us, c->dark_us, c->sync, err)) < 0 ||
+        (rc = scicapd_acquire_take(a, masks->n, exposure, c->sync, 0, err)) < 0)
+        return rc;
+    scicapd_acquire_beat(a);
+    scicapd_package_in pin = {.jobs = scicapd_acquire_env_get(a)->jobs, .job = j, .index = index, .dmd_masks = masks,
+                              .shot = scicapd_acquire_shot(a), .calibs = scicapd_acquire_calibs(a),
+                              .dev = scicapd_acquire_devices(a),
+                              .exposure_us = camera_exposure_us(scicapd_acquire_camera(a))};
+    scicapd_acquire_scale(a, &pin.counts_per_unit, &pin.dark_level);
+    return scicapd_package_snapshot(&pin, out, err);
+}
 
 void scicapd_capture_run(scicapd_acquire *a, scicapd_job *j)
 {
@@ -28,23 +47,24 @@ void scicapd_capture_run(scicapd_acquire *a, scicapd_job *j)
         if (scicapd_acquire_canceled(a, j))
             break;
         scicapd_acquire_apply_faults(a);
+        /* ids in acquisition order, whichever writer stores it, durable before the snapshot goes on; taken before
+         * the exposure because the simulated scene's time follows the capture number */
+        char id[32];
+        unsigned long num;
+        if ((rc = scicapd_store_take_id(env->store, id, sizeof id, &num, &err)) < 0)
+            break;
+        scicapd_devices_scene_at(dev, num);
         scicapd_span sp;
         scicapd_span_begin(&sp);
-        if ((rc = scicapd_acquire_program(a, c->mask_set.name, masks, c->pattern_us, c->dark_us, c->sync,
-                                          &err)) < 0 ||
-            (rc = scicapd_acquire_take(a, masks->n, exposure, c->sync, 0, &err)) < 0)
+        scicapd_snapshot *s = NULL;
+        if ((rc = shoot(a, j, i, masks, exposure, &s, &err)) < 0) {
+            scicapd_store_give_back_id(env->store, num);
             break;
-        scicapd_acquire_beat(a);
+        }
+        snprintf(s->capture_id, sizeof s->capture_id, "%s", id);
         const capture_snapshot *shot = scicapd_acquire_shot(a);
         char flags[160];
         sync_flags_describe(shot->report.flags, flags, sizeof flags);
-        scicapd_package_in pin = {.jobs = env->jobs, .job = j, .index = i, .dmd_masks = masks, .shot = shot,
-                                  .calibs = scicapd_acquire_calibs(a), .dev = dev,
-                                  .exposure_us = camera_exposure_us(scicapd_acquire_camera(a))};
-        scicapd_acquire_scale(a, &pin.counts_per_unit, &pin.dark_level);
-        scicapd_snapshot *s = NULL;
-        if ((rc = scicapd_package_snapshot(&pin, &s, &err)) < 0)
-            break;
         scicapd_timing_add(env->timing, SCICAPD_STAGE_ACQUIRE, &sp);
         scicapd_acquire_post(a, j, "capture.snapshot",
                              json_pack("{s:i, s:i, s:b, s:s, s:i, s:I}", "index", i, "count", c->count, "broken",
@@ -55,11 +75,6 @@ void scicapd_capture_run(scicapd_acquire *a, scicapd_job *j)
                           (unsigned long long)j->id, i, flags);
         scicapd_acquire_injected_delay(a);
         s->job = scicapd_jobs_find(env->jobs, j->id); /* the writer's reference */
-        /* ids in acquisition order, whichever writer stores it; durable before the snapshot goes on */
-        if ((rc = scicapd_store_reserve_id(env->store, s, &err)) < 0) {
-            scicapd_snapshot_free(env->jobs, s);
-            break;
-        }
         if (scicapd_queue_push_wait(env->out, s) < 0) {
             scicapd_snapshot_free(env->jobs, s);
             rc = sci_error_set(&err, -EPIPE, "storage writer stopped");

@@ -20,6 +20,7 @@
 
 #include "base/clock.h"
 #include "daemon/acquire.h"
+#include "daemon/catalog.h"
 #include "daemon/config.h"
 #include "daemon/control.h"
 #include "daemon/import.h"
@@ -281,6 +282,23 @@ static json_t *status_json(scicapd *d)
                      "timing", scicapd_timing_json(d->timing));
 }
 
+/* A queued job's reply: {job, state}, and for a reconstruction what it will run (capture, method, preset, and
+ * what a budget chose), so a client can say it before the job starts. */
+static json_t *queued_json(const scicapd_job *j)
+{
+    json_t *o = json_pack("{s:I, s:s}", "job", (json_int_t)j->id, "state", "queued");
+    if (o && j->kind == SCICAPD_JOB_RECONSTRUCT) {
+        const scicapd_recon_spec *s = &j->recon.spec;
+        json_object_set_new(o, "capture", json_string(j->recon.capture_id));
+        json_object_set_new(o, "method", json_string(s->method->name));
+        json_object_set_new(o, "preset", json_string(s->preset));
+        json_t *b = scicapd_recon_budget_json(s);
+        if (b)
+            json_object_set_new(o, "budget", b);
+    }
+    return o;
+}
+
 static void submit(scicapd *d, scicapd_client *c, const json_t *id, scicapd_job *j, scicapd_queue *q,
                    const char *what)
 {
@@ -302,7 +320,7 @@ static void submit(scicapd *d, scicapd_client *c, const json_t *id, scicapd_job 
                   rc == SCI_EBUSY ? msg : "the daemon is stopping");
         return;
     }
-    reply(d, c, scicapd_reply_ok(id, json_pack("{s:I, s:s}", "job", (json_int_t)j->id, "state", "queued")));
+    reply(d, c, scicapd_reply_ok(id, queued_json(j)));
 }
 
 static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
@@ -324,6 +342,7 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
     scicapd_simulate_args sim;
     scicapd_import_args *imp = NULL;
     uint64_t job_id = 0;
+    long limit = 0;
     int rc;
     switch (r.cmd) {
     case SCICAPD_CMD_CAPTURE: rc = scicapd_args_capture(&r, d->cfg, &cap, &err); break;
@@ -331,6 +350,7 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
     case SCICAPD_CMD_RECONSTRUCT: rc = scicapd_args_reconstruct(&r, d->cfg, &rec, &err); break;
     case SCICAPD_CMD_CANCEL: rc = scicapd_args_cancel(&r, &job_id, &err); break;
     case SCICAPD_CMD_SIMULATE: rc = scicapd_args_simulate(&r, &sim, &err); break;
+    case SCICAPD_CMD_CAPTURES: rc = scicapd_args_captures(&r, &limit, &err); break;
     case SCICAPD_CMD_IMPORT: {
         int fds[SCICAPD_CLIENT_MAX_FDS];
         int n = scicapd_client_take_fds(c, fds, SCICAPD_CLIENT_MAX_FDS);
@@ -364,6 +384,14 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
         reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:o}", "jobs",
                                                      scicapd_jobs_json(d->jobs, c->uid, is_admin(d, c)))));
         break;
+    case SCICAPD_CMD_CAPTURES: { /* every user sees the stored captures: any of them may be reconstructed */
+        json_t *list = scicapd_catalog_list(scicapd_store_root(d->store), limit, &err);
+        if (list)
+            reply(d, c, scicapd_reply_ok(r.id, list));
+        else
+            reply_err(d, c, r.id, SCICAPD_E_FAILED, err.msg);
+        break;
+    }
     case SCICAPD_CMD_WATCH:
         c->watching = 1;
         reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:b}", "watching", 1)));

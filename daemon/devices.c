@@ -519,6 +519,12 @@ int scicapd_devices_truth(scicapd_devices *d, int n, sci_cube **out, sci_error *
     return rc < 0 ? rc : 1;
 }
 
+void scicapd_devices_scene_at(scicapd_devices *d, unsigned long capture)
+{
+    if (d->sim)
+        sim_bench_set_snapshot(d->sim, capture > 0 ? capture - 1 : 0);
+}
+
 void scicapd_devices_white_target(scicapd_devices *d, int on)
 {
     if (d->sim)
@@ -528,7 +534,7 @@ void scicapd_devices_white_target(scicapd_devices *d, int on)
                       "camera");
 }
 
-void scicapd_devices_snapshot_meta(scicapd_devices *d, json_t *meta)
+void scicapd_devices_snapshot_meta(scicapd_devices *d, int n, json_t *meta)
 {
     uint64_t sent;
     int64_t last;
@@ -536,6 +542,11 @@ void scicapd_devices_snapshot_meta(scicapd_devices *d, json_t *meta)
     if (d->cam_software && scicapd_swtrigger_stats(d->trig, &sent, &last) == 0)
         json_object_set_new(meta, "camera_trigger", json_pack("{s:s, s:I, s:I}", "mode", "software", "sent",
                                                               (json_int_t)sent, "last_sent_ns", (json_int_t)last));
-    if (d->sim)
-        json_object_set_new(meta, "simulated", json_pack("{s:s}", "scene", sim_bench_scene_name(d->sim)));
+    if (!d->sim)
+        return;
+    json_t *times = json_array();
+    for (int k = 0; k < n; k++)
+        json_array_append_new(times, json_real(sim_bench_frame_time(d->sim, n, k)));
+    json_object_set_new(meta, "simulated", json_pack("{s:s, s:o}", "scene", sim_bench_scene_name(d->sim),
+                                                     "scene_frames", times));
 }

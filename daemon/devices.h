@@ -82,16 +82,21 @@ void scicapd_devices_timing_defaults(const scicapd_devices *d, dmd_timing *t);
  * calibrate --masks); negative on error. */
 int scicapd_devices_camera_masks(const scicapd_devices *d, const sci_cube *dmd_masks, int cam_w, int cam_h,
                                  sci_cube **out, sci_error *err);
-/* The frames the camera sees for n masks, when the devices know them (the simulated bench's scene: frames
- * 0..n-1): 1 with *out a new cube; 0 when unknown (a real scene); negative on error. */
+/* The frames the camera sees for n masks, when the devices know them (the simulated bench's scene at the time
+ * scicapd_devices_scene_at set): 1 with *out a new cube; 0 when unknown (a real scene); negative on error. */
 int scicapd_devices_truth(scicapd_devices *d, int n, sci_cube **out, sci_error *err);
+/* The simulated bench's scene time for the next snapshot: capture number `capture` (1 for c000001) sees clock
+ * frames (capture − 1)·n … (capture − 1)·n + n − 1 (sim/bench.h), so every capture shows the scene moved on, the
+ * same for the same number whenever it is taken. No-op on real devices. */
+void scicapd_devices_scene_at(scicapd_devices *d, unsigned long capture);
 /* A uniform white target in front of the camera (on) or the scene again (off), for mask calibration: the simulated
  * bench switches its target; a real bench cannot, so the log asks the operator for one. */
 void scicapd_devices_white_target(scicapd_devices *d, int on);
 /* What the devices add to a snapshot's meta.json: "camera_trigger" ({"mode": "software", "sent": software
  * triggers sent since the camera opened, "last_sent_ns": CLOCK_MONOTONIC just before the last one}) when the
- * camera is in software-trigger mode, "simulated" ({"scene": name}) on the simulated bench. */
-void scicapd_devices_snapshot_meta(scicapd_devices *d, json_t *meta);
+ * camera is in software-trigger mode, "simulated" ({"scene": name, "scene_frames": the scene time of each of the
+ * n masks' frames}) on the simulated bench. */
+void scicapd_devices_snapshot_meta(scicapd_devices *d, int n, json_t *meta);
 
 /* Mark the DMD (dis)connected after a hotplug event (the acquisition thread's event callback calls this). */
 void scicapd_devices_dmd_event(scicapd_devices *d, dmd_event ev);

@@ -11,6 +11,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "base/clock.h"
+#include "daemon/package.h"
 #include "io/limits.h"
 #include "io/problem_dir.h"
 #include "io/staging.h"
@@ -308,9 +310,10 @@ int scicapd_import_store(scicapd_store *st, const scicapd_import_args *a, const 
         if (info->how[0])
             json_object_set_new(imp, "scale_auto", json_string(info->how));
     }
-    s->meta = json_pack("{s:s, s:i, s:{s:s, s:s}, s:I, s:i, s:o}", "format", "scicap-capture", "version", 1,
+    s->meta = json_pack("{s:s, s:i, s:{s:s, s:s}, s:I, s:i, s:o, s:o}", "format", "scicap-capture", "version", 1,
                         "software", "name", "scicapd", "version", SCICAP_VERSION, "job", (json_int_t)job,
-                        "snapshot_index", index, "imported", imp);
+                        "snapshot_index", index, "imported", imp, "captured",
+                        scicapd_time_json(sci_clock_mono_ns()));
     int rc = s->meta ? scicapd_store_write_capture(st, s, err) : sci_error_set(err, -ENOMEM, "out of memory");
     if (rc == 0) {
         snprintf(id, 32, "%s", s->capture_id);

@@ -99,7 +99,7 @@ int scicapd_package_snapshot(const scicapd_package_in *in, scicapd_snapshot **ou
     json_object_set_new(m, "devices", scicapd_devices_json(in->dev));
     json_object_set_new(m, "requested", json_pack("{s:I}", "mono_ns", (json_int_t)j->submitted_ns));
     json_object_set_new(m, "captured", scicapd_time_json(in->shot->start_ns));
-    scicapd_devices_snapshot_meta(in->dev, m); /* camera_trigger, simulated */
+    scicapd_devices_snapshot_meta(in->dev, ideal->n, m); /* camera_trigger, simulated */
     s->meta = m;
     *out = s;
     return 0;

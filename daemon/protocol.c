@@ -9,7 +9,7 @@
 
 static const char *const cmd_names[SCICAPD_CMD_COUNT] = {
     "status", "devices", "capture", "calibrate", "reconstruct", "jobs", "cancel", "watch", "reload", "shutdown",
-    "simulate", "import",
+    "simulate", "import", "captures",
 };
 static const char *const err_names[SCICAPD_E_COUNT] = {
     "ok", "too_long", "bad_json", "bad_version", "unknown_command", "bad_arguments", "permission", "busy",
@@ -154,13 +154,35 @@ int scicapd_recon_spec_resolve(const char *method, const char *preset, const sci
     return 0;
 }
 
+json_t *scicapd_recon_budget_json(const scicapd_recon_spec *s)
+{
+    if (!(s->budget_s > 0))
+        return NULL;
+    json_t *b = json_pack("{s:f, s:s, s:f, s:f}", "budget_s", s->budget_s, "method", s->method->name, "predicted_s",
+                          s->predicted_s, "expected_psnr_db", s->expected_db);
+    if (b && s->budget_setting[0])
+        json_object_set_new(b, "setting", json_string(s->budget_setting));
+    return b;
+}
+
 json_t *scicapd_recon_spec_json(const scicapd_recon_spec *s)
 {
     json_t *j = scicapd_recon_spec_json_plain(s);
-    if (j && s->budget_s > 0)
-        json_object_set_new(j, "budget", json_pack("{s:f, s:f, s:f}", "budget_s", s->budget_s, "predicted_s",
-                                                   s->predicted_s, "expected_psnr_db", s->expected_db));
+    json_t *b = j ? scicapd_recon_budget_json(s) : NULL;
+    if (b)
+        json_object_set_new(j, "budget", b);
     return j;
+}
+
+void scicapd_capture_id_normalize(const char *in, char *out, size_t n)
+{
+    const char *d = in[0] == 'c' ? in + 1 : in;
+    size_t len = strlen(d);
+    if (len == 0 || len > 12 || strspn(d, "0123456789") != len) {
+        snprintf(out, n, "%s", in);
+        return;
+    }
+    snprintf(out, n, "c%06llu", strtoull(d, NULL, 10));
 }
 
 /* A budget: the most accurate measured setting of any method whose predicted time fits (io/curves.h), for a
@@ -190,6 +212,7 @@ static int apply_budget(const scicapd_config *cfg, const sci_json_doc *doc, cons
     out->method = chosen.method;
     memcpy(out->settings, chosen.settings, sizeof out->settings);
     snprintf(out->preset, sizeof out->preset, "budget");
+    snprintf(out->budget_setting, sizeof out->budget_setting, "%s", ch.setting);
     out->budget_s = budget_s;
     out->predicted_s = ch.predicted_s;
     out->expected_db = ch.mean_psnr;
@@ -221,8 +244,7 @@ static int get_recon(const scicapd_request *r, const json_t *obj, const char *pa
             char mp[64], names[256];
             if (!solver_find(m))
                 return sci_json_fail(r->doc, err, sci_json_path_key(mp, sizeof mp, path, "method"),
-                                     "must be one of %s (got \"%.32s\")", solver_names_text(names, sizeof names, ", "),
-                                     m);
+                                     "unknown method '%.32s' (%s)", m, solver_names_text(names, sizeof names, ", "));
             method = m;
         }
         if ((rc = sci_json_get_enum(r->doc, obj, path, "preset", 0, presets, &p, err)) < 0)
@@ -322,7 +344,7 @@ int scicapd_args_reconstruct(const scicapd_request *r, const scicapd_config *cfg
         return rc;
     if (!cap[0] || strlen(cap) >= sizeof out->capture_id || strchr(cap, '/') || cap[0] == '.')
         return sci_json_fail(r->doc, err, "args.capture", "not a capture id: \"%.64s\"", cap);
-    snprintf(out->capture_id, sizeof out->capture_id, "%s", cap);
+    scicapd_capture_id_normalize(cap, out->capture_id, sizeof out->capture_id);
     if ((rc = get_recon(r, r->args, "args", cfg, &out->spec, err)) < 0)
         return rc;
     double budget = 0;
@@ -368,6 +390,19 @@ int scicapd_args_cancel(const scicapd_request *r, uint64_t *job, sci_error *err)
     if ((rc = sci_json_get_int(r->doc, r->args, "args", "job", 1, 1, (long long)1 << 53, &j, err)) < 0)
         return rc;
     *job = (uint64_t)j;
+    return 0;
+}
+
+int scicapd_args_captures(const scicapd_request *r, long *limit, sci_error *err)
+{
+    static const char *const keys[] = {"limit", NULL};
+    long long v = 0;
+    int rc;
+    if ((rc = args_obj(r, keys, err)) < 0)
+        return rc;
+    if (r->args && (rc = sci_json_get_int(r->doc, r->args, "args", "limit", 0, 0, 1000000, &v, err)) < 0)
+        return rc;
+    *limit = (long)v;
     return 0;
 }
 
@@ -417,11 +452,34 @@ char *scicapd_reply_ok(const json_t *id, json_t *result)
                              "result", result ? result : json_object()));
 }
 
+/* "request:L:C: args.PATH: reason" (sci_json_fail's form for the request line): PATH into arg, the reason's start
+ * returned; NULL for any other message. */
+static const char *split_arg_error(const char *msg, char *arg, size_t n)
+{
+    int line, col, off = 0;
+    if (strncmp(msg, "request:", 8) != 0 || sscanf(msg + 8, "%d:%d: %n", &line, &col, &off) != 2 || off == 0)
+        return NULL;
+    const char *p = msg + 8 + off;
+    const char *sep = strstr(p, ": ");
+    if (strncmp(p, "args", 4) != 0 || !sep || (p[4] != '.' && p + 4 != sep))
+        return NULL;
+    const char *key = p[4] == '.' ? p + 5 : p + 4;
+    snprintf(arg, n, "%.*s", (int)(sep - key), key);
+    return sep + 2;
+}
+
 char *scicapd_reply_error(const json_t *id, scicapd_errcode code, const char *message)
 {
-    return line_of(json_pack("{s:i, s:o, s:b, s:{s:s, s:s}}", "v", SCICAPD_PROTOCOL_VERSION, "id", id_or_null(id),
-                             "ok", 0, "error", "code", scicapd_errcode_name(code), "message",
-                             message && message[0] ? message : scicapd_errcode_name(code)));
+    const char *text = message && message[0] ? message : scicapd_errcode_name(code);
+    json_t *e = json_pack("{s:s, s:s}", "code", scicapd_errcode_name(code), "message", text);
+    char arg[128];
+    const char *reason = e ? split_arg_error(text, arg, sizeof arg) : NULL;
+    if (reason) {
+        json_object_set_new(e, "arg", json_string(arg));
+        json_object_set_new(e, "reason", json_string(reason));
+    }
+    return line_of(json_pack("{s:i, s:o, s:b, s:o}", "v", SCICAPD_PROTOCOL_VERSION, "id", id_or_null(id), "ok", 0,
+                             "error", e));
 }
 
 char *scicapd_event(const char *name, uint64_t job, const json_t *id, json_t *data)

@@ -50,6 +50,7 @@ typedef enum scicapd_cmd {
     SCICAPD_CMD_SHUTDOWN,
     SCICAPD_CMD_SIMULATE, /* fault injection on the simulated bench (admin; refused on hardware) */
     SCICAPD_CMD_IMPORT,   /* captures from files the client passes as descriptors (daemon/import.h) */
+    SCICAPD_CMD_CAPTURES, /* the stored captures and their reconstructions (daemon/catalog.h) */
     SCICAPD_CMD_COUNT
 } scicapd_cmd;
 
@@ -101,6 +102,7 @@ typedef struct scicapd_recon_spec {
     char preset[16];                 /* fast|balanced|best (default|quality as sent), "budget" when chosen by budget */
     double budget_s;                 /* the request's budget (0: none) */
     double predicted_s, expected_db; /* the chosen setting's predicted solver time and mean PSNR on the suite */
+    char budget_setting[96];         /* the chosen row of the curves ("iters=100 tv_iters=5"); "" when unknown */
     _Alignas(max_align_t) unsigned char settings[SCICAPD_SETTINGS_MAX]; /* the method's params struct */
 } scicapd_recon_spec;
 
@@ -112,6 +114,13 @@ int scicapd_recon_spec_resolve(const char *method, const char *preset, const sci
 /* The spec as JSON; with a budget, also what was chosen for it (budget_s, predicted_s, expected_psnr_db). */
 json_t *scicapd_recon_spec_json(const scicapd_recon_spec *s);
 json_t *scicapd_recon_spec_json_plain(const scicapd_recon_spec *s);
+/* What a budget chose: {budget_s, method, setting, predicted_s, expected_psnr_db} (setting only when known); NULL
+ * without a budget. New reference. */
+json_t *scicapd_recon_budget_json(const scicapd_recon_spec *s);
+
+/* A capture id as people type it: "c000042", "c42" and "42" all give "c000042" (the store's names); any other
+ * text is copied unchanged (the store then says it has no such capture). out holds n bytes. */
+void scicapd_capture_id_normalize(const char *in, char *out, size_t n);
 
 typedef struct scicapd_capture_args {
     scicapd_mask_set mask_set;   /* resolved copy */
@@ -152,6 +161,8 @@ int scicapd_args_calibrate(const scicapd_request *r, const scicapd_config *cfg, 
 int scicapd_args_reconstruct(const scicapd_request *r, const scicapd_config *cfg, scicapd_recon_args *out,
                              sci_error *err);
 int scicapd_args_cancel(const scicapd_request *r, uint64_t *job, sci_error *err);
+/* captures: `limit` (0..1000000; absent or 0: all) into *limit. */
+int scicapd_args_captures(const scicapd_request *r, long *limit, sci_error *err);
 int scicapd_args_simulate(const scicapd_request *r, scicapd_simulate_args *out, sci_error *err);
 /* Commands without arguments: any key is refused. */
 int scicapd_args_none(const scicapd_request *r, sci_error *err);
@@ -161,6 +172,9 @@ uint32_t scicapd_auto_exposure_us(int n, uint32_t pattern_us, uint32_t dark_us, 
 
 /* ---- messages (each a new JSON string with the trailing newline; caller frees) ---- */
 char *scicapd_reply_ok(const json_t *id, json_t *result /* stolen, may be NULL */);
+/* The error object carries "message" as given; when it is an argument error positioned in the request
+ * ("request:1:58: args.method: reason"), also "arg" (the key path under args: "method", "params.iters") and
+ * "reason" (the text after the path), so that a client can name its own option instead of a JSON position. */
 char *scicapd_reply_error(const json_t *id, scicapd_errcode code, const char *message);
 /* An event; `id` is the request id of the job's submitter (may be NULL). `data` stolen. */
 char *scicapd_event(const char *name, uint64_t job, const json_t *id, json_t *data);

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "base/json.h"
+#include "daemon/reconout.h"
 
 #define RECONQ_DIR "recon-queue"
 
@@ -40,9 +41,9 @@ static json_t *item_json(const scicapd_job *j)
     json_object_del(params, "preset");
     json_t *o = json_pack("{s:s, s:I, s:o, s:o, s:o}", "capture", j->recon.capture_id, "owner", (json_int_t)j->owner,
                           "method", method, "preset", preset, "params", params);
-    if (o && s->budget_s > 0)
-        json_object_set_new(o, "budget", json_pack("{s:f, s:f, s:f}", "budget_s", s->budget_s, "predicted_s",
-                                                   s->predicted_s, "expected_psnr_db", s->expected_db));
+    json_t *b = o ? scicapd_recon_budget_json(s) : NULL;
+    if (b)
+        json_object_set_new(o, "budget", b);
     return o;
 }
 
@@ -241,6 +242,8 @@ static int item_read(const char *path, scicapd_reconq_item *it, sci_error *err)
                                          json_object_get(root, "params"), "params", &it->spec, err)) < 0)
         goto out;
     if (b) {
+        const char *setting = json_string_value(json_object_get(b, "setting"));
+        snprintf(it->spec.budget_setting, sizeof it->spec.budget_setting, "%s", setting ? setting : "");
         snprintf(it->spec.preset, sizeof it->spec.preset, "budget");
         it->spec.budget_s = budget;
         it->spec.predicted_s = predicted;
@@ -253,21 +256,16 @@ out:
     return rc;
 }
 
-/* 1 when the job saved as `file` already published its output: <capture>/recon/<method>/result.json names this
- * entry as the job that wrote it (daemon/workers.c). The daemon died between the publish and the removal of
- * the entry; running it again would only redo the same work. */
+/* 1 when the job saved as `file` already published its output: a recon/<method>[.N]/result.json of its capture
+ * names this entry as the job that wrote it (daemon/workers.c). The daemon died between the publish and the
+ * removal of the entry; running it again would only add the same result a second time. */
 static int item_published(scicapd_store *st, const scicapd_reconq_item *it, const char *file)
 {
-    char dir[1100], path[1400];
+    char dir[1100];
     sci_error e = {0};
     if (scicapd_store_capture_dir(st, it->capture_id, dir, sizeof dir, &e) < 0)
         return 0;
-    snprintf(path, sizeof path, "%s/recon/%s/result.json", dir, it->spec.method->name);
-    json_t *r = json_load_file(path, 0, NULL);
-    const char *by = json_string_value(json_object_get(json_object_get(r, "job"), "queue_entry"));
-    const int done = by && strcmp(by, file) == 0;
-    json_decref(r);
-    return done;
+    return scicapd_reconout_published_by(dir, it->spec.method->name, file);
 }
 
 static int by_name(const void *a, const void *b)

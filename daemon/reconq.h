@@ -9,7 +9,8 @@
  *     r-<CLOCK_REALTIME ns, 20 digits>-<job id>.json
  *     {"capture": "c000042", "owner": 1000, "method": "gap-tv", "preset": "fast",
  *      "params": {"iters": 30, "lambda": 1, "tv_weight": 0.1, "tv_iters": 5, "accelerate": true},
- *      "budget": {"budget_s": 2, "predicted_s": 1.7, "expected_psnr_db": 29.1}}      (budget only when chosen so)
+ *      "budget": {"budget_s": 2, "method": "gap-tv", "setting": "iters=30 tv_iters=5", "predicted_s": 1.7,
+ *                 "expected_psnr_db": 29.1}}                      (budget only when chosen so; setting optional)
  *
  * A method with checkpoints (recon/solver.h SOLVER_CHECKPOINTS: the NeRF methods) keeps its newest one beside
  * its entry, r-<...>-<job id>.ckpt (the method's own blob, written every reconstruction.checkpoint_every steps
@@ -53,8 +54,8 @@ int scicapd_reconq_checkpoint_save(scicapd_store *st, const scicapd_job *j, cons
 int scicapd_reconq_checkpoint_load(scicapd_store *st, const scicapd_job *j, void **blob, size_t *bytes,
                                    sci_error *err);
 /* Every saved job, oldest first: *items (caller frees with free()) and *n. Unreadable files are renamed and
- * logged, not returned. A job whose output is already published — <capture>/recon/<method>/result.json names its
- * entry under "job"."queue_entry", written by daemon/workers.c — is complete: the daemon died between the publish
+ * logged, not returned. A job whose output is already published — a <capture>/recon/<method>[.N]/result.json names
+ * its entry under "job"."queue_entry", written by daemon/workers.c — is complete: the daemon died between the publish
  * and the removal of the entry. Its entry (and checkpoint) is removed and logged, not returned, so a kill -9 at
  * that moment never runs a job twice. -ENOMEM, or -errno when the folder cannot be created or read. */
 int scicapd_reconq_load(scicapd_store *st, const sci_log *log, scicapd_reconq_item **items, int *n, sci_error *err);

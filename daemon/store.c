@@ -288,16 +288,31 @@ int scicapd_store_fsync_on(const scicapd_store *s) { return s->fsync_on; }
 
 void scicapd_store_set_previews(scicapd_store *s, int on) { atomic_store(&s->previews, on != 0); }
 
-int scicapd_store_reserve_id(scicapd_store *st, scicapd_snapshot *s, sci_error *err)
+int scicapd_store_take_id(scicapd_store *st, char *id, size_t n, unsigned long *num, sci_error *err)
 {
-    unsigned long n;
+    unsigned long v;
     pthread_mutex_lock(&st->mu);
-    int rc = ids_take(st, &st->next_capture, &st->mark_capture, &n, err);
+    int rc = ids_take(st, &st->next_capture, &st->mark_capture, &v, err);
     pthread_mutex_unlock(&st->mu);
     if (rc < 0)
         return rc;
-    snprintf(s->capture_id, sizeof s->capture_id, "c%06lu", n);
+    snprintf(id, n, "c%06lu", v);
+    if (num)
+        *num = v;
     return 0;
+}
+
+int scicapd_store_reserve_id(scicapd_store *st, scicapd_snapshot *s, sci_error *err)
+{
+    return scicapd_store_take_id(st, s->capture_id, sizeof s->capture_id, NULL, err);
+}
+
+void scicapd_store_give_back_id(scicapd_store *st, unsigned long num)
+{
+    pthread_mutex_lock(&st->mu);
+    if (st->next_capture == num + 1) /* the mark stays ahead: harmless, it only promises what was not used */
+        st->next_capture = num;
+    pthread_mutex_unlock(&st->mu);
 }
 
 void scicapd_snapshot_free(scicapd_jobs *jobs, scicapd_snapshot *s)

@@ -81,6 +81,12 @@ int scicapd_store_fsync_on(const scicapd_store *s);
  * (may block on fsync, once per STORE_ID_BLOCK ids). Thread-safe. -errno when the mark cannot be written: no id
  * is handed out then. */
 int scicapd_store_reserve_id(scicapd_store *st, scicapd_snapshot *s, sci_error *err);
+/* The same before the snapshot exists: the id into id (n bytes, "c000042"), its number into *num (may be NULL).
+ * For the simulated bench, whose scene time follows the capture number (daemon/capture.c). */
+int scicapd_store_take_id(scicapd_store *st, char *id, size_t n, unsigned long *num, sci_error *err);
+/* Give back capture number `num` when it is still the last one handed out (the snapshot it was taken for
+ * failed); otherwise it stays unused, a gap as after a crash. Thread-safe. */
+void scicapd_store_give_back_id(scicapd_store *st, unsigned long num);
 /* Previews (preview_*.png, preview_truth.gif) in the folders written from now on (storage.previews). */
 void scicapd_store_set_previews(scicapd_store *st, int on);
 /* Write one snapshot as a capture folder (reserves an id unless s has one; sets s->dir). Blocks on file I/O.

@@ -16,6 +16,7 @@
 
 #include "base/clock.h"
 #include "daemon/import.h"
+#include "daemon/reconout.h"
 #include "daemon/reconq.h"
 #include "io/problem_dir.h"
 #include "io/recon_store.h"
@@ -26,6 +27,7 @@
 
 struct scicapd_workers {
     scicapd_workers_env env;
+    scicapd_reconout *names;  /* output folder names reserved by workers publishing right now */
     int count, omp_threads;
     pthread_t *threads;
     int started;
@@ -83,6 +85,38 @@ static int on_checkpoint(const void *blob, size_t bytes, int iter, void *user)
     }
     post(c->w, c->job, "recon.checkpoint", json_pack("{s:i, s:I}", "iter", iter, "bytes", (json_int_t)bytes));
     return 0;
+}
+
+/* Write the result to the capture's next free recon/<method>[.N] (its name into folder, the path into out): the
+ * name reserved so that workers finishing together never pick the same one, the folder published without
+ * replacing anything. */
+static int publish(scicapd_workers *w, const scicapd_job *j, const char *dir, const sci_problem *p,
+                   const sci_result *r, char *folder, size_t nf, char *out, size_t no, sci_error *err)
+{
+    char rdir[1200];
+    snprintf(rdir, sizeof rdir, "%s/recon", dir);
+    const int created = mkdir(rdir, 0750) == 0;
+    if (!created && errno != EEXIST)
+        return sci_error_set(err, -errno, "%s: cannot create: %s", rdir, strerror(errno));
+    int rc = scicapd_reconout_reserve(w->names, dir, j->recon.spec.method->name, folder, nf, err);
+    if (rc < 0)
+        return rc;
+    snprintf(out, no, "%s/%s", rdir, folder);
+    json_t *params = scicapd_recon_spec_json(&j->recon.spec);
+    /* which queued job wrote it: a restart after a crash before the entry is dropped finds it done
+     * (daemon/reconq.h) rather than running it again */
+    json_t *job = json_pack("{s:{s:I, s:s}}", "job", "id", (json_int_t)j->id, "queue_entry", j->persisted);
+    /* storage.fsync promises that a reconstruction the queue forgets after this survives a power cut: its files
+     * and the rename that published it reach the disk before the write returns, and a new recon/ folder's name
+     * before the entry is dropped */
+    const int durable = scicapd_store_fsync_on(w->env.store);
+    rc = sci_recon_store_write_ex(out, p, r, params, job, durable ? SCI_STAGING_DURABLE : 0, NULL, err);
+    json_decref(job);
+    json_decref(params);
+    scicapd_reconout_release(w->names, dir, folder);
+    if (rc == 0 && durable && created && (rc = sci_staging_sync(rdir, SCI_SYNC_PARENT)) < 0)
+        sci_error_set(err, rc, "%s: cannot make the reconstruction durable: %s", out, sci_strerror(rc));
+    return rc;
 }
 
 static void run(scicapd_workers *w, scicapd_job *j)
@@ -181,36 +215,19 @@ static void run(scicapd_workers *w, scicapd_job *j)
         goto done;
     }
     scicapd_span_begin(&sp);
-    snprintf(out, sizeof out, "%s/recon/%s", dir, method);
-    char rdir[1200];
-    snprintf(rdir, sizeof rdir, "%s/recon", dir);
-    const int created = mkdir(rdir, 0750) == 0;
-    if (!created && errno != EEXIST) {
-        rc = sci_error_set(&err, -errno, "%s: cannot create: %s", rdir, strerror(errno));
+    char folder[96];
+    if ((rc = publish(w, j, dir, pp[0], &r, folder, sizeof folder, out, sizeof out, &err)) < 0)
         goto done;
-    }
-    json_t *params = scicapd_recon_spec_json(&ra->spec);
-    /* which queued job wrote it: a restart after a crash before the entry is dropped below finds it done
-     * (daemon/reconq.h) rather than running it again */
-    json_t *job = json_pack("{s:{s:I, s:s}}", "job", "id", (json_int_t)j->id, "queue_entry", j->persisted);
-    /* storage.fsync promises that a reconstruction the queue forgets below survives a power cut: its files and
-     * the rename that published it reach the disk before the write returns, and a new recon/ folder's name
-     * before the entry is dropped */
-    const int durable = scicapd_store_fsync_on(w->env.store);
-    const int flags = SCI_STAGING_OVERWRITE | (durable ? SCI_STAGING_DURABLE : 0);
-    rc = sci_recon_store_write_ex(out, pp[0], &r, params, job, flags, NULL, &err);
-    json_decref(job);
-    json_decref(params);
-    if (rc < 0)
-        goto done;
-    if (durable && created && (rc = sci_staging_sync(rdir, SCI_SYNC_PARENT)) < 0) {
-        sci_error_set(&err, rc, "%s: cannot make the reconstruction durable: %s", out, sci_strerror(rc));
-        goto done;
-    }
     scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_WRITE, &sp);
     const sci_trace_entry *last = r.trace.len ? &r.trace.e[r.trace.len - 1] : NULL;
-    json_t *d = json_pack("{s:s, s:s, s:s, s:i, s:f, s:f}", "capture", ra->capture_id, "method", method, "dir", out,
-                          "iters", r.iters_done, "solve_s", solve_s, "total_s", sci_clock_s(t0, sci_clock_mono_ns()));
+    json_t *d = json_pack("{s:s, s:s, s:s, s:s, s:i, s:f, s:f}", "capture", ra->capture_id, "method", method, "dir",
+                          out, "folder", folder, "iters", r.iters_done, "solve_s", solve_s, "total_s",
+                          sci_clock_s(t0, sci_clock_mono_ns()));
+    json_t *budget = scicapd_recon_budget_json(&ra->spec);
+    if (budget)
+        json_object_set_new(d, "budget", budget);
+    if (last && isfinite(last->residual))
+        json_object_set_new(d, "residual", json_real(last->residual));
     if (last && isfinite(last->psnr)) {
         json_object_set_new(d, "psnr", json_real(last->psnr));
         json_object_set_new(d, "psnr_peak1", json_real(last->psnr_peak1));
@@ -388,6 +405,11 @@ int scicapd_workers_start(scicapd_workers **out, const scicapd_workers_env *env,
         free(w);
         return sci_error_set(err, -ENOMEM, "workers: out of memory");
     }
+    if (scicapd_reconout_new(&w->names) < 0) {
+        free(w->threads);
+        free(w);
+        return sci_error_set(err, -ENOMEM, "workers: out of memory");
+    }
     w->env = *env;
     w->count = count;
     w->omp_threads = omp_threads > 0 ? omp_threads : scicapd_workers_auto_threads(count);
@@ -411,6 +433,7 @@ void scicapd_workers_stop(scicapd_workers *w)
     atomic_store(&w->stop, 1);
     for (int i = 0; i < w->started; i++)
         pthread_join(w->threads[i], NULL);
+    scicapd_reconout_free(w->names);
     free(w->threads);
     free(w);
 }

@@ -3,8 +3,9 @@
  * Each worker pops a reconstruct job, reads the capture folder as a problem (io/problem_dir.h), runs the solver
  * (any method of recon/solver.h, by name) with a progress callback that updates the job, streams "recon.progress" events
  * (iteration, PSNR when the truth is known, ETA; at most every 100 ms plus the last iteration) and stops at once
- * when the job is canceled or the pool is stopping. A finished run is written to <capture>/recon/<method>/
- * atomically (io/recon_store.h); a canceled or failed run writes nothing. A job that ends for good (done,
+ * when the job is canceled or the pool is stopping. A finished run is written atomically (io/recon_store.h) to
+ * <capture>/recon/<method>/, or <method>.2, .3, ... when the method already has one (daemon/reconout.h: nothing
+ * is replaced); its "recon.done" names the folder. A canceled or failed run writes nothing. A job that ends for good (done,
  * failed, canceled by a user) has its saved copy removed (daemon/reconq.h); one stopped by the daemon's own
  * stop keeps it, to be resumed at the next start. A method with checkpoints (the NeRF methods) saves one beside
  * that copy every env->checkpoint_every steps and when the daemon stops ("recon.checkpoint" event), and a resumed

@@ -35,9 +35,9 @@ struct sim_bench {
     sim_bench_options opt;   /* as opened (scene and scene_path cleared: not kept) */
     sim_bench_target target;
     sci_rng rng;
-    int snapshot;            /* scene time: snapshot j sees frames j·n … j·n + n − 1 */
+    uint64_t snapshot;       /* scene time: snapshot j sees clock frames j·n … j·n + n − 1 */
     sci_cube *truth;         /* cached truth, n frames of truth_snapshot */
-    int truth_snapshot;
+    uint64_t truth_snapshot;
     float *last;             /* last snapshot before counts (w×h); last_valid once one was taken */
     int last_valid;
 };
@@ -196,6 +196,20 @@ static void on_strobe(void *arg, const camera_sim_exposure *e)
 
 /* ---- the image ---- */
 
+/* The scene's length in frames as the bench's clock plays it (the header says why). */
+static uint64_t loop_frames(const sim_scene *sc)
+{
+    uint64_t len = (uint64_t)sc->snapshots * (uint64_t)sc->n;
+    return sc->kind == SIM_SCENE_VIDEO2D && len < SIM_BENCH_LOOP_FRAMES ? SIM_BENCH_LOOP_FRAMES : len;
+}
+
+double sim_bench_frame_time(const sim_bench *b, int n, int k)
+{
+    uint64_t len = loop_frames(b->scene), period = len > 1 ? 2 * (len - 1) : 1;
+    uint64_t u = (b->snapshot * (uint64_t)n + (uint64_t)k) % period;
+    return (double)(u < len ? u : period - u);
+}
+
 static int render_truth(sim_bench *b, int n, sci_error *err)
 {
     if (b->truth && b->truth->n == n && b->truth_snapshot == b->snapshot)
@@ -205,10 +219,10 @@ static int render_truth(sim_bench *b, int n, sci_error *err)
     if (rc < 0)
         return rc;
     for (int k = 0; k < n; k++)
-        if ((rc = sim_render_frame(b->scene, (double)b->snapshot * n + k, sci_cube_frame(t, k))) < 0) {
+        if ((rc = sim_render_frame(b->scene, sim_bench_frame_time(b, n, k), sci_cube_frame(t, k))) < 0) {
             sci_cube_free(t);
-            return sci_error_set(err, rc, "simulator: rendering frame %d of %s failed", b->snapshot * n + k,
-                                 b->scene->name);
+            return sci_error_set(err, rc, "simulator: rendering scene time %g of %s failed",
+                                 sim_bench_frame_time(b, n, k), b->scene->name);
         }
     sci_cube_free(b->truth);
     b->truth = t;
@@ -444,7 +458,7 @@ trigger *sim_bench_trigger(sim_bench *b) { return b->trig; }
 const sim_bench_options *sim_bench_get_options(const sim_bench *b) { return &b->opt; }
 const float *sim_bench_last(const sim_bench *b) { return b->last_valid ? b->last : NULL; }
 void sim_bench_set_target(sim_bench *b, sim_bench_target t) { b->target = t; }
-void sim_bench_set_snapshot(sim_bench *b, int snapshot) { b->snapshot = snapshot; }
+void sim_bench_set_snapshot(sim_bench *b, uint64_t snapshot) { b->snapshot = snapshot; }
 const char *sim_bench_scene_name(const sim_bench *b) { return b->scene->name; }
 
 void sim_bench_camera_stall(sim_bench *b, int n) { camera_sim_fault(b->cs, CAMERA_SIM_FAULT_STALL, n); }

@@ -84,9 +84,17 @@ camera *sim_bench_camera(sim_bench *b);   /* borrowed, until set_free_run or clo
 trigger *sim_bench_trigger(sim_bench *b); /* borrowed */
 const sim_bench_options *sim_bench_get_options(const sim_bench *b); /* as opened (scene and path not kept) */
 void sim_bench_set_target(sim_bench *b, sim_bench_target t);
-/* The scene's time for the next exposures: snapshot j sees frames j·n … j·n + n − 1 of the scene (n = the masks
- * in the sequence). 0 until set (scicapd's captures all see frames 0 … n − 1). */
-void sim_bench_set_snapshot(sim_bench *b, int snapshot);
+/* The scene's time for the next exposures: snapshot j sees frames j·n … j·n + n − 1 of the bench's clock (n = the
+ * masks in the sequence); 0 until set. scicapd sets it from the capture number, so consecutive captures see the
+ * scene move on. The clock plays the scene forward, then backward, and so on (a bounce, so that positions stay
+ * continuous) over its length: the scene's snapshots × frames, and for a video2d scene at least
+ * SIM_BENCH_LOOP_FRAMES (layers move for ever; a one-snapshot scene would otherwise never change); frame f of the
+ * clock is scene time f while f < length. So snapshots never run out of scene, and the first ones are exactly
+ * those `scicap sim` renders. */
+void sim_bench_set_snapshot(sim_bench *b, uint64_t snapshot);
+#define SIM_BENCH_LOOP_FRAMES 32
+/* The scene time (in frames, 0 … length − 1) of mask k's frame of the current snapshot of n masks. */
+double sim_bench_frame_time(const sim_bench *b, int n, int k);
 /* The truth the camera sees for `n` masks (those frames of the scene, rendered once per n and snapshot): borrowed
  * until the next call or close. NULL on failure (err set). */
 const sci_cube *sim_bench_truth(sim_bench *b, int n, sci_error *err);

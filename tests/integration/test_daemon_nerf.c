@@ -411,8 +411,10 @@ static void budget_picks_nerf(void **state)
                   c.err);
     assert_int_equal(cli_child_exit_code(&c), 0);
     double b = 0;
-    budget_result(cap_a, "rayformer", &b);
+    budget_result(cap_a, "rayformer.2", &b); /* beside rayformer_run's recon/rayformer, which stays */
     assert_true(b == 5);
+    assert_non_null(strstr(c.out, "-> "));
+    assert_non_null(strstr(strstr(c.out, "-> "), "/recon/rayformer.2"));
     /* a capture of the simulated bench (no camera): the same budget picks among the camera-less curves */
     hconn h;
     hconn_open(&h, &H);

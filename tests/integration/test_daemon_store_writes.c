@@ -229,11 +229,11 @@ static void previews_show_the_frames(void **state)
     harness_cleanup(&H);
 }
 
-/* result.json's "job"."queue_entry" of <cap>/recon/gap-tv, into buf ("" when none). */
-static void written_by(const harness *h, const char *cap, char *buf, size_t n)
+/* result.json's "job"."queue_entry" of <cap>/recon/<folder>, into buf ("" when none). */
+static void written_by(const harness *h, const char *cap, const char *folder, char *buf, size_t n)
 {
     char p[700];
-    snprintf(p, sizeof p, "%s/captures/%s/recon/gap-tv/result.json", h->store, cap);
+    snprintf(p, sizeof p, "%s/captures/%s/recon/%s/result.json", h->store, cap, folder);
     json_t *r = json_load_file(p, 0, NULL);
     const char *e = json_string_value(json_object_get(json_object_get(r, "job"), "queue_entry"));
     snprintf(buf, n, "%s", e ? e : "");
@@ -251,6 +251,25 @@ static void plant_entry(const harness *h, const char *name, const char *cap)
     fclose(f);
 }
 
+/* Restart with `entries` planted in the queue: how many the daemon resumed. */
+static int restart_with(hconn *c, const char *const *entries, const char *cap)
+{
+    harness_stop(&H);
+    for (int i = 0; entries[i]; i++)
+        plant_entry(&H, entries[i], cap);
+    harness_spawn(&H, NULL);
+    hconn_open(c, &H);
+    return daemon_child_resumed(c);
+}
+
+static int entry_left(const char *entry)
+{
+    char p[700];
+    snprintf(p, sizeof p, "%s/recon-queue/%s", H.store, entry);
+    struct stat sb;
+    return stat(p, &sb) == 0;
+}
+
 static void published_job_not_rerun(void **state)
 {
     (void)state;
@@ -258,33 +277,38 @@ static void published_job_not_rerun(void **state)
     char ids[1][32];
     start_capture_reconstruct(&c, ids[0]);
     char entry[256];
-    written_by(&H, ids[0], entry, sizeof entry);
+    written_by(&H, ids[0], "gap-tv", entry, sizeof entry);
     assert_true(strncmp(entry, "r-", 2) == 0);
     hconn_close(&c);
-    harness_stop(&H);
     /* the state a kill -9 leaves between "output published" and "entry removed": the entry back in the queue;
-     * beside it a second, later request for the same reconstruction, which must run */
-    plant_entry(&H, entry, ids[0]);
+     * beside it a second, later request for the same reconstruction, which must run, beside the first */
     const char *later = "r-99999999999999999999-999999.json";
-    plant_entry(&H, later, ids[0]);
-    harness_spawn(&H, NULL);
-    hconn_open(&c, &H);
-    const int resumed = daemon_child_resumed(&c);
-    char p[700];
-    snprintf(p, sizeof p, "%s/recon-queue/%s", H.store, entry);
-    struct stat sb;
-    const int entry_left = stat(p, &sb) == 0;
-    char by[256] = "";
+    const int resumed = restart_with(&c, (const char *const[]){entry, later, NULL}, ids[0]);
+    const int left = entry_left(entry);
+    char by[256] = "", first[256] = "";
     int64_t t0 = h_now_ms();
     while (strcmp(by, later) != 0 && h_now_ms() - t0 < 60000) {
         h_sleep_ms(50);
-        written_by(&H, ids[0], by, sizeof by);
+        written_by(&H, ids[0], "gap-tv.2", by, sizeof by);
     }
+    written_by(&H, ids[0], "gap-tv", first, sizeof first);
     printf("  restart with the published job's entry and a later one: %d resumed, the published entry %s, the "
-           "later one %s\n", resumed, entry_left ? "LEFT" : "removed", strcmp(by, later) ? "NOT RUN" : "ran");
+           "later one %s, the first result %s\n", resumed, left ? "LEFT" : "removed",
+           strcmp(by, later) ? "NOT RUN" : "ran into recon/gap-tv.2", strcmp(first, entry) ? "REPLACED" : "kept");
     assert_int_equal(resumed, 1);
-    assert_false(entry_left);
+    assert_false(left);
     assert_string_equal(by, later);
+    assert_string_equal(first, entry);
+    hconn_close(&c);
+    /* the later one's entry back too: its output is recon/gap-tv.2, found there, not run a third time */
+    const int again = restart_with(&c, (const char *const[]){later, NULL}, ids[0]);
+    h_sleep_ms(500);
+    printf("  restart with the entry that published recon/gap-tv.2: %d resumed, entry %s, recon/gap-tv.3 %s\n",
+           again, entry_left(later) ? "LEFT" : "removed",
+           daemon_child_recon_exists(&H, ids[0], "gap-tv.3") ? "WRITTEN" : "absent");
+    assert_int_equal(again, 0);
+    assert_false(entry_left(later));
+    assert_false(daemon_child_recon_exists(&H, ids[0], "gap-tv.3"));
     hconn_close(&c);
     harness_stop(&H);
     harness_cleanup(&H);
