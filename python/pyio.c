@@ -4,6 +4,7 @@
 #include "python/pyscicap.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -17,14 +18,23 @@
 
 static PyObject *py_read(PyObject *self, PyObject *args, PyObject *kw)
 {
-    static char *kws[] = {"path", "mask", "mask_var", "meas_var", "truth_var", "scale", "allow_large", NULL};
+    static char *kws[] = {"path", "mask", "mask_var", "meas_var", "truth_var", "scale", "allow_large", "frames",
+                          "mask_scale", NULL};
     PyObject *path_o, *scale_o = Py_None;
     const char *mask = NULL, *mask_var = NULL, *meas_var = NULL, *truth_var = NULL;
-    int allow_large = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&|$zzzzOp:read", kws, PyUnicode_FSConverter, &path_o, &mask,
-                                     &mask_var, &meas_var, &truth_var, &scale_o, &allow_large))
+    int allow_large = 0, frames = 0;
+    double mask_scale = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&|$zzzzOpid:read", kws, PyUnicode_FSConverter, &path_o, &mask,
+                                     &mask_var, &meas_var, &truth_var, &scale_o, &allow_large, &frames, &mask_scale))
         return NULL;
-    sci_mat_options mo = {.mask_path = mask, .mask_var = mask_var, .meas_var = meas_var, .truth_var = truth_var};
+    if (frames < 0 || mask_scale < 0 || isnan(mask_scale)) {
+        Py_DECREF(path_o);
+        if (frames < 0)
+            return py_error_input("frames must be >= 0 (0: every mask frame), got %d", frames);
+        return py_error_input("mask_scale must be > 0 (the value of a fully open mask pixel), got %g", mask_scale);
+    }
+    sci_mat_options mo = {.mask_path = mask, .mask_var = mask_var, .meas_var = meas_var, .truth_var = truth_var,
+                          .frames = frames, .mask_white = mask_scale};
     sci_io_limits lim;
     sci_io_limits_default(&lim);
     if (allow_large)
@@ -179,9 +189,11 @@ done:
 
 PyMethodDef py_io_methods[] = {
     {"read", (PyCFunction)(void (*)(void))py_read, METH_VARARGS | METH_KEYWORDS,
-     "read(path, *, mask=None, mask_var=None, meas_var=None, truth_var=None, scale=None, allow_large=False)\n\n"
-     "The problems in a .mat file (values divided by scale: 255 by default, 'auto' reads the data's range) or a\n"
-     "problem folder, as a list of dicts (scicap.read wraps them in scicap.Problem). io/source.h, docs/formats.md."},
+     "read(path, *, mask=None, mask_var=None, meas_var=None, truth_var=None, scale=None, allow_large=False,\n"
+     "     frames=0, mask_scale=0)\n\n"
+     "The problems in a .mat file (values divided by scale: 255 by default, 'auto' reads the data's range; frames:\n"
+     "the first N masks, 0 all; mask_scale: a fully open mask pixel's value, 0 inferred) or a problem folder, as a\n"
+     "list of dicts (scicap.read wraps them in scicap.Problem). io/source.h, docs/formats.md."},
     {"probe", (PyCFunction)(void (*)(void))py_probe, METH_VARARGS | METH_KEYWORDS,
      "probe(path) -> {w, h, n, snapshots}\n\nThe sizes a source declares, without reading its data."},
     {"write_mat", (PyCFunction)(void (*)(void))py_write_mat, METH_VARARGS | METH_KEYWORDS,

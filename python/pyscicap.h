@@ -35,8 +35,13 @@ extern PyObject *py_error_type;       /* scicap.Error(RuntimeError) */
 extern PyObject *py_input_error_type; /* scicap.InputError(Error, ValueError) */
 
 /* Raise the exception for library code `code` with the message in err (or sci_strerror(code) when it has none).
- * Always returns NULL. */
+ * The library speaks to the command line ("give --scale N", "--set weights=PATH", "use --force"): each option is
+ * named as the keyword argument a Python caller gives instead (py_error_keywords). Always returns NULL. */
 PyObject *py_error_raise(int code, const sci_error *err);
+/* `msg` with every command-line option of the table that Python has a keyword for rewritten as that keyword:
+ * "--meas-var NAME" -> "meas_var=NAME", "--set weights=P" -> "weights=P", "--force" -> "overwrite=True", a bare
+ * "--scale" in a list -> "scale". Into out (n bytes, truncated). */
+void py_error_keywords(const char *msg, char *out, size_t n);
 /* Raise scicap.InputError with a printf-style message. Returns NULL. */
 PyObject *py_error_input(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 

@@ -54,7 +54,8 @@ def ssim(x, truth, data_range=1.0):
 def read(path, snapshot=None, **options):
     """The problems in a .mat file or a problem folder (io/source.h), as a list of Problem; with snapshot=J
     (1-based) only that one, as a Problem. Options for a .mat (docs/formats.md): mask (a mask file), mask_var,
-    meas_var, truth_var, scale (the value of white, default 255, or 'auto'), allow_large."""
+    meas_var, truth_var, scale (the value of white, default 255, or 'auto'), frames (the first N masks),
+    mask_scale (a fully open mask pixel's value), allow_large. Errors name these keywords."""
     problems = [_problem(d) for d in _scicap.read(str(path), **options)]
     if snapshot is None:
         return problems

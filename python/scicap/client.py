@@ -18,13 +18,23 @@ MAIN_END_EVENTS = ("capture.done", "capture.failed", "capture.canceled", "calibr
 RECON_END_EVENTS = ("recon.done", "recon.failed", "recon.canceled", "recon.rejected")
 
 
-class DaemonError(RuntimeError):
-    """The daemon answered ok: false: .code is the protocol's error code (busy, bad_arguments, not_found, ...)."""
+def _keyword(arg):
+    """The keyword argument of a request argument's path: "method", "params.iters" -> "params['iters']"."""
+    head, *rest = arg.split(".")
+    return head + "".join(f"[{k!r}]" for k in rest)
 
-    def __init__(self, code, message):
-        super().__init__(f"{code}: {message}")
+
+class DaemonError(RuntimeError):
+    """The daemon answered ok: false: .code is the protocol's error code (busy, bad_arguments, not_found, ...),
+    .message the daemon's message; for a refused argument also .arg (its keyword, e.g. "method") and .reason,
+    which the exception's text uses instead of the request's JSON position."""
+
+    def __init__(self, code, message, arg=None, reason=None):
         self.code = code
         self.message = message
+        self.arg = _keyword(arg) if arg else None
+        self.reason = reason
+        super().__init__(f"{code}: {self.arg}: {reason}" if arg and reason else f"{code}: {message}")
 
 
 class Client:
@@ -82,7 +92,8 @@ class Client:
                 if m.get("ok"):
                     return m.get("result", {})
                 err = m.get("error") or {}
-                raise DaemonError(err.get("code", "unknown"), err.get("message", ""))
+                raise DaemonError(err.get("code", "unknown"), err.get("message", ""), err.get("arg"),
+                                  err.get("reason"))
 
     def status(self):
         return self.request("status")
@@ -92,6 +103,11 @@ class Client:
 
     def jobs(self):
         return self.request("jobs")["jobs"]
+
+    def captures(self, limit=None):
+        """The stored captures (the newest `limit`, default all), oldest first, each with its reconstructions
+        (docs/protocol.md, "captures")."""
+        return self.request("captures", limit=limit)["captures"]
 
     def cancel(self, job):
         return self.request("cancel", job=job)

@@ -72,6 +72,22 @@ def test_status_capture_reconstruct(daemon):
         with pytest.raises(scicap.DaemonError) as e:
             c.reconstruct("c_no_such_capture")
         assert e.value.code in ("not_found", "bad_arguments")
+        # a refused argument is named by its keyword, not by the request's JSON position
+        with pytest.raises(scicap.DaemonError) as e:
+            c.reconstruct(capture, method="x")
+        assert e.value.code == "bad_arguments" and e.value.arg == "method", e.value
+        assert str(e.value).startswith("bad_arguments: method: unknown method 'x' (gap-tv"), e.value
+        assert "request:" not in str(e.value) and "args." not in str(e.value), e.value
+        with pytest.raises(scicap.DaemonError) as e:
+            c.reconstruct(capture, params={"iters": 0})
+        assert e.value.arg == "params['iters']" and "request:" not in str(e.value), e.value
+        # the stored captures, with their reconstructions: a bare number names the capture too
+        listed = {e["capture"]: e for e in c.captures()}
+        assert capture in listed and listed[capture]["truth"], listed
+        assert {r["method"] for r in listed[capture]["recons"]} == {"gap-tv", "admm-tv"}, listed[capture]
+        c.reconstruct(str(int(capture[1:])), method="gap-tv", preset="fast")
+        third = list(c.wait(timeout=60))[-1]["data"]
+        assert third["capture"] == capture and third["folder"] == "gap-tv.2", third
         seen = []  # the watcher saw both reconstructions and the capture
         for ev in watched:
             data = ev.get("data") or {}

@@ -67,3 +67,31 @@ def test_files(tmp_path):
         scicap.write_problem_dir(tmp_path / "once", small_problem())
     with pytest.raises(scicap.Error, match=r"scene:\d+:\d+: "):
         scicap.simulate('{"kind": "video2d", "width": -3}')
+
+
+def test_errors_name_keywords_not_flags(drop40, tmp_path):
+    """Messages the library writes for the command line ("--meas-var NAME", "use --force") name, from Python, the
+    keyword argument that does the same."""
+    flag = re.compile(r"--[a-z]")
+    cases = [
+        (lambda: scicap.read(drop40, meas_var="nope"), "meas_var=NAME"),
+        (lambda: scicap.read(drop40, mask_var="nope"), "mask_var=NAME"),
+        (lambda: scicap.read(drop40, mask_var="nope"), "mask=FILE"),
+        (lambda: scicap.read(drop40, truth_var="nope"), "truth_var=NAME"),
+        (lambda: scicap.read(drop40, frames=9), "frames=9"),
+    ]
+    scicap.write_problem_dir(tmp_path / "folder", small_problem())
+    cases += [
+        (lambda: scicap.read(tmp_path / "folder", scale=3), "mask_var, meas_var, truth_var, frames, scale"),
+        (lambda: scicap.write_problem_dir(tmp_path / "folder", small_problem()), "overwrite=True"),
+    ]
+    for call, keyword in cases:
+        with pytest.raises(scicap.Error) as e:
+            call()
+        text = str(e.value)
+        assert keyword in text, text
+        assert not flag.search(text), text
+    # the keywords the messages name exist: frames and mask_scale are read()'s too
+    assert len(scicap.read(drop40, frames=4)[0].mask) == 4
+    with pytest.raises(scicap.InputError, match="frames must be >= 0"):
+        scicap.read(drop40, frames=-1)
