@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "recon/admmtv.h"
+#include "recon/desci.h"
 #include "recon/gaptv.h"
 #include "recon/pnp_ffdnet.h"
 #include "recon/nerf/rayformer_solve.h"
@@ -20,6 +21,7 @@ static const solver_ops *const solvers[] = {
     &sci_gaptv_solver,
     &sci_admmtv_solver,
     &sci_pnp_ffdnet_solver,
+    &sci_desci_solver,
     &sci_rayformer_solver,
     &sci_scinerf_solver,
     NULL,
