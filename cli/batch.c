@@ -58,6 +58,7 @@ static void usage(FILE *f)
             "      --results FILE     bench/results.csv to estimate from (default: beside the program, installed,\n"
             "                         or ./bench/results.csv)\n"
             "      --dry-run          write the script, do not submit it\n"
+            "      --task NAME        run the one job NAME of OUTDIR (what each array task of the script runs)\n"
             "  -h, --help             this text\n"
             "\n"
             "'scicap recon' given several inputs runs this with its options. Exit status: 0 every job done, 1 some\n"

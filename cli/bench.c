@@ -646,7 +646,7 @@ int cli_bench_main(int argc, char **argv)
     for (int s = 0; s < ns; s++) {
         fprintf(md, "#### %s\n\n![PSNR against wall time: %s](%s/psnr_time_%s.png)\n\n", sc[s].what, sc[s].name,
                 out, sc[s].name);
-        fprintf(md, "| method | setting | PSNR dB | SSIM | wall s | CPU s | peak MiB | |\n|---|---|---:|---:|---:|---:|---:|---|\n");
+        fprintf(md, "| method | setting | PSNR dB (peak = frame max) | SSIM | wall s | CPU s | peak MiB | |\n|---|---|---:|---:|---:|---:|---:|---|\n");
         for (int m = 0; m < N_METHODS; m++) {
             bench_point *sel[512];
             int k = 0;

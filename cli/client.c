@@ -663,7 +663,7 @@ static const struct { const char *name, *arg, *text, *key; } opt_help[] = {
     {"mask-var", "V", "with --from: the masks' variable (default mask)", "mask_var"},
     {"meas-var", "V", "with --from: the measurements' variable (default meas)", "meas_var"},
     {"truth-var", "V", "with --from: the ground truth's variable (default orig, optional)", "truth_var"},
-    {"scale", "auto|N", "with --from: the data's white level (default 255); auto reads it from the data", "scale"},
+    {"scale", "auto|N", "with --from: the data's white level (default auto: inferred from the data and said)", "scale"},
     {"dark", NULL, "measure the dark frame", "kind"},
     {"masks", NULL, "measure the masks as the camera sees them", NULL},
     {"average", "N", "frames averaged per measurement", "average"},

@@ -23,9 +23,12 @@
  * The group size is clamped to the number of candidates of the smallest window (a corner key's); the reference
  * code would index past its candidate list instead.
  *
- * Cost: n² · (2·window + 1)² · (rows of keys) · p · w multiply-adds per run (vectorised, AVX2 where the CPU has
- * it), OpenMP over (frame, key row) tasks; each key's candidates are visited in a fixed order by one thread, so
- * the result does not depend on the thread count. Distances in float.
+ * Cost: for every frame pair and offset, the squared differences of a band of 16 key rows once (one per pixel)
+ * and about 2p additions per pixel of each key row, vectorised (AVX2 where the CPU has it); a candidate reaches its
+ * key's heap only when it beats the heap's largest distance, tested eight columns at a time. On 256×256×8 with the
+ * σ ≤ 20 parameters (p 6, step 2, window 30: 127,008 groups of 70 among up to 29,768 candidates) about 7 s at 2
+ * threads. OpenMP over (frame, band) tasks; each key's candidates are visited in a fixed order by one thread, so the
+ * result does not depend on the thread count. Distances in float.
  *
  * Plan/execute: all memory is allocated by sci_blockmatch_new; sci_blockmatch_run allocates nothing. One plan
  * must not be run by two callers at once. Errors: 0 or -EINVAL (sizes, a patch larger than the frame, index

@@ -20,7 +20,8 @@
  *
  * One preset vocabulary for every method and interface: fast | balanced | best. The daemon's former names
  * "default" and "quality" are accepted as aliases of balanced and best (deprecated: solver_preset_parse says so).
- * A preset overwrites the method's cost/accuracy fields only; balanced equals the defaults for every method.
+ * A preset overwrites the method's cost/accuracy fields only; the defaults (no preset) need not equal balanced:
+ * gap-tv and admm-tv keep PnP-SCI's 100 iterations as defaults, their presets are points of the measured curve.
  *
  * Errors: 0 or a negative code (-EINVAL for a bad value, SCI_ECONFIG when a JSON document gave it) with a message
  * naming the method, the key and the value. Nothing here prints or exits. The table is const and every function is

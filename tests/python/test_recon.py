@@ -20,7 +20,9 @@ def test_methods_are_the_cli_table(scicap_bin):
     assert names[0] == "gap-tv" and "pnp-ffdnet" in names
     for m in scicap.methods():
         assert set(m["presets"]) == set(scicap.PRESETS)
-        assert m["presets"]["balanced"] == m["defaults"]
+        for preset, values in m["presets"].items():  # each preset is a whole setting, as settings() gives it
+            assert set(values) == set(m["defaults"])
+            assert scicap.settings(m["name"], preset=preset) == values
         assert any(k["key"] == "iters" for k in m["keys"])
     gap = scicap.method("gap-tv")
     assert gap["presets"]["fast"]["iters"] < gap["defaults"]["iters"] < gap["presets"]["best"]["iters"]

@@ -278,7 +278,7 @@ static void test_mat_masks_per_snapshot(void **state)
         assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_NONE), 0);
         Mat_VarFree(v);
         Mat_Close(m);
-        sci_mat_options o = {.mask_var = "M", .white = 2};
+        sci_mat_options o = {.mask_var = "M", .white = 2, .mask_white = 1}; /* masks as stored */
         sci_mat_info info;
         sci_problem **p;
         int kk;
