@@ -102,3 +102,20 @@ def test_pnp_ffdnet_weights_keyword(drop40):
     assert len(r.trace) == 10 and r.psnr(p.truth) > 24  # one sigma stage of ten iterations: 25.05 dB
     with pytest.raises(scicap.Error, match="pnp-ffdnet: weights: /nonexistent.pth"):
         scicap.solve(p, "pnp-ffdnet", iters=1, sigma=[50], weights="/nonexistent.pth")
+
+
+def test_real_capture_scales_inferred():
+    """A real CACTI capture of another lab (grey masks 0-113, float counts, no truth) read with no scale keyword:
+    the frames land on [0, 1] as with `scicap recon` (test_cli_recon_mat.c's test_real_capture)."""
+    from conftest import DATA
+    path = DATA / "real" / "6fan14_cacti.mat"
+    assert path.exists(), f"{path} is missing (../shared/data/real/, or $SCICAP_DATA)"
+    (p,) = scicap.read(str(path))
+    assert p.mask.shape == (14, 256, 256) and p.truth is None
+    assert abs(float(p.mask.max()) - 1.0) < 1e-6  # measured grey masks divided by their maximum
+    r = scicap.solve(p, "gap-tv")
+    p1, p99 = np.percentile(r.frames, [1, 99])
+    print(f"real capture through Python: frames 1st percentile {p1:.3f}, 99th {p99:.3f}, "
+          f"residual {r.trace['residual'][-1]:.2g}")
+    assert 0 <= p1 < 0.2 and 0.3 < p99 < 1.0  # neither black nor saturated
+    assert r.trace["residual"][-1] < 0.05
