@@ -233,7 +233,7 @@ install: all python
 
 # Fuzzers: libFuzzer (clang) over the parsers that take outside input: each tests/fuzz/fuzz_<x>.c is one target,
 # linked against the whole library built again with clang, instrumented (coverage, ASan, UBSan) in
-# $(BUILD)/fuzz/obj. Seeds, including the bad inputs of issue 17, are in tests/fuzz/corpus/<x>/; what a run
+# $(BUILD)/fuzz/obj. Seeds, including bad inputs found by earlier runs, are in tests/fuzz/corpus/<x>/; what a run
 # finds goes to $(BUILD)/fuzz/corpus-fuzz_<x>. FUZZ_SECONDS per target (default 60).
 FUZZ_SECONDS ?= 60
 FUZZ_SRC := $(wildcard tests/fuzz/fuzz_*.c)

@@ -47,7 +47,7 @@ typedef struct row {
     char scene[32], method[96];
     double psnr, ssim, wall_s, pose_rot, pose_trans;
     double meas_res, max_w; /* NeRF rows: measurement residual ‖y − ΦX‖/‖y‖ and mean largest ray weight over the rays
-                             * that hit something, at the end (NaN: not a NeRF row, or stored before session 17) */
+                             * that hit something, at the end (NaN: not a NeRF row, or a row stored without it) */
     int iters, rays;
     int seeds;      /* trainings averaged (seeds 1 … seeds); 1 for the classic rows */
     double psnr_sd; /* sample standard deviation of the PSNR over the seeds (0 for one) */
@@ -217,7 +217,7 @@ static void read_tsv(const char *redo, const char *parts)
 }
 
 /* The ladder's steps: each rung's PSNR minus the one below it, per scene that has the whole ladder, and their mean
- * over those scenes (the measure issue 15 judges a step by). Rungs are recognised by their labels' order. */
+ * over those scenes (the measure the recipe judges a step by). Rungs are recognised by their labels' order. */
 static void write_ladder_steps(FILE *f)
 {
     double step[4][16], psnr[5];

@@ -1,4 +1,4 @@
-/* bench/bench_nerf_recipe.c — the recipe study of issue 15: one NeRF run with any setting changed by name, printing
+/* bench/bench_nerf_recipe.c — the recipe study: one NeRF run with any setting changed by name, printing
  * PSNR, the measurement residual and the mean largest ray weight along the run, so each candidate of the recipe
  * can be kept or dropped by what it buys per second.
  *

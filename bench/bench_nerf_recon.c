@@ -1,4 +1,4 @@
-/* bench/bench_nerf_recon.c — cost and accuracy of the NeRF reconstruction presets (issue 6).
+/* bench/bench_nerf_recon.c — cost and accuracy of the NeRF reconstruction presets.
  *
  * Part 1: seconds per training step, rendering seconds per frame and peak memory (RSS) of each preset of rayformer
  * and scinerf at 128×128 (static3d_corridor) and 256×256 (static3d_tabletop), N = 8: each measurement runs in its
@@ -8,13 +8,13 @@
  * sampled every 1/8 of the run (the evaluation renders are excluded from the wall time, as in every trace).
  * Part 1 writes bench/results/nerf_recon.md, part 2 bench/results/nerf_recon_curves.md; each records the load
  * average before and after (2 shared cores: timings vary with what else runs). Part 2 takes about 25 minutes for
- * fast and balanced (session 17: 9 min for the two fast presets and ≈ 15 for the balanced ones, evaluations
+ * fast and balanced (measured: 9 min for the two fast presets and ≈ 15 for the balanced ones, evaluations
  * included), and the best presets about 16 minutes each more. `--quick`: part 1 only; `--curves-only
  * [--presets fast,balanced]`: part 2 only, for the presets named.
  * Part 3, `--ceiling [STEPS]` (alone; not in `make bench`): each method's fast preset run for STEPS steps
  * (default 10000, the learning rate decayed over all of them) on static3d_corridor, PSNR, the measurement residual
  * and the mean largest ray weight every STEPS/20 steps, written to bench/results/nerf_ceiling.md: where accuracy
- * stops following the fit (issue 15). About 25 min for rayformer and 45 for scinerf on 2 cores.
+ * stops following the fit. About 25 min for rayformer and 45 for scinerf on 2 cores.
  */
 #include <errno.h>
 #include <math.h>

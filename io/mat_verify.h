@@ -2,7 +2,7 @@
  *
  * libmatio trusts a file: it inflates a compressed variable only as far as the data it wants and never reaches the
  * zlib stream's adler32 trailer, it stops quietly at a truncated element, and a flipped size byte becomes a
- * different array. A byte flipped on disk then gives a different reconstruction and exit 0 (issue 17: 13 of 17
+ * different array. A byte flipped on disk then gives a different reconstruction and exit 0 (measured: 13 of 17
  * flips in drop40_cacti.mat passed). This module checks every check the format carries, and the sizes it implies:
  *
  *   - the header: byte-order mark "IM" (or "MI" for big-endian files) and version 0x0100 (v7.3's 0x0200 is an

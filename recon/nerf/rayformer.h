@@ -13,7 +13,7 @@
  * patch_h, L = samples; one direction per ray (unit vector, world frame). Poses of one snapshot are just more
  * patches.
  *
- * Usage (issue 6 trainer):
+ * Usage (with the trainer, recon/nerf/trainer.h):
  *     nerf_rayformer *net;  nerf_rayformer_ws *ws;
  *     nerf_rayformer_new(&net, &cfg, &err);
  *     float *params = malloc(nerf_rayformer_param_count(net) * 4), *grad = ...same size...;
@@ -62,7 +62,7 @@ typedef struct nerf_rayformer_config {
     float inter_slope;         /* inter-ray distance bias over pixel offsets in the window (attention.h; 0: none;
                                   > 0 needs patch_w a power of two) */
     int head_hidden;           /* 0: density and geometry from one FC layer on LN_f(h) (the paper); > 0: a ReLU
-                                  hidden layer of this width first, as SCINeRF's density MLP (issue 15: with the
+                                  hidden layer of this width first, as SCINeRF's density MLP (the recipe: with the
                                   blocks starting as the identity, one FC layer on normalised hash features fits
                                   slower per point than SCINeRF's field) */
     int final_norm;            /* 1: LN_f before the head (pre-norm transformers, the default); 0: the head reads h_B

@@ -16,10 +16,10 @@ const char *const sci_rayformer_ablation_names[5] = {"baseline", "+patch", "+int
 
 void sci_rayformer_params_default(sci_rayformer_params *p)
 {
-    /* the recipe of issue 15 (docs/nerf-methods.md, "The recipe"): view-independent colour, a 2^19 table, one
+    /* the recipe (docs/nerf-methods.md, "The recipe"): view-independent colour, a 2^19 table, one
      * I²R block that starts as the identity with its attention learning at 0.1× while the heads learn at the
      * table's rate, no layer norm before the density head, 32 samples over the scene's depth range (16 trailed
-     * SCINeRF at equal time on the corridor and the tabletop: session 11, docs/nerf-methods.md eighth round), the
+     * SCINeRF at equal time on the corridor and the tabletop, docs/nerf-methods.md), the
      * distortion loss at 0.03 (0.01 at 16 samples; at 32 the balanced preset's corridor ends 0.11 dB higher with
      * 0.03 and its surfaces form, largest ray weight 0.58 → 0.87; 0.1 costs 0.27 dB), windows of 2 × 2 (128 a
      * step: the same 512 rays as 8 of 8 × 8, spread over 16× the image; fast preset on corridor 21.44 dB against
@@ -83,10 +83,9 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
 
 int sci_rayformer_params_preset(sci_rayformer_params *p, const char *name)
 {
-    /* sized for the issue's limits on 128×128×8 on 2 cores with room for a slower host: 0.26 s a step measured on
-     * 2026-11-27 (corridor, 2 threads, idle; 0.16 s in session 13 on the same kind of machine), so fast ≈ 4 min
-     * (limit 5), balanced ≈ 8 min (limit 10), best ≈ 15 min (880 s measured on the corridor, session 20); 1250
-     * and 2500 steps took 283–331 s and ≈ 10 min */
+    /* sized for 128×128×8 on 2 cores (fast within 5 min, balanced within 10) with room for a slower host: 0.26 s a
+     * step measured (corridor, 2 threads, idle), so fast ≈ 4 min, balanced ≈ 8 min, best ≈ 15 min (880 s measured
+     * on the corridor); 1250 and 2500 steps took 283–331 s and ≈ 10 min */
     static const struct {
         const char *name;
         int iters, patches_per_step, log2_table;

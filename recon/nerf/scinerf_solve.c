@@ -28,7 +28,7 @@ void sci_scinerf_params_default(sci_scinerf_params *p)
                               .feature_dim = 15,
                               .color_hidden = 64,
                               .dir_enc = NERF_MLP_DIR_SH,
-                              .sh_degree = 1, /* view-independent colour (issue 15's recipe) */
+                              .sh_degree = 1, /* view-independent colour (docs/nerf-methods.md, the recipe) */
                               .lr = 1e-2,
                               .lr_final = 1e-3,
                               .recipe = {.spacing = NERF_SPACING_LINEAR, .distortion_weight = 0.01},
@@ -49,7 +49,7 @@ int sci_scinerf_params_preset(sci_scinerf_params *p, const char *name)
      * 2026-11-27), so that each preset's comparison is at equal wall time. Best likewise takes RayFormer's best
      * time (880 s, corridor): with 32 fine samples (1000 × 2048 rays) a step cost 1.44 s and the run 1441 s for
      * 23.83 dB, no better than the fast settings run that long (23.83 dB at 1094 s, bench/results/nerf_ceiling.md),
-     * so best spends the time on steps instead: 1900 × 2048 rays took 916 s for 23.92 dB (session 21) */
+     * so best spends the time on steps instead: 1900 × 2048 rays took 916 s for 23.92 dB on the corridor */
     static const struct {
         const char *name;
         int iters, rays, fine;

@@ -1,4 +1,4 @@
-/* 4200×4200 through `scicap recon` (issue 17, item 4): OpenImageIO 2.4's GIF writer dies of SIGSEGV on frames over
+/* 4200×4200 through `scicap recon`: OpenImageIO 2.4's GIF writer dies of SIGSEGV on frames over
  * 2^24 pixels, and the crash left OUTDIR.tmp-PID behind. Now the preview is shrunk (to 1400², io/image.h) and the
  * run succeeds with no temporary left. Runs the real binary in a child. `scicap sim` wrote its preview_truth.gif
  * through the same sci_image_write_gif (checked at 4200² in test_io): a 4200² simulation takes 30 s on a loaded

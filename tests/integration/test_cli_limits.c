@@ -1,4 +1,4 @@
-/* `scicap recon` against inputs that claim too much (issue 17, item 5). Runs the real binary ($BUILD/scicap) in a
+/* `scicap recon` against inputs that claim too much. Runs the real binary ($BUILD/scicap) in a
  * child and watches it:
  *   - a 2 KB .mat declaring a 1×1×2,000,000 mask, and one declaring 2,000,000 snapshots, are refused before any
  *     work, naming the limit and --allow-large, with nothing written (before: 4,000,005 files, 17 GB; 140,716

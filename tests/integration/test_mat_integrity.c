@@ -1,4 +1,4 @@
-/* .mat integrity (issue 17, item 8): byte flips inside drop40_cacti.mat (MATLAB v5, every variable compressed)
+/* .mat integrity: byte flips inside drop40_cacti.mat (MATLAB v5, every variable compressed)
  * at seeded positions spread over the whole file, plus the places that matter most (header version and byte-order
  * mark, an element tag and size, the zlib header, the adler32 trailer). Every flipped file must either be refused
  * with an error that names the file, or read back bit for bit as the original (a flip in the descriptive header

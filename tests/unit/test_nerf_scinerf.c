@@ -54,7 +54,7 @@ static void test_params_check(void **state)
     sci_scinerf_params_default(&p);
     assert_int_equal(sci_scinerf_params_preset(&p, "best"), 0);
     assert_int_equal(sci_scinerf_params_check(&p, &err), 0);
-    p.fine_samples = 32; /* importance sampling: no preset uses it since session 21, but it stays valid */
+    p.fine_samples = 32; /* importance sampling: no preset uses it, but it stays valid */
     assert_int_equal(sci_scinerf_params_check(&p, &err), 0);
     sci_scinerf_params_paper(&p);
     assert_int_equal(p.pos_enc, NERF_MLP_POS_FREQ);

@@ -1,4 +1,4 @@
-/* RayFormer solver (issue 6) at tiny sizes: parameters are checked, the loss decreases, the reconstruction beats the
+/* RayFormer solver at tiny sizes: parameters are checked, the loss decreases, the reconstruction beats the
  * mean-frame baseline (every frame = y ⊘ Σ M) by a clear margin (1.5 dB; GAP-TV gains 4 dB here), the trace follows the contract, cancel works. */
 #include <errno.h>
 #include <math.h>

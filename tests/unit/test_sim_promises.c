@@ -1,4 +1,4 @@
-/* The simulator's three promises (issue 3), each a test:
+/* The simulator's three promises, each a test:
  *   1. with no effects listed, the measurement equals the plain forward model bit for bit;
  *   2. turning one effect on or off never changes the random draws of another;
  *   3. an effect that is not listed costs nothing: no allocation, no pass over the data, no random draw. */
