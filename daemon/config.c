@@ -45,7 +45,9 @@ static void defaults(scicapd_config *c)
     snprintf(c->socket_path, sizeof c->socket_path, "/run/scicapd/control.sock");
     c->socket_mode = 0660;
     snprintf(c->socket_group, sizeof c->socket_group, "scicap");
-    snprintf(c->admin_group, sizeof c->admin_group, "scicap");
+    /* distinct from the socket's group: reaching the socket must not make a user an admin (cancel others' jobs,
+     * shut down); a group that does not exist makes only root and the daemon's user admins */
+    snprintf(c->admin_group, sizeof c->admin_group, "scicap-admin");
     c->max_clients = 32;
     c->admin_slots = 2;
     c->request_timeout_ms = 10000;
@@ -672,10 +674,10 @@ json_t *scicapd_config_to_json(const scicapd_config *c)
     json_t *sets = json_array();
     for (int i = 0; i < c->mask_set_count; i++)
         json_array_append_new(sets, json_string(c->mask_sets[i].name));
-    return json_pack("{s:s, s:{s:s, s:s, s:s, s:i, s:I}, s:{s:s, s:s, s:b, s:i, s:b}, s:{s:s, s:s, s:s}, s:s, s:o,"
+    return json_pack("{s:s, s:{s:s, s:s, s:s, s:s, s:i, s:I}, s:{s:s, s:s, s:b, s:i, s:b}, s:{s:s, s:s, s:s}, s:s, s:o,"
                      " s:{s:s, s:I, s:I, s:I, s:s}, s:{s:s, s:s, s:b, s:i, s:i, s:i}, s:{s:i, s:i}}",
                      "path", c->path, "control", "socket", c->socket_path, "mode", mode, "group", c->socket_group,
-                     "max_clients", c->max_clients, "max_line_bytes", (json_int_t)c->max_line_bytes, "storage",
+                     "admin_group", c->admin_group, "max_clients", c->max_clients, "max_line_bytes", (json_int_t)c->max_line_bytes, "storage",
                      "root", c->storage_root, "runtime_dir", c->runtime_dir, "fsync", c->fsync, "writers",
                      c->writers, "previews", c->previews, "devices", "dmd",
                      c->dmd_backend, "camera", c->camera_backend, "trigger", c->trigger_backend, "scene",

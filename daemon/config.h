@@ -52,7 +52,9 @@ typedef struct scicapd_config {
     int idle_timeout_ms;                  /* 300000: a connection that is not watching and has no unfinished job
                                              is closed this long after its last request; 0 = never */
     size_t max_line_bytes;                /* 65536: longest request line */
-    char admin_group[SCICAPD_NAME_MAX];   /* members may reload/shutdown (besides root and the daemon's user) */
+    char admin_group[SCICAPD_NAME_MAX];   /* "scicap-admin": members may reload, shutdown, simulate and cancel
+                                             any job (besides root and the daemon's user); "" or a group that does
+                                             not exist: only those two */
     /* storage */
     char storage_root[SCICAPD_PATH_MAX];  /* /var/lib/scicapd */
     char runtime_dir[SCICAPD_PATH_MAX];   /* /run/scicapd */

@@ -592,6 +592,9 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
     if ((rc = scicapd_acquire_new(&d->acq, d->cfg, &ae, err)) < 0)
         goto fail;
     /* 6. the control socket */
+    if (d->cfg->admin_group[0] && strcmp(d->cfg->admin_group, d->cfg->socket_group) == 0)
+        sci_log_write(log, SCI_LOG_WARNING, "control.admin_group is the socket's group \"%s\": every user who can "
+                      "reach the socket may cancel others' jobs and shut the daemon down", d->cfg->admin_group);
     scicapd_control_limits lim = control_limits(d->cfg);
     scicapd_control_hooks hooks = {.on_line = on_line, .is_admin = hook_is_admin, .busy = hook_busy, .user = d};
     if ((rc = scicapd_control_open(&d->ctl, d->cfg->socket_path, d->cfg->socket_mode, d->cfg->socket_group, &lim,
