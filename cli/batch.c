@@ -62,8 +62,8 @@ static void usage(FILE *f)
             "  -h, --help             this text\n"
             "\n"
             "'scicap recon' given several inputs runs this with its options. Exit status: 0 every job done, 1 some\n"
-            "failed, 2 usage; interrupted (SIGINT, SIGTERM): the jobs are stopped, the state kept, and it dies of the\n"
-            "signal.\n");
+            "failed, 2 usage; interrupted (SIGINT, SIGTERM, SIGHUP, SIGQUIT): the jobs are stopped, the state kept, and\n"
+            "it dies of the signal.\n");
 }
 
 static volatile sig_atomic_t stop_signal;
@@ -113,6 +113,8 @@ int batch_job_spawn(const batch *b, const batch_job *j, int log_fd, int err_fd, 
         }
         signal(SIGINT, SIG_DFL);
         signal(SIGTERM, SIG_DFL);
+        signal(SIGHUP, SIG_DFL);
+        signal(SIGQUIT, SIG_DFL);
         execv(argv[0], argv);
         fprintf(stderr, "scicap batch: cannot run %s: %s\n", argv[0], strerror(errno));
         _exit(127);
@@ -213,10 +215,12 @@ int batch_run_local(batch *b, int parallel, int quiet)
     if (parallel > 1)
         fprintf(stderr, ", %d at once with %d thread(s) each", parallel, threads);
     fprintf(stderr, "\n");
-    struct sigaction sa = {.sa_handler = on_signal}, old_int, old_term;
+    struct sigaction sa = {.sa_handler = on_signal}, old_int, old_term, old_hup, old_quit;
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, &old_int);
     sigaction(SIGTERM, &sa, &old_term);
+    sigaction(SIGHUP, &sa, &old_hup); /* a closed terminal or Ctrl-\ stops the jobs as Ctrl-C does */
+    sigaction(SIGQUIT, &sa, &old_quit);
     const int64_t t0 = sci_clock_mono_ns();
     int64_t stop_ns = 0;
     int next = 0, running = 0, ran = 0, failed = 0;
@@ -319,6 +323,8 @@ int batch_run_local(batch *b, int parallel, int quiet)
     }
     sigaction(SIGINT, &old_int, NULL);
     sigaction(SIGTERM, &old_term, NULL);
+    sigaction(SIGHUP, &old_hup, NULL);
+    sigaction(SIGQUIT, &old_quit, NULL);
     batch_state_save(b, &err);
     free(todo);
     free(slots);
@@ -382,10 +388,12 @@ int batch_task_run(batch *b, const char *name)
     gethostname(host, sizeof host - 1);
     fprintf(stderr, "scicap batch: task %s on %s: %s -> %s/%s\n", task[0] ? task : "(no Slurm)", host, j->input,
             b->outdir, j->name);
-    struct sigaction sa = {.sa_handler = on_signal}, old_term, old_int;
+    struct sigaction sa = {.sa_handler = on_signal}, old_term, old_int, old_hup, old_quit;
     sigemptyset(&sa.sa_mask);
     sigaction(SIGTERM, &sa, &old_term);
     sigaction(SIGINT, &sa, &old_int);
+    sigaction(SIGHUP, &sa, &old_hup);
+    sigaction(SIGQUIT, &sa, &old_quit);
     int fds[2];
     if (pipe2(fds, O_CLOEXEC) != 0) {
         perror("scicap batch: pipe");
@@ -439,6 +447,8 @@ int batch_task_run(batch *b, const char *name)
             ok ? "" : ": ", ok ? "" : j->error);
     sigaction(SIGTERM, &old_term, NULL);
     sigaction(SIGINT, &old_int, NULL);
+    sigaction(SIGHUP, &old_hup, NULL);
+    sigaction(SIGQUIT, &old_quit, NULL);
     return ok ? 0 : 1;
 }
 
@@ -471,7 +481,7 @@ static int batch_main_run(batch *b, char *const *inputs, int ninputs, const char
         return rc < 0 ? 1 : 0;
     }
     int rc = batch_run_local(b, parallel, quiet);
-    if (rc == SIGINT || rc == SIGTERM) {
+    if (rc == SIGINT || rc == SIGTERM || rc == SIGHUP || rc == SIGQUIT) {
         batch_free(b);
         fflush(NULL);
         signal(rc, SIG_DFL);

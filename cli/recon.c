@@ -1,4 +1,5 @@
 /* scicap recon — reconstruct SCI snapshots from a .mat benchmark file or a problem folder. */
+#include <dirent.h>
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
@@ -121,8 +122,9 @@ static void usage(FILE *f)
             "Defaults are the PnP-SCI benchmark settings (accelerated GAP, lambda 1, 100 iterations, TV weight\n"
             "0.07, 5 TV passes). PSNR 'peak = frame max' uses each truth frame's maximum (the MATLAB reference's\n"
             "convention); 'peak = 1' uses the data's white level. Exit status: 0 ok, 1 failure, 2 usage; on\n"
-            "SIGINT/SIGTERM it stops, removes what it had begun to write, and dies of that signal: OUTDIR appears\n"
-            "only once complete (written as OUTDIR.tmp-PID and renamed).\n",
+            "SIGINT/SIGTERM/SIGHUP/SIGQUIT it stops, removes what it had begun to write, and dies of that signal:\n"
+            "OUTDIR appears only once complete (written as OUTDIR.tmp-PID and renamed; one left by a process that\n"
+            "no longer runs is removed at the next run into OUTDIR).\n",
             (double)SCI_IO_LIMIT_INPUT_BYTES / 1e9, (double)SCI_IO_LIMIT_OUTPUT_BYTES / 1e9,
             (size_t)SCI_IO_LIMIT_OUTPUT_FILES);
 }
@@ -141,6 +143,47 @@ static volatile sig_atomic_t stop_requested; /* the signal number, 0 while none 
 static void on_stop_signal(int sig)
 {
     stop_requested = sig;
+}
+
+/* A closed terminal (SIGHUP) or Ctrl-\ (SIGQUIT) ends a run as Ctrl-C does: nothing half-written stays behind. */
+static const int stop_signals[] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT};
+#define STOP_SIGNALS ((int)(sizeof stop_signals / sizeof stop_signals[0]))
+
+/* Remove OUT.tmp-PID folders whose process is gone (a run killed by SIGKILL or a power cut), saying so on stderr;
+ * those of a living process are another run's and stay. */
+static void clean_stale_stages(const char *out)
+{
+    char dir[4096], base[4096];
+    snprintf(dir, sizeof dir, "%s", out);
+    snprintf(base, sizeof base, "%s", out);
+    size_t bl = strlen(base);
+    while (bl > 1 && base[bl - 1] == '/')
+        base[--bl] = '\0';
+    char *slash = strrchr(base, '/');
+    const char *name = slash ? slash + 1 : base;
+    if (slash) {
+        snprintf(dir, sizeof dir, "%.*s", slash == base ? 1 : (int)(slash - base), base);
+    } else {
+        snprintf(dir, sizeof dir, ".");
+    }
+    DIR *d = opendir(dir);
+    if (!d)
+        return;
+    const size_t l = strlen(name);
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        char *end;
+        if (strncmp(e->d_name, name, l) != 0 || strncmp(e->d_name + l, ".tmp-", 5) != 0)
+            continue;
+        long pid = strtol(e->d_name + l + 5, &end, 10);
+        if (*end || pid <= 0 || pid == (long)getpid() || kill((pid_t)pid, 0) == 0 || errno != ESRCH)
+            continue; /* not a staging name, or its writer is still alive */
+        char p[8300];
+        snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
+        sci_staging_remove(p);
+        fprintf(stderr, "scicap recon: removed %s, left by process %ld which no longer runs\n", p, pid);
+    }
+    closedir(d);
 }
 
 /* The NeRF checkpoint callback: the blob goes to path.tmp, then replaces path (never a half-written checkpoint). */
@@ -701,10 +744,11 @@ int cli_recon_main(int argc, char **argv)
         io.checkpoint_user = &ck;
         io.checkpoint_every = ckpt_every;
     }
-    struct sigaction sa = {.sa_handler = on_stop_signal, .sa_flags = SA_RESETHAND}, old_int, old_term;
+    struct sigaction sa = {.sa_handler = on_stop_signal, .sa_flags = SA_RESETHAND}, old_sig[STOP_SIGNALS];
     sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, &old_int);
-    sigaction(SIGTERM, &sa, &old_term);
+    for (int i = 0; i < STOP_SIGNALS; i++)
+        sigaction(stop_signals[i], &sa, &old_sig[i]);
+    clean_stale_stages(out);
     json_t *params = params_json(&o, resume_blob != NULL), *input_info = input_json(&minfo);
     /* Several snapshots: all of them go into OUTDIR.tmp-PID, renamed to OUTDIR once the last is written (one alone
      * is staged by the store itself). Nothing is published on failure or on a signal. */
@@ -799,8 +843,8 @@ int cli_recon_main(int argc, char **argv)
     } else if (stage[0]) {
         sci_staging_remove(stage);
     }
-    sigaction(SIGINT, &old_int, NULL);
-    sigaction(SIGTERM, &old_term, NULL);
+    for (int i = 0; i < STOP_SIGNALS; i++)
+        sigaction(stop_signals[i], &old_sig[i], NULL);
     const int sig = stop_requested;
     if (ckpt_path && ck.written && status == 0)
         printf("  checkpoint of step %d in %s\n", ck.iter, ckpt_path);
