@@ -3,6 +3,7 @@
 #include "io/mat_verify.h"
 
 #include <errno.h>
+#include <hdf5.h>
 #include <math.h>
 #include <matio.h>
 #include <stdarg.h>
@@ -12,6 +13,65 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+
+/* ---- v7.3 files: libmatio reads them through libhdf5 ----
+ * HDF5 prints its whole error stack to stderr on every failure (22 KB for one damaged file) unless told not to,
+ * and libmatio, when HDF5 cannot open a file, goes on with a handle that lists no variables: the user was told
+ * "no variable 'meas'". So HDF5's automatic printing is off for the calling thread while this module reads (it is
+ * per thread in a thread-safe libhdf5; restored after), and a v7.3 file is opened with HDF5 first: one that HDF5
+ * refuses is refused here with HDF5's own innermost reason, before libmatio sees it. */
+typedef struct h5_quiet {
+    H5E_auto2_t fn;
+    void *data;
+} h5_quiet;
+
+static void h5_quiet_begin(h5_quiet *q)
+{
+    if (H5Eget_auto2(H5E_DEFAULT, &q->fn, &q->data) < 0)
+        q->fn = NULL, q->data = NULL;
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+}
+
+static void h5_quiet_end(const h5_quiet *q)
+{
+    H5Eclear2(H5E_DEFAULT);
+    H5Eset_auto2(H5E_DEFAULT, q->fn, q->data);
+}
+
+/* The most specific message of the error stack (walked from the innermost). */
+static herr_t h5_first_desc(unsigned n, const H5E_error2_t *e, void *user)
+{
+    char *buf = user;
+    if (n == 0 && e && e->desc)
+        snprintf(buf, 160, "%s", e->desc);
+    return 0;
+}
+
+/* 0 when `path` is not an HDF5 file (libmatio's v5 path, verified elsewhere) or one HDF5 opens whole;
+ * SCI_EFORMAT with one clear message when HDF5 cannot. */
+static int h5_check(const char *path, sci_error *err)
+{
+    htri_t is = H5Fis_hdf5(path);
+    H5Eclear2(H5E_DEFAULT);
+    if (is <= 0)
+        return 0;
+    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (f >= 0) {
+        hid_t g = H5Gopen2(f, "/", H5P_DEFAULT);
+        H5G_info_t gi;
+        herr_t ok = g >= 0 ? H5Gget_info(g, &gi) : -1;
+        if (g >= 0)
+            H5Gclose(g);
+        H5Fclose(f);
+        if (ok >= 0)
+            return 0;
+    }
+    char why[160] = "";
+    H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, h5_first_desc, why);
+    H5Eclear2(H5E_DEFAULT);
+    return sci_error_set(err, SCI_EFORMAT, "%s: a MATLAB v7.3 (HDF5) file that cannot be read: damaged or truncated%s%s%s",
+                         path, why[0] ? " (HDF5: " : "", why, why[0] ? ")" : "");
+}
 
 /* Element i of a matio array as double, whatever its numeric class. */
 static double mat_elem(const matvar_t *v, size_t i)
@@ -66,11 +126,26 @@ static void list_vars(mat_t *mat, char *buf, size_t n)
         snprintf(buf, n, "no variables");
 }
 
+static int mat_list(const char *path, char *buf, size_t n);
+
 int sci_mat_list(const char *path, char *buf, size_t n)
+{
+    h5_quiet q;
+    h5_quiet_begin(&q);
+    int rc = mat_list(path, buf, n);
+    h5_quiet_end(&q);
+    return rc;
+}
+
+static int mat_list(const char *path, char *buf, size_t n)
 {
     /* libmatio allocates what a variable's header declares (a dims tag of 1.5 GB: fuzz_matfile): verify first */
     sci_error verr = {0};
     if (sci_mat_verify(path, &verr) < 0) {
+        snprintf(buf, n, "%s", verr.msg);
+        return SCI_EFORMAT;
+    }
+    if (h5_check(path, &verr) < 0) {
         snprintf(buf, n, "%s", verr.msg);
         return SCI_EFORMAT;
     }
@@ -121,6 +196,12 @@ static matvar_t *read_var(mat_t *mat, const char *path, const char *name, int re
     matvar_t *v = Mat_VarRead(mat, name);
     if (!v) {
         *rc = sci_error_set(err, SCI_EFORMAT, "%s: variable '%s' is unreadable (truncated file?)", path, name);
+        return NULL;
+    }
+    if (!v->data && Mat_GetVersion(mat) == MAT_FT_MAT73) { /* HDF5 failed inside the variable */
+        *rc = sci_error_set(err, SCI_EFORMAT, "%s: variable '%s' is unreadable: the MATLAB v7.3 (HDF5) file is "
+                            "damaged or truncated", path, name);
+        Mat_VarFree(v);
         return NULL;
     }
     if (!is_numeric(v->class_type) || v->isComplex || !v->data) {
@@ -389,8 +470,21 @@ static int probe_open(mat_t *mat, mat_t *msrc, const char *path, const char *mas
     return 0;
 }
 
+static int mat_probe(const char *path, const sci_mat_options *opts, long long *w, long long *h, long long *n,
+                     long long *k, sci_error *err);
+
 int sci_mat_probe(const char *path, const sci_mat_options *opts, long long *w, long long *h, long long *n,
                   long long *k, sci_error *err)
+{
+    h5_quiet q;
+    h5_quiet_begin(&q);
+    int rc = mat_probe(path, opts, w, h, n, k, err);
+    h5_quiet_end(&q);
+    return rc;
+}
+
+static int mat_probe(const char *path, const sci_mat_options *opts, long long *w, long long *h, long long *n,
+                     long long *k, sci_error *err)
 {
     const sci_mat_options none = {0};
     const sci_mat_options *o = opts ? opts : &none;
@@ -399,7 +493,7 @@ int sci_mat_probe(const char *path, const sci_mat_options *opts, long long *w, l
         if (access(paths[i], R_OK) != 0)
             return sci_error_set(err, -errno, "%s: %s", paths[i], strerror(errno));
         int rc0 = sci_mat_verify(paths[i], err);
-        if (rc0 < 0)
+        if (rc0 < 0 || (rc0 = h5_check(paths[i], err)) < 0)
             return rc0;
     }
     mat_t *mat = Mat_Open(path, MAT_ACC_RDONLY), *mmat = NULL;
@@ -532,8 +626,21 @@ static int infer_scales(const sci_mat_options *o, double legacy, const matvar_t 
 
 /* The common reader. `legacy` > 0: meas and truth divided by it, masks as stored, peak 255 / legacy (sci_mat_read);
  * else the scales of `o`, inferred where not given, and peak 1. */
+static int mat_read_quiet(const char *path, const sci_mat_options *o, double legacy, sci_problem ***out, int *k,
+                          sci_mat_info *info, sci_error *err);
+
 static int mat_read(const char *path, const sci_mat_options *o, double legacy, sci_problem ***out, int *k,
                     sci_mat_info *info, sci_error *err)
+{
+    h5_quiet q;
+    h5_quiet_begin(&q);
+    int rc = mat_read_quiet(path, o, legacy, out, k, info, err);
+    h5_quiet_end(&q);
+    return rc;
+}
+
+static int mat_read_quiet(const char *path, const sci_mat_options *o, double legacy, sci_problem ***out, int *k,
+                          sci_mat_info *info, sci_error *err)
 {
     *out = NULL;
     *k = 0;
@@ -549,7 +656,7 @@ static int mat_read(const char *path, const sci_mat_options *o, double legacy, s
         if (access(paths[i], R_OK) != 0)
             return sci_error_set(err, -errno, "%s: %s", paths[i], strerror(errno));
         int rc0 = sci_mat_verify(paths[i], err);
-        if (rc0 < 0)
+        if (rc0 < 0 || (rc0 = h5_check(paths[i], err)) < 0)
             return rc0;
     }
     mat_t *mat = Mat_Open(path, MAT_ACC_RDONLY), *mmat = NULL;
