@@ -372,6 +372,13 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
         reply_err(d, c, r.id, SCICAPD_E_PERMISSION, msg);
         goto out;
     }
+    if (imp && imp->allow_large && !is_admin(d, c)) { /* the limits protect the disk everyone shares */
+        char msg[200];
+        snprintf(msg, sizeof msg, "allow_large needs root, the daemon's user or group \"%s\" (peer uid %d)",
+                 d->cfg->admin_group, (int)c->uid);
+        reply_err(d, c, r.id, SCICAPD_E_PERMISSION, msg);
+        goto out;
+    }
     if (atomic_load(&d->stopping) && r.cmd != SCICAPD_CMD_STATUS && r.cmd != SCICAPD_CMD_JOBS) {
         reply_err(d, c, r.id, SCICAPD_E_SHUTTING_DOWN, "the daemon is stopping");
         goto out;

@@ -15,6 +15,8 @@
 #include "daemon/package.h"
 #include "io/limits.h"
 #include "io/problem_dir.h"
+#include "io/recon_store.h"
+#include "io/source.h"
 #include "io/staging.h"
 
 static void close_fds(int *fds, int n)
@@ -72,7 +74,7 @@ int scicapd_args_import(const scicapd_request *r, const scicapd_config *cfg, int
                         scicapd_import_args **out, sci_error *err)
 {
     static const char *const keys[] = {"files", "kind", "mask", "mask_var", "meas_var", "truth_var", "scale",
-                                       "reconstruct", "method", "preset", "params", NULL};
+                                       "reconstruct", "method", "preset", "params", "allow_large", NULL};
     static const char *const kinds[] = {"mat", "folder", NULL};
     *out = NULL;
     scicapd_import_args *a = calloc(1, sizeof *a);
@@ -147,7 +149,8 @@ int scicapd_args_import(const scicapd_request *r, const scicapd_config *cfg, int
         a->data_index = a->mask_index == 0 ? 1 : 0;
     }
     a->reconstruct = 0;
-    if ((rc = sci_json_get_bool(r->doc, r->args, "args", "reconstruct", 0, &a->reconstruct, err)) < 0)
+    if ((rc = sci_json_get_bool(r->doc, r->args, "args", "reconstruct", 0, &a->reconstruct, err)) < 0 ||
+        (rc = sci_json_get_bool(r->doc, r->args, "args", "allow_large", 0, &a->allow_large, err)) < 0)
         goto fail;
     const char *method = cfg->recon_method, *preset = cfg->recon_preset;
     if ((rc = sci_json_get_string(r->doc, r->args, "args", "method", 0, &method, err)) < 0 ||
@@ -243,6 +246,23 @@ void scicapd_import_sweep(scicapd_store *st)
     sci_staging_remove(d);
 }
 
+/* What storing and reconstructing every snapshot `path` declares would write, held against lim as `scicap recon`
+ * holds the same file (its message names the client's file, the figure and the override). */
+static int check_output(const scicapd_import_args *a, const char *path, const sci_mat_options *o,
+                        const sci_io_limits *lim, sci_error *err)
+{
+    long long w, h, n, k;
+    int rc = sci_source_probe(path, a->folder ? NULL : o, &w, &h, &n, &k, err);
+    if (rc < 0 || w <= 0 || h <= 0 || n <= 0 || k <= 0)
+        return rc; /* a folder that does not state its sizes: the reader checks each part against lim */
+    double bytes, files;
+    sci_recon_store_estimate(w, h, n, k, &bytes, &files);
+    char what[1500];
+    snprintf(what, sizeof what, "%s (%lld snapshot(s) of %lldx%lld pixels, %lld frames each; admins may pass "
+             "allow_large)", path, k, w, h, n);
+    return sci_io_limits_check_output(lim, what, bytes, files + 1, err);
+}
+
 int scicapd_import_read(scicapd_store *st, uint64_t job, scicapd_import_args *a, sci_problem ***out, int *k,
                         sci_mat_info *info, sci_error *err)
 {
@@ -262,18 +282,28 @@ int scicapd_import_read(scicapd_store *st, uint64_t job, scicapd_import_args *a,
     }
     close_fds(a->fds, a->nfiles); /* copied: the client's files are not touched again */
     memset(info, 0, sizeof *info);
-    if (rc == 0 && a->folder) {
-        rc = sci_problem_dir_read_opts(stage, NULL, out, k, err);
-    } else if (rc == 0) {
+    sci_io_limits lim;
+    if (a->allow_large)
+        sci_io_limits_none(&lim);
+    else
+        sci_io_limits_default(&lim);
+    if (a->folder) {
+        snprintf(path, sizeof path, "%s", stage);
+    } else {
         snprintf(path, sizeof path, "%s/%s", stage, a->names[a->data_index]);
         if (a->mask_index >= 0)
             snprintf(mask, sizeof mask, "%s/%s", stage, a->names[a->mask_index]);
-        sci_mat_options o = {.mask_path = a->mask_index >= 0 ? mask : NULL,
-                             .mask_var = a->mask_var[0] ? a->mask_var : NULL,
-                             .meas_var = a->meas_var[0] ? a->meas_var : NULL,
-                             .truth_var = a->truth_var[0] ? a->truth_var : NULL, .white = a->white};
-        rc = sci_mat_read_opts(path, &o, out, k, info, err);
     }
+    sci_mat_options o = {.mask_path = !a->folder && a->mask_index >= 0 ? mask : NULL,
+                         .mask_var = a->mask_var[0] ? a->mask_var : NULL,
+                         .meas_var = a->meas_var[0] ? a->meas_var : NULL,
+                         .truth_var = a->truth_var[0] ? a->truth_var : NULL, .white = a->white, .limits = &lim};
+    if (rc == 0)
+        rc = check_output(a, path, &o, &lim, err);
+    if (rc == 0 && a->folder)
+        rc = sci_problem_dir_read_opts(stage, &lim, out, k, err);
+    else if (rc == 0)
+        rc = sci_mat_read_opts(path, &o, out, k, info, err);
     if (rc < 0) { /* messages name the staged copy: say the client's name instead */
         char *at = strstr(err->msg, stage);
         if (at) {

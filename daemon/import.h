@@ -36,6 +36,7 @@ typedef struct scicapd_import_args {
     char mask_var[SCICAPD_IMPORT_NAME_MAX], meas_var[SCICAPD_IMPORT_NAME_MAX], truth_var[SCICAPD_IMPORT_NAME_MAX];
     double white;                     /* 0: 255; SCI_MAT_WHITE_AUTO: from the data; else the white level */
     int reconstruct;                  /* reconstruct every imported snapshot */
+    int allow_large;                  /* lift io/limits.h (`--allow-large`): admins only (checked by the caller) */
     scicapd_recon_spec recon;
 } scicapd_import_args;
 
@@ -49,7 +50,9 @@ void scicapd_import_args_free(scicapd_import_args *a);
 /* Copy the descriptors into ROOT/imports/.import-<job>/ and read the problems: *out (k problems, freed with
  * sci_problem_array_free) and, for a .mat, *info (white level and how it was chosen). The staging folder is
  * removed before returning. Errors of the readers (their messages name the option to use), -EINVAL for a
- * descriptor that is not a regular file, -EFBIG over the input limit. */
+ * descriptor that is not a regular file, -EFBIG over a limit of io/limits.h (unless a->allow_large): the memory
+ * the input declares, and the files its captures and reconstructions would create, the figures `scicap recon`
+ * refuses the same file with — checked on what the file declares, before its data is read. */
 int scicapd_import_read(scicapd_store *st, uint64_t job, scicapd_import_args *a, sci_problem ***out, int *k,
                         sci_mat_info *info, sci_error *err);
 /* Store problem p (taken over) as one capture folder: id into id (32 bytes), folder into dir (1100 bytes). */

@@ -1,0 +1,183 @@
+/* The daemon's import holds a file to the limits `scicap recon` holds it to (io/limits.h): a small compressed
+ * .mat declaring 5,000 snapshots of 8×8 pixels, 8 frames each (a few KB), is refused by `scicap recon` ("would
+ * create N files") and by the daemon's import with the same figure, before one capture is stored; lifting the
+ * limits (allow_large) is for admins only — another uid asking for it gets `permission`. */
+#include <errno.h>
+#include <matio.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <dirent.h>
+#include <sys/socket.h>
+
+#include <cmocka.h>
+
+#include "tests/helpers/cli_child.h"
+#include "tests/integration/daemon_harness.h"
+
+#define NOBODY 65534
+#define SNAPSHOTS 5000
+
+static harness H;
+static char file[600];
+
+static int cleanup(void **state)
+{
+    (void)state;
+    harness_cleanup(&H);
+    memset(&H, 0, sizeof H);
+    return 0;
+}
+
+/* mask 8×8×8, meas 8×8×SNAPSHOTS of one value, compressed: a few KB that declare SNAPSHOTS snapshots */
+static void write_many(const char *path)
+{
+    mat_t *m = Mat_CreateVer(path, NULL, MAT_FT_MAT5);
+    assert_non_null(m);
+    size_t dm[3] = {8, 8, 8}, dy[3] = {8, 8, SNAPSHOTS};
+    double *mask = calloc(8 * 8 * 8, sizeof *mask), *meas = calloc((size_t)8 * 8 * SNAPSHOTS, sizeof *meas);
+    assert_non_null(mask);
+    assert_non_null(meas);
+    for (int i = 0; i < 8 * 8 * 8; i++)
+        mask[i] = i % 2;
+    for (size_t i = 0; i < (size_t)8 * 8 * SNAPSHOTS; i++)
+        meas[i] = 4; /* a plausible measurement: without the limits it imports */
+    matvar_t *v = Mat_VarCreate("mask", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dm, mask, 0);
+    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_ZLIB), 0);
+    Mat_VarFree(v);
+    v = Mat_VarCreate("meas", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dy, meas, 0);
+    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_ZLIB), 0);
+    Mat_VarFree(v);
+    Mat_Close(m);
+    free(mask);
+    free(meas);
+}
+
+/* One import request with the file's descriptor attached (SCM_RIGHTS); the reply message. */
+static json_t *import_fd(hconn *c, json_t *args, int fd)
+{
+    int id = c->next_id++;
+    json_t *req = json_pack("{s:i, s:i, s:s, s:o}", "v", 1, "id", id, "cmd", "import", "args", args);
+    char *s = json_dumps(req, JSON_COMPACT);
+    json_decref(req);
+    size_t n = strlen(s);
+    s[n++] = '\n';
+    union {
+        char b[CMSG_SPACE(sizeof(int))];
+        struct cmsghdr align;
+    } ctl;
+    struct iovec iov = {.iov_base = s, .iov_len = n};
+    struct msghdr m = {.msg_iov = &iov, .msg_iovlen = 1, .msg_control = ctl.b, .msg_controllen = sizeof ctl.b};
+    struct cmsghdr *h = CMSG_FIRSTHDR(&m);
+    h->cmsg_level = SOL_SOCKET;
+    h->cmsg_type = SCM_RIGHTS;
+    h->cmsg_len = CMSG_LEN(sizeof(int));
+    memcpy(CMSG_DATA(h), &fd, sizeof fd);
+    assert_int_equal(sendmsg(c->fd, &m, MSG_NOSIGNAL), (ssize_t)n);
+    free(s);
+    for (;;) {
+        json_t *r = hconn_read(c, 30000);
+        if (!r)
+            fail_msg("no reply to import within 30 s");
+        if (!json_object_get(r, "event") && json_integer_value(json_object_get(r, "id")) == id)
+            return r;
+        json_decref(r);
+    }
+}
+
+static int count_captures(void)
+{
+    char p[400];
+    snprintf(p, sizeof p, "%s/captures", H.store);
+    DIR *d = opendir(p);
+    if (!d)
+        return 0;
+    int n = 0;
+    for (struct dirent *e; (e = readdir(d));)
+        n += e->d_name[0] != '.';
+    closedir(d);
+    return n;
+}
+
+static void test_refused_as_the_cli_refuses_it(void **state)
+{
+    harness_start(&H, "{\"control\": {\"mode\": \"0666\"}}\n", NULL);
+    snprintf(file, sizeof file, "%s/many.mat", H.dir);
+    write_many(file);
+    struct stat st;
+    assert_int_equal(stat(file, &st), 0);
+    /* the offline CLI */
+    char scicap[1024], out[700];
+    assert_int_equal(cli_child_program(scicap, sizeof scicap, "scicap"), 0);
+    snprintf(out, sizeof out, "%s/out", H.dir);
+    cli_child c;
+    cli_child_run(&c, scicap, (const char *const[]){"recon", "-q", file, "-o", out, NULL}, H.dir);
+    print_message("  %lld-byte file; scicap recon: exit %d, %s", (long long)st.st_size, cli_child_exit_code(&c), c.err);
+    assert_int_equal(cli_child_exit_code(&c), 1);
+    const char *cli_fig = strstr(c.err, "would create ");
+    assert_non_null(cli_fig);
+    long cli_files = strtol(cli_fig + 13, NULL, 10);
+    /* the daemon */
+    hconn hc;
+    hconn_open(&hc, &H);
+    int fd = open(file, O_RDONLY | O_CLOEXEC);
+    assert_true(fd >= 0);
+    json_t *r = import_fd(&hc, json_pack("{s:[s], s:b}", "files", "many.mat", "reconstruct", 1), fd);
+    close(fd);
+    assert_true(json_is_true(json_object_get(r, "ok")));
+    json_decref(r);
+    json_t *e = hconn_wait_event_ex(&hc, "import.failed", 60000, 1);
+    const char *msg = json_string_value(json_object_get(json_object_get(e, "data"), "error"));
+    print_message("  daemon: %s\n", msg);
+    const char *fig = strstr(msg, "would create ");
+    assert_non_null(fig);
+    assert_int_equal(strtol(fig + 13, NULL, 10), cli_files);
+    assert_non_null(strstr(msg, "many.mat"));
+    json_decref(e);
+    assert_int_equal(count_captures(), 0);
+    hconn_close(&hc);
+    harness_stop(&H);
+}
+
+static void test_allow_large_is_for_admins(void **state)
+{
+    if (geteuid() != 0) {
+        print_message("  needs root to connect as uid %d; running as uid %d\n", NOBODY, (int)geteuid());
+        skip();
+    }
+    harness_start(&H, "{\"control\": {\"mode\": \"0666\"}}\n", NULL);
+    assert_int_equal(chmod(H.dir, 0755), 0);
+    snprintf(file, sizeof file, "%s/many.mat", H.dir);
+    write_many(file);
+    hconn hc;
+    memset(&hc, 0, sizeof hc);
+    if (setegid(NOBODY) != 0 || seteuid(NOBODY) != 0)
+        fail_msg("seteuid: %s", strerror(errno));
+    hc.fd = h_connect_raw(H.sock);
+    if (seteuid(0) != 0 || setegid(0) != 0)
+        fail_msg("back to root: %s", strerror(errno));
+    assert_true(hc.fd >= 0);
+    hc.next_id = 1;
+    int fd = open(file, O_RDONLY | O_CLOEXEC);
+    assert_true(fd >= 0);
+    json_t *r = import_fd(&hc, json_pack("{s:[s], s:b}", "files", "many.mat", "allow_large", 1), fd);
+    close(fd);
+    const char *code = json_string_value(json_object_get(json_object_get(r, "error"), "code"));
+    print_message("  uid %d with allow_large: %s\n", NOBODY, json_dumps(r, JSON_COMPACT));
+    assert_false(json_is_true(json_object_get(r, "ok")));
+    assert_string_equal(code, "permission");
+    json_decref(r);
+    hconn_close(&hc);
+    assert_int_equal(count_captures(), 0);
+    harness_stop(&H);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test_teardown(test_refused_as_the_cli_refuses_it, cleanup),
+        cmocka_unit_test_teardown(test_allow_large_is_for_admins, cleanup),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
