@@ -9,6 +9,7 @@
 #include <getopt.h>
 #include <jansson.h>
 #include <math.h>
+#include <poll.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -59,6 +60,33 @@ static void conn_close(conn *c)
         close(c->fd);
 }
 
+/* A write failed: a daemon that refused the connection (no free slot, too many of this uid's) wrote one error
+ * line before closing it; that line, not the write's EPIPE, says why. Prints it or the write's error. */
+static void conn_write_failed(conn *c, int e)
+{
+    char buf[1024];
+    size_t len = 0;
+    struct pollfd p = {.fd = c->fd, .events = POLLIN};
+    while (len < sizeof buf - 1 && poll(&p, 1, 1000) > 0) {
+        ssize_t r = recv(c->fd, buf + len, sizeof buf - 1 - len, MSG_DONTWAIT);
+        if (r <= 0)
+            break;
+        len += (size_t)r;
+        if (memchr(buf, '\n', len))
+            break;
+    }
+    buf[len] = '\0';
+    json_t *m = len ? json_loads(buf, JSON_DISABLE_EOF_CHECK, NULL) : NULL;
+    json_t *err = json_object_get(m, "error");
+    const char *code = json_string_value(json_object_get(err, "code"));
+    const char *msg = json_string_value(json_object_get(err, "message"));
+    if (code && msg)
+        fprintf(stderr, "scicap: scicapd at %s refused the connection (%s): %s\n", c->path, code, msg);
+    else
+        fprintf(stderr, "scicap: %s: write failed: %s\n", c->path, strerror(e));
+    json_decref(m);
+}
+
 static int conn_send(conn *c, const char *cmd, json_t *args /* stolen, may be NULL */)
 {
     json_t *req = json_pack("{s:i, s:i, s:s}", "v", 1, "id", 1, "cmd", cmd);
@@ -71,7 +99,7 @@ static int conn_send(conn *c, const char *cmd, json_t *args /* stolen, may be NU
     ssize_t w = send(c->fd, s, n + 1, MSG_NOSIGNAL);
     free(s);
     if (w != (ssize_t)(n + 1)) {
-        fprintf(stderr, "scicap: %s: write failed: %s\n", c->path, strerror(errno));
+        conn_write_failed(c, errno);
         return -1;
     }
     return 0;
@@ -106,7 +134,7 @@ static int conn_send_fds(conn *c, const char *cmd, json_t *args, const int *fds,
     }
     free(s);
     if (w < 0) {
-        fprintf(stderr, "scicap: %s: write failed: %s\n", c->path, strerror(errno));
+        conn_write_failed(c, errno);
         return -1;
     }
     return 0;

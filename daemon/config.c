@@ -53,6 +53,8 @@ static void defaults(scicapd_config *c)
     c->request_timeout_ms = 10000;
     c->idle_timeout_ms = 300000;
     c->max_line_bytes = 65536;
+    c->max_per_uid = 8;
+    c->stall_timeout_ms = 60000;
     snprintf(c->storage_root, sizeof c->storage_root, "/var/lib/scicapd");
     snprintf(c->runtime_dir, sizeof c->runtime_dir, "/run/scicapd");
     c->fsync = 1;
@@ -158,7 +160,8 @@ static int get_obj(const sci_json_doc *doc, const json_t *o, const char *op, con
 static int parse_control(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
     static const char *const keys[] = {"socket", "mode", "group", "admin_group", "max_clients", "max_line_bytes",
-                                       "admin_slots", "request_timeout_ms", "idle_timeout_ms", NULL};
+                                       "admin_slots", "request_timeout_ms", "idle_timeout_ms", "max_per_uid",
+                                       "stall_timeout_ms", NULL};
     int rc;
     long long line = (long long)c->max_line_bytes;
     if ((rc = sci_json_check_keys(doc, o, "control", keys, err)) < 0 ||
@@ -169,7 +172,9 @@ static int parse_control(const sci_json_doc *doc, const json_t *o, scicapd_confi
         (rc = sci_json_get_int(doc, o, "control", "max_line_bytes", 0, 1024, 16 << 20, &line, err)) < 0 ||
         (rc = get_int(doc, o, "control", "admin_slots", 0, 64, &c->admin_slots, err)) < 0 ||
         (rc = get_int(doc, o, "control", "request_timeout_ms", 100, 3600000, &c->request_timeout_ms, err)) < 0 ||
-        (rc = get_int(doc, o, "control", "idle_timeout_ms", 0, 86400000, &c->idle_timeout_ms, err)) < 0)
+        (rc = get_int(doc, o, "control", "idle_timeout_ms", 0, 86400000, &c->idle_timeout_ms, err)) < 0 ||
+        (rc = get_int(doc, o, "control", "max_per_uid", 0, 1024, &c->max_per_uid, err)) < 0 ||
+        (rc = get_int(doc, o, "control", "stall_timeout_ms", 0, 86400000, &c->stall_timeout_ms, err)) < 0)
         return rc;
     c->max_line_bytes = (size_t)line;
     if (c->admin_slots >= c->max_clients && !json_object_get(o, "admin_slots"))

@@ -52,6 +52,9 @@ typedef struct scicapd_config {
     int idle_timeout_ms;                  /* 300000: a connection that is not watching and has no unfinished job
                                              is closed this long after its last request; 0 = never */
     size_t max_line_bytes;                /* 65536: longest request line */
+    int max_per_uid;                      /* 8: connections of one ordinary uid at once; 0 = no cap */
+    int stall_timeout_ms;                 /* 60000: a connection whose output waits this long unread is closed;
+                                             0 = never */
     char admin_group[SCICAPD_NAME_MAX];   /* "scicap-admin": members may reload, shutdown, simulate and cancel
                                              any job (besides root and the daemon's user); "" or a group that does
                                              not exist: only those two */

@@ -234,6 +234,7 @@ static void flush(scicapd_control *ctl, scicapd_client *c)
             return;
         }
         c->out_off += (size_t)w;
+        c->out_stall_ns = sci_clock_mono_ns(); /* the peer reads: its stall count starts again */
     }
     c->out_len = c->out_off = 0;
 }
@@ -263,6 +264,8 @@ void scicapd_control_send_to(scicapd_control *ctl, scicapd_client *c, const char
         c->out = o;
         c->out_cap = nc;
     }
+    if (c->out_len == c->out_off)
+        c->out_stall_ns = sci_clock_mono_ns(); /* output starts to wait now */
     memcpy(c->out + c->out_len, line, n);
     c->out_len += n;
     flush(ctl, c);
@@ -300,6 +303,20 @@ int scicapd_control_flushing(const scicapd_control *ctl)
     return 0;
 }
 
+/* One "busy" line, then closed: the client prints why (cli/client.c). */
+static void refuse(scicapd_control *ctl, int fd, const struct ucred *cr, const char *msg)
+{
+    char *line = scicapd_reply_error(NULL, SCICAPD_E_BUSY, msg);
+    if (line) {
+        ssize_t w = send(fd, line, strlen(line), MSG_NOSIGNAL | MSG_DONTWAIT);
+        (void)w;
+    }
+    free(line);
+    close(fd);
+    sci_log_write(ctl->log, SCI_LOG_WARNING, "refused a connection from pid %d uid %d: %s", (int)cr->pid,
+                  (int)cr->uid, msg);
+}
+
 static void accept_one(scicapd_control *ctl)
 {
     int fd = accept4(ctl->lfd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
@@ -315,6 +332,15 @@ static void accept_one(scicapd_control *ctl)
     }
     int admin = ctl->hooks.is_admin ? ctl->hooks.is_admin(ctl->hooks.user, cr.uid, cr.gid) : 0;
     int limit = admin ? ctl->lim.max_clients : ctl->lim.max_clients - ctl->lim.admin_slots;
+    int mine = 0;
+    for (int i = 0; i < ctl->n; i++)
+        mine += ctl->c[i]->uid == cr.uid && ctl->c[i]->closing != 2;
+    if (!admin && ctl->lim.max_per_uid > 0 && mine >= ctl->lim.max_per_uid) {
+        char msg[160];
+        snprintf(msg, sizeof msg, "too many connections of uid %d (%d; control.max_per_uid)", (int)cr.uid, mine);
+        refuse(ctl, fd, &cr, msg);
+        return;
+    }
     if (ctl->n >= limit) {
         char msg[160];
         if (admin || ctl->lim.admin_slots == 0)
@@ -322,15 +348,7 @@ static void accept_one(scicapd_control *ctl)
         else
             snprintf(msg, sizeof msg, "too many clients (%d; the other %d slots are kept for admins)", ctl->n,
                      ctl->lim.admin_slots);
-        char *line = scicapd_reply_error(NULL, SCICAPD_E_BUSY, msg);
-        if (line) {
-            ssize_t w = send(fd, line, strlen(line), MSG_NOSIGNAL | MSG_DONTWAIT);
-            (void)w;
-        }
-        free(line);
-        close(fd);
-        sci_log_write(ctl->log, SCI_LOG_WARNING, "refused a connection from pid %d uid %d: %d clients already",
-                      (int)cr.pid, (int)cr.uid, ctl->n);
+        refuse(ctl, fd, &cr, msg);
         return;
     }
     scicapd_client *c = calloc(1, sizeof *c);
@@ -437,6 +455,8 @@ static int64_t deadline_of(const scicapd_control *ctl, const scicapd_client *c, 
 {
     if (c->closing)
         return 0;
+    if (c->out_len > c->out_off && ctl->lim.stall_timeout_ms > 0)
+        return c->out_stall_ns + (int64_t)ctl->lim.stall_timeout_ms * 1000000;
     if (c->line_start_ns)
         return c->line_start_ns + (int64_t)ctl->lim.request_timeout_ms * 1000000;
     if (idle_ok && ctl->lim.idle_timeout_ms > 0)
@@ -457,6 +477,15 @@ void scicapd_control_expire(scicapd_control *ctl, int64_t now_ns)
         int64_t due = deadline_of(ctl, c, 1);
         if (!due || now_ns < due)
             continue;
+        int stalled = c->out_len > c->out_off && ctl->lim.stall_timeout_ms > 0;
+        if (stalled) { /* it does not read: no last line would reach it */
+            sci_log_write(ctl->log, SCI_LOG_NOTICE, "client %llu (pid %d uid %d): %zu bytes unread for %d ms; "
+                          "closing", (unsigned long long)c->id, (int)c->pid, (int)c->uid, c->out_len - c->out_off,
+                          ctl->lim.stall_timeout_ms);
+            c->closing = 2;
+            closed++;
+            continue;
+        }
         if (!c->line_start_ns && !idle_applies(ctl, c)) {
             c->last_request_ns = now_ns; /* waiting for its job: kept, and the idle count starts again */
             continue;

@@ -20,7 +20,10 @@
  * connect), whether the bytes trickle or stop; a connection that is not watching and for which hooks.busy says
  * nothing is in flight is closed idle_timeout_ms after its last request (0: never). Either deadline answers one
  * "timeout" line and closes. So a peer that holds slots without finishing requests holds them for at most
- * request_timeout_ms, and never the admin ones unless it is an admin itself. Deadlines are checked by
+ * request_timeout_ms, and never the admin ones unless it is an admin itself. One ordinary uid holds at most
+ * max_per_uid connections (sshd's per-source limit): the next gets "busy" naming the cap, so one user's watches
+ * cannot fill the slots of the others. A connection whose output has waited stall_timeout_ms without the peer
+ * reading a byte (a watcher that stopped reading) is closed, so a watch never holds a slot forever for nothing. Deadlines are checked by
  * scicapd_control_expire; scicapd_control_next_deadline_ms says how long the loop may sleep.
  */
 #ifndef SCICAP_DAEMON_CONTROL_H
@@ -52,6 +55,7 @@ typedef struct scicapd_client {
     char *out;          /* pending output */
     size_t out_len, out_off, out_cap;
     int closing;        /* close once the output is written */
+    int64_t out_stall_ns; /* CLOCK_MONOTONIC since when output has waited without the peer reading any */
     int fds[SCICAPD_CLIENT_MAX_FDS]; /* descriptors passed with the pending line (close-on-exec) */
     int nfds;
 } scicapd_client;
@@ -79,6 +83,9 @@ typedef struct scicapd_control_limits {
     size_t max_line;          /* bytes per request line */
     int request_timeout_ms;   /* first byte (or connect) to newline */
     int idle_timeout_ms;      /* last request to close when nothing is in flight; 0 = never */
+    int max_per_uid;          /* connections of one ordinary uid at once (admins: only max_clients); 0 = no cap */
+    int stall_timeout_ms;     /* output waiting this long with nothing read by the peer (a watcher that stopped
+                                 reading): closed; 0 = never */
 } scicapd_control_limits;
 
 /* Errors: -EADDRINUSE (a scicapd listens there), -EEXIST (something other than a socket is at path),

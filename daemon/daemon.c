@@ -69,7 +69,8 @@ static scicapd_control_limits control_limits(const scicapd_config *c)
 {
     return (scicapd_control_limits){.max_clients = c->max_clients, .admin_slots = c->admin_slots,
                                     .max_line = c->max_line_bytes, .request_timeout_ms = c->request_timeout_ms,
-                                    .idle_timeout_ms = c->idle_timeout_ms};
+                                    .idle_timeout_ms = c->idle_timeout_ms, .max_per_uid = c->max_per_uid,
+                                    .stall_timeout_ms = c->stall_timeout_ms};
 }
 
 

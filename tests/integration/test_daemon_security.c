@@ -32,9 +32,10 @@ static int cleanup(void **state)
 #define UID_A 65534 /* nobody */
 #define UID_B 65533
 
-/* request deadline 1 s, idle 2 s, 2 of 32 slots for admins */
+/* request deadline 1 s, idle 2 s, 2 of 32 slots for admins; no per-uid cap, so that one uid can try to take
+ * every ordinary slot (test_daemon_connections tests the cap) */
 static const char *const CONFIG = "{\"control\": {\"mode\": \"0666\", \"max_clients\": 32, \"admin_slots\": 2,"
-                                  " \"request_timeout_ms\": 1000, \"idle_timeout_ms\": 2000}}\n";
+                                  " \"request_timeout_ms\": 1000, \"idle_timeout_ms\": 2000, \"max_per_uid\": 0}}\n";
 
 static void need_root(void)
 {
