@@ -86,6 +86,10 @@ void scicapd_capture_run(scicapd_acquire *a, scicapd_job *j)
         scicapd_job_set_state(env->jobs, j, SCICAPD_JOB_FAILED, err.msg);
         scicapd_acquire_post(a, j, "capture.failed", json_pack("{s:i, s:s, s:s}", "index", i, "error", err.msg,
                                                                 "code", sci_strerror(rc)));
+    } else if (i < c->count && atomic_load(&j->cancel) == SCICAPD_CANCEL_STORAGE) {
+        /* failed, and said so with the reason, by the writer that could not store a snapshot (daemon.c) */
+        sci_log_write(env->log, SCI_LOG_ERR, "job %llu: stopped after %d of %d snapshots: a snapshot could not be "
+                      "stored", (unsigned long long)j->id, i, c->count);
     } else if (i < c->count) {
         scicapd_job_set_state(env->jobs, j, SCICAPD_JOB_CANCELED, "canceled");
         scicapd_acquire_post(a, j, "capture.canceled", json_pack("{s:i}", "acquired", i));

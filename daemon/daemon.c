@@ -146,6 +146,8 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
     }
     const scicapd_capture_args *c = &j->capture;
     if (rc < 0) {
+        int none = 0; /* stop acquiring: the next snapshots would fail the same way */
+        atomic_compare_exchange_strong(&j->cancel, &none, SCICAPD_CANCEL_STORAGE);
         sci_log_write(d->log, SCI_LOG_ERR, "job %llu: storing snapshot %d failed: %s", (unsigned long long)j->id,
                       s->index, err->msg);
         scicapd_job_settle(d->jobs, j, 0);

@@ -37,7 +37,9 @@ const char *scicapd_job_state_name(scicapd_job_state s);
 
 /* Why a job was told to stop: a user's cancel ends it for good; a shutdown leaves a persisted reconstruction to
  * be resumed at the next start (daemon/reconq.h). */
-enum { SCICAPD_CANCEL_USER = 1, SCICAPD_CANCEL_SHUTDOWN = 2 };
+/* SCICAPD_CANCEL_STORAGE: a capture's snapshot could not be stored (the disk is full, ...): acquiring more would
+ * only lose them too, so the capture stops at the first failure */
+enum { SCICAPD_CANCEL_USER = 1, SCICAPD_CANCEL_SHUTDOWN = 2, SCICAPD_CANCEL_STORAGE = 3 };
 
 typedef struct scicapd_job {
     uint64_t id;               /* 1, 2, ... per daemon run */

@@ -11,6 +11,7 @@
 #include <string.h>
 #include <sys/file.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include "io/image.h"
@@ -332,8 +333,11 @@ void scicapd_snapshot_free(scicapd_jobs *jobs, scicapd_snapshot *s)
 
 static int write_json(const char *path, const json_t *j, sci_error *err)
 {
-    if (json_dump_file(j, path, JSON_INDENT(2) | JSON_SORT_KEYS) != 0)
-        return sci_error_set(err, -EIO, "%s: cannot write", path);
+    errno = 0;
+    if (json_dump_file(j, path, JSON_INDENT(2) | JSON_SORT_KEYS) != 0) {
+        int e = errno ? errno : EIO; /* ENOSPC from the write or the close: say so */
+        return sci_error_set(err, -e, "%s: cannot write: %s", path, strerror(e));
+    }
     return 0;
 }
 
@@ -653,6 +657,28 @@ fail:
     return rc;
 }
 
+/* A failed write whose library did not keep errno (OpenEXR says only "File output failed"): when the store's
+ * file system has no room left, the cause is that; say it, with -ENOSPC, so the user knows what to free. */
+static int name_full_disk(const scicapd_store *st, const scicapd_snapshot *s, int rc, sci_error *err)
+{
+    struct statvfs v;
+    if (rc == -ENOSPC || strstr(err->msg, strerror(ENOSPC)) || statvfs(st->root, &v) != 0)
+        return rc;
+    /* what the snapshot's folder needs, roughly: its cubes as float32 (the partial folder is gone by now, so the
+     * room it took is free again) */
+    double need = 0;
+    const sci_cube *c[] = {s->problem ? s->problem->meas : NULL, s->problem ? s->problem->mask : NULL,
+                           s->problem ? s->problem->truth : NULL, s->raw, s->dark};
+    for (int i = 0; i < 5; i++)
+        need += c[i] ? (double)sci_cube_count(c[i]) * 4.0 : 0;
+    double free_b = (double)v.f_bavail * (double)v.f_frsize;
+    if (free_b >= 2 * need + 1048576.0 && v.f_favail > 0)
+        return rc;
+    char msg[sizeof err->msg];
+    snprintf(msg, sizeof msg, "%s: %s (%.0f bytes free on %s)", strerror(ENOSPC), err->msg, free_b, st->root);
+    return sci_error_set(err, -ENOSPC, "%s", msg);
+}
+
 static void *writer_main(void *arg)
 {
     scicapd_store *st = arg;
@@ -662,6 +688,8 @@ static void *writer_main(void *arg)
         scicapd_span sp;
         scicapd_span_begin(&sp);
         int rc = scicapd_store_write_capture(st, s, &err);
+        if (rc < 0)
+            rc = name_full_disk(st, s, rc, &err);
         scicapd_timing_add(st->timing, SCICAPD_STAGE_STORE, &sp);
         st->on_stored(st->user, s, rc, &err);
     }
