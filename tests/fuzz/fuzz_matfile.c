@@ -2,7 +2,8 @@
  *
  * libmatio reads files, not memory: the input is written to a file in a private temporary folder and read as a
  * benchmark .mat, then probed (sci_mat_probe) and listed. The limits are lowered to 64 MB so a declared size
- * cannot make one input allocate gigabytes (they are what stands between a small file and a large allocation). */
+ * cannot make one input allocate gigabytes (they are what stands between a small file and a large allocation).
+ * Seeds include MATLAB v7.3 (HDF5) files, whole and damaged (v73_*.mat). */
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,6 +14,14 @@
 #include "io/matfile.h"
 
 static char path[256];
+
+/* Some malformed v7.3 files make libhdf5 (Debian's 1.10) lose a few KB allocated inside it (5 KB in 12 blocks on
+ * one fuzz input; the stack ends in libhdf5_serial, which has no frame pointers, so whether libhdf5 itself or an
+ * error path of libmatio that leaves an HDF5 object open is the cause cannot be told from here). Neither is ours
+ * to free, so such leaks are suppressed, for that library only. The price: an HDF5 handle io/matfile.c left open
+ * would be hidden too (its own opens are closed on every path: h5_check). */
+const char *__lsan_default_suppressions(void);
+const char *__lsan_default_suppressions(void) { return "leak:libhdf5_serial.so\n"; }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
