@@ -22,7 +22,7 @@
 #include <unistd.h>
 
 #include "base/clock.h"
-#include "base/omp_env.h"
+#include "base/runtime_env.h"
 #include "io/matfile.h"
 #include "recon/cnn/ffdnet.h"
 #include "recon/metrics.h"
@@ -169,7 +169,7 @@ static double jnum(const json_t *j, const char *key)
 
 int main(int argc, char **argv)
 {
-    sci_omp_env_prefer_passive(argv);
+    sci_runtime_env_apply(argv);
     int threads = 2, repeat = 7, torch = 1;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--threads") && i + 1 < argc)

@@ -16,7 +16,7 @@
 #include <string.h>
 
 #include "base/clock.h"
-#include "base/omp_env.h"
+#include "base/runtime_env.h"
 #include "io/matfile.h"
 #include "recon/gaptv.h"
 #include "recon/metrics.h"
@@ -46,7 +46,7 @@ static double memcpy_gbs(void)
 
 int main(int argc, char **argv)
 {
-    sci_omp_env_prefer_passive(argv); /* as scicap and scicapd run */
+    sci_runtime_env_apply(argv); /* as scicap and scicapd run */
     const char *dir = getenv("SCICAP_DATA");
     char path[4096];
     snprintf(path, sizeof path, "%s/drop40_cacti.mat", dir && *dir ? dir : "../shared/data");

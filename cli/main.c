@@ -2,7 +2,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "base/omp_env.h"
+#include "base/runtime_env.h"
 #include "cli/client.h"
 #include "cli/commands.h"
 #include "recon/solver.h"
@@ -48,7 +48,7 @@ static void usage(FILE *f)
 
 int main(int argc, char **argv)
 {
-    sci_omp_env_prefer_passive(argv);
+    sci_runtime_env_apply(argv);
     if (argc < 2) {
         usage(stderr);
         return 2;
@@ -58,7 +58,10 @@ int main(int argc, char **argv)
         return 0;
     }
     if (strcmp(argv[1], "--version") == 0) {
-        printf("scicap %s\n", SCICAP_VERSION);
+        const char *core = sci_runtime_env_blas_running();
+        const char *asked = getenv("OPENBLAS_CORETYPE"); /* the user's, or base/runtime_env.h's choice */
+        printf("scicap %s\nOpenBLAS kernels: %s%s%s%s\n", SCICAP_VERSION, core ? core : "(not linked)",
+               asked ? " (OPENBLAS_CORETYPE=" : "", asked ? asked : "", asked ? ")" : "");
         return 0;
     }
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)

@@ -16,7 +16,7 @@
 #include <unistd.h>
 
 #include "base/log.h"
-#include "base/omp_env.h"
+#include "base/runtime_env.h"
 #include "daemon/config.h"
 #include "daemon/daemon.h"
 #include "daemon/udev_rules.h"
@@ -46,7 +46,7 @@ static void usage(FILE *f)
 
 int main(int argc, char **argv)
 {
-    sci_omp_env_prefer_passive(argv);
+    sci_runtime_env_apply(argv);
     static const struct option opts[] = {
         {"config", required_argument, 0, 'c'}, {"no-config", no_argument, 0, 'N'},
         {"socket", required_argument, 0, 's'}, {"storage", required_argument, 0, 'd'},
