@@ -15,8 +15,23 @@ import json as _json
 import os as _os
 
 # GNU OpenMP threads spin at every barrier by default; on shared cores that turns 0.1 s of GAP-TV into seconds
-# (base/omp_env.h). libgomp reads the policy once, when the extension loads it: set it first unless the user chose.
+# (base/runtime_env.h). libgomp reads the policy once, when the extension loads it: set it first unless the user chose.
 _os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+
+
+def _blas_core():
+    """OpenBLAS takes a CPU it cannot name (a virtual "Intel Xeon Processor") for a Prescott and runs SSE3 kernels
+    although it has AVX-512 (base/runtime_env.h): ask for SkylakeX where the CPU has AVX-512 F, CD, BW, DQ and VL."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            flags = next((line.split() for line in f if line.startswith("flags")), [])
+    except OSError:
+        return None
+    return "SkylakeX" if {"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"} <= set(flags) else None
+
+
+if _blas_core():  # read by the extension's OpenBLAS when it loads, below
+    _os.environ.setdefault("OPENBLAS_CORETYPE", _blas_core())
 
 import numpy as _np  # noqa: E402
 

@@ -69,3 +69,20 @@ def test_omp_wait_policy_is_passive():
                          capture_output=True, text=True, env={k: v for k, v in os.environ.items()
                                                               if k != "OMP_WAIT_POLICY"})
     assert out.stdout.strip() == "passive", out.stderr
+
+
+def test_openblas_uses_the_cpus_avx512():
+    """On a CPU with AVX-512 the extension's OpenBLAS runs AVX-512 kernels, not the generic Prescott ones it takes
+    a CPU it cannot name for (base/runtime_env.h); a core the user names is kept."""
+    probe = ("import ctypes, scicap; f = ctypes.CDLL(scicap._scicap.__file__).openblas_get_corename; "
+             "f.restype = ctypes.c_char_p; print(f().decode())")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+    core = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env)
+    assert core.returncode == 0, core.stderr
+    with open("/proc/cpuinfo") as f:
+        flags = set(next(line.split() for line in f if line.startswith("flags")))
+    if {"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"} <= flags:
+        assert core.stdout.strip() in ("SkylakeX", "Cooperlake", "SapphireRapids"), core.stdout
+    env["OPENBLAS_CORETYPE"] = "Haswell"
+    core = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env)
+    assert core.stdout.strip() == "Haswell", core.stdout + core.stderr
