@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <math.h>
 #include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -129,9 +130,115 @@ static int start_point(const sci_problem *p, const sci_desci_params *q, sci_cube
     return rc < 0 ? rc : 0;
 }
 
-int sci_desci_solve(const sci_problem *problem, const sci_desci_params *params, sci_result *result,
-                    sci_progress_fn progress, void *user, const atomic_int *cancel)
+/* --- checkpoints ---------------------------------------------------------------------------------------------
+ * A blob: header, then x (N frames), ȳ (one frame) and, when groups exist, the image they were matched on (N
+ * frames). Re-matching that image at resume gives the same groups, so a resumed run repeats the uninterrupted
+ * one's arithmetic. The settings hash covers what changes the frames (not threads or metrics intervals). */
+#define DESCI_CKPT_MAGIC "SCIDESCI"
+#define DESCI_CKPT_VERSION 1u
+
+typedef struct desci_ckpt_header {
+    char magic[8];
+    uint32_t version;
+    int32_t w, h, n;
+    int32_t iter;       /* complete iterations the state follows */
+    int32_t has_match;  /* 1: the matched-on image follows ȳ */
+    int32_t pad;
+    uint64_t settings;  /* FNV-1a of the settings that change the frames */
+    uint64_t meas;      /* FNV-1a of the measurement */
+} desci_ckpt_header;
+
+static uint64_t fnv1a(uint64_t h, const void *data, size_t bytes)
 {
+    const unsigned char *b = data;
+    for (size_t i = 0; i < bytes; i++)
+        h = (h ^ b[i]) * 1099511628211ull;
+    return h;
+}
+
+static uint64_t settings_hash(const sci_desci_params *q)
+{
+    sci_desci_params k = {0}; /* copied field by field: padding and the run-only fields stay zero */
+    k.iters = q->iters, k.sigma = q->sigma, k.patch = q->patch, k.group = q->group, k.step = q->step;
+    k.window = q->window, k.c = q->c, k.match_every = q->match_every, k.lambda = q->lambda;
+    k.accelerate = q->accelerate, k.tv_init = q->tv_init;
+    uint64_t h = 14695981039346656037ull;
+    const int ints[] = {k.iters, k.sigma.n, k.patch, k.group, k.step, k.window, k.match_every, k.accelerate,
+                        k.tv_init};
+    h = fnv1a(h, ints, sizeof ints);
+    h = fnv1a(h, k.sigma.v, (size_t)k.sigma.n * sizeof *k.sigma.v);
+    const double dbl[] = {k.c, k.lambda};
+    return fnv1a(h, dbl, sizeof dbl);
+}
+
+/* Hand out the state after `iter` complete iterations. 0 or the callback's nonzero return (-ENOMEM on no memory). */
+static int ckpt_write(const solver_io *io, const sci_desci_params *q, const sci_problem *p, int iter,
+                      const sci_cube *x, const sci_cube *ybar, const sci_cube *xm, int has_match)
+{
+    const size_t count = sci_cube_count(x), fs = sci_cube_frame_size(x);
+    const size_t bytes = sizeof(desci_ckpt_header) + (count * (has_match ? 2 : 1) + fs) * sizeof(float);
+    unsigned char *blob = malloc(bytes);
+    if (!blob)
+        return -ENOMEM;
+    desci_ckpt_header hd = {.version = DESCI_CKPT_VERSION, .w = x->w, .h = x->h, .n = x->n, .iter = iter,
+                            .has_match = has_match, .settings = settings_hash(q),
+                            .meas = fnv1a(14695981039346656037ull, p->meas->data,
+                                          sci_cube_count(p->meas) * sizeof(float))};
+    memcpy(hd.magic, DESCI_CKPT_MAGIC, 8);
+    unsigned char *o = blob;
+    memcpy(o, &hd, sizeof hd), o += sizeof hd;
+    memcpy(o, x->data, count * sizeof(float)), o += count * sizeof(float);
+    memcpy(o, ybar->data, fs * sizeof(float)), o += fs * sizeof(float);
+    if (has_match)
+        memcpy(o, xm->data, count * sizeof(float));
+    const int rc = io->checkpoint_fn(blob, bytes, iter, io->checkpoint_user);
+    free(blob);
+    return rc;
+}
+
+/* Read a blob into x, ȳ and xm; *iter and *has_match from its header. -EINVAL with a message saying what differs. */
+static int ckpt_read(const solver_io *io, const sci_desci_params *q, const sci_problem *p, sci_cube *x,
+                     sci_cube *ybar, sci_cube *xm, int *iter, int *has_match, sci_error *err)
+{
+    desci_ckpt_header hd;
+    if (io->resume_bytes < sizeof hd)
+        return sci_error_set(err, -EINVAL, "desci: resume: %zu bytes is too short for a DeSCI checkpoint",
+                             io->resume_bytes);
+    memcpy(&hd, io->resume, sizeof hd);
+    if (memcmp(hd.magic, DESCI_CKPT_MAGIC, 8) != 0)
+        return sci_error_set(err, -EINVAL, "desci: resume: not a DeSCI checkpoint (bad magic)");
+    if (hd.version != DESCI_CKPT_VERSION)
+        return sci_error_set(err, -EINVAL, "desci: resume: checkpoint version %u, this build reads %u",
+                             hd.version, DESCI_CKPT_VERSION);
+    if (hd.w != x->w || hd.h != x->h || hd.n != x->n)
+        return sci_error_set(err, -EINVAL, "desci: resume: checkpoint of a %dx%dx%d problem, this one is %dx%dx%d",
+                             hd.w, hd.h, hd.n, x->w, x->h, x->n);
+    if (hd.settings != settings_hash(q))
+        return sci_error_set(err, -EINVAL, "desci: resume: checkpoint made with other settings (iters, sigma, "
+                                           "patch, group, step, window, c, match_every, lambda, accelerate or "
+                                           "tv_init differ)");
+    if (hd.meas != fnv1a(14695981039346656037ull, p->meas->data, sci_cube_count(p->meas) * sizeof(float)))
+        return sci_error_set(err, -EINVAL, "desci: resume: checkpoint of another measurement");
+    const size_t count = sci_cube_count(x), fs = sci_cube_frame_size(x);
+    const size_t bytes = sizeof hd + (count * (hd.has_match ? 2 : 1) + fs) * sizeof(float);
+    if (hd.iter < 0 || hd.iter > q->iters || (hd.has_match != 0 && hd.has_match != 1) || io->resume_bytes != bytes)
+        return sci_error_set(err, -EINVAL, "desci: resume: damaged checkpoint (iteration %d, %zu bytes, "
+                                           "expected %zu)", hd.iter, io->resume_bytes, bytes);
+    const unsigned char *i = (const unsigned char *)io->resume + sizeof hd;
+    memcpy(x->data, i, count * sizeof(float)), i += count * sizeof(float);
+    memcpy(ybar->data, i, fs * sizeof(float)), i += fs * sizeof(float);
+    if (hd.has_match)
+        memcpy(xm->data, i, count * sizeof(float));
+    *iter = hd.iter, *has_match = hd.has_match;
+    return 0;
+}
+
+int sci_desci_solve_io(const sci_problem *problem, const sci_desci_params *params, const solver_io *io,
+                       sci_result *result)
+{
+    sci_progress_fn progress = io->progress;
+    void *user = io->user;
+    const atomic_int *cancel = io->cancel;
     snprintf(result->method, sizeof result->method, "desci");
     sci_error *err = &result->error;
     int rc = sci_desci_params_check(params, err);
@@ -147,12 +254,16 @@ int sci_desci_solve(const sci_problem *problem, const sci_desci_params *params, 
     const size_t fs = sci_cube_frame_size(mask), count = sci_cube_count(mask);
     const double peak = problem->peak > 0 ? problem->peak : 1.0;
 
-    sci_cube *x = NULL, *xprev = NULL, *yhat = NULL, *ybar = NULL, *phi = NULL, *r = NULL;
+    sci_cube *x = NULL, *xprev = NULL, *yhat = NULL, *ybar = NULL, *ybprev = NULL, *phi = NULL, *r = NULL;
+    sci_cube *xm = NULL, *xmn = NULL; /* the image the groups were matched on; the one being matched */
+    int first = 1, has_match = 0, done = 0;
     sci_wnnm *wn = NULL;
     sci_wnnm_params cur = {0};
     double *rowbuf = malloc(2 * (size_t)h * sizeof *rowbuf);
     if (!rowbuf || (rc = sci_cube_new(&x, w, h, n, err)) < 0 || (rc = sci_cube_new(&xprev, w, h, n, err)) < 0 ||
         (rc = sci_cube_new(&yhat, w, h, 1, err)) < 0 || (rc = sci_cube_new(&ybar, w, h, 1, err)) < 0 ||
+        (rc = sci_cube_new(&ybprev, w, h, 1, err)) < 0 || (rc = sci_cube_new(&xm, w, h, n, err)) < 0 ||
+        (rc = sci_cube_new(&xmn, w, h, n, err)) < 0 ||
         (rc = sci_cube_new(&phi, w, h, 1, err)) < 0 || (rc = sci_cube_new(&r, w, h, 1, err)) < 0) {
         if (rc >= 0)
             rc = sci_error_set(err, -ENOMEM, "desci: out of memory");
@@ -162,16 +273,32 @@ int sci_desci_solve(const sci_problem *problem, const sci_desci_params *params, 
     sci_tracer tr;
     sci_tracer_start(&tr, problem, result, progress, user, params->iters, params->metrics_every,
                      params->ssim_every);
-    if ((rc = start_point(problem, params, x, err)) < 0) /* its time counts in the trace's */
-        goto out;
-    sci_op_forward_residual(mask, x, y, yhat, rowbuf);
-    /* ȳ = 0 is the reference's start from Aᵀy; from a warm start it would make the first step
-     * x += λAᵀ((y − 2ŷ) ⊘ Φ) ≈ −λAᵀ(y ⊘ Φ) and throw the start away (5 dB after one step from GAP-TV's 34.6).
-     * ȳ = A(x⁰) makes the first step the plain GAP step, which keeps it. */
-    if (params->tv_init > 0)
-        memcpy(ybar->data, yhat->data, fs * sizeof *ybar->data);
+    if (io->resume) {
+        if ((rc = ckpt_read(io, params, problem, x, ybar, xm, &first, &has_match, err)) < 0)
+            goto out;
+        done = first++;
+        sci_op_forward_residual(mask, x, y, yhat, rowbuf);
+        if (has_match && done < params->iters) { /* the groups in use when the checkpoint was taken */
+            cur = stage_params(params, params->sigma.v[stage_of(done, params->iters, params->sigma.n)]);
+            if ((rc = sci_wnnm_new(&wn, w, h, n, &cur, params->threads, err)) < 0 ||
+                (rc = sci_wnnm_match(wn, xm->data, cancel)) < 0) {
+                if (rc == SCI_ECANCELED)
+                    result->stopped = rc, sci_error_set(err, rc, "desci canceled at resume");
+                goto out;
+            }
+        }
+    } else {
+        if ((rc = start_point(problem, params, x, err)) < 0) /* its time counts in the trace's */
+            goto out;
+        sci_op_forward_residual(mask, x, y, yhat, rowbuf);
+        /* ȳ = 0 is the reference's start from Aᵀy; from a warm start it would make the first step
+         * x += λAᵀ((y − 2ŷ) ⊘ Φ) ≈ −λAᵀ(y ⊘ Φ) and throw the start away (5 dB after one step from GAP-TV's
+         * 34.6). ȳ = A(x⁰) makes the first step the plain GAP step, which keeps it. */
+        if (params->tv_init > 0)
+            memcpy(ybar->data, yhat->data, fs * sizeof *ybar->data);
+    }
     const float lambda = (float)params->lambda;
-    for (int it = 1; it <= params->iters; it++) {
+    for (int it = first; it <= params->iters; it++) {
         const double sigma255 = params->sigma.v[stage_of(it, params->iters, params->sigma.n)];
         const sci_wnnm_params want = stage_params(params, sigma255);
         int match = (it - 1) % params->match_every == 0;
@@ -186,6 +313,7 @@ int sci_desci_solve(const sci_problem *problem, const sci_desci_params *params, 
             match = 1;
         }
         memcpy(xprev->data, x->data, count * sizeof *x->data);
+        memcpy(ybprev->data, ybar->data, fs * sizeof *ybar->data);
         const float *yv = y->data, *yh = yhat->data, *ph = phi->data;
         float *yb = ybar->data, *rv = r->data;
         for (size_t i = 0; i < fs; i++) {
@@ -199,13 +327,16 @@ int sci_desci_solve(const sci_problem *problem, const sci_desci_params *params, 
             for (size_t i = 0; i < fs; i++)
                 xk[i] += lambda * (m[i] * rv[i]);
         }
-        if (match)
+        if (match) {
+            memcpy(xmn->data, x->data, count * sizeof *x->data);
             rc = sci_wnnm_match(wn, x->data, cancel);
+        }
         if (rc == 0)
             rc = sci_wnnm_denoise(wn, x->data, sigma255 / 255.0 * peak, x->data, cancel);
         if (rc == SCI_ECANCELED) {
             /* inside an iteration: hand out the last complete iterate */
             memcpy(x->data, xprev->data, count * sizeof *x->data);
+            memcpy(ybar->data, ybprev->data, fs * sizeof *ybar->data);
             sci_error_set(err, rc, "desci canceled at iteration %d", it);
             result->stopped = rc;
             break;
@@ -215,9 +346,23 @@ int sci_desci_solve(const sci_problem *problem, const sci_desci_params *params, 
                                    "(a non-finite estimate?)", it, sigma255);
             goto out;
         }
+        if (match) { /* the iteration is complete: its groups become the ones a checkpoint names */
+            sci_cube *t = xm;
+            xm = xmn, xmn = t, has_match = 1;
+        }
+        done = it;
         const double res = sci_op_forward_residual(mask, x, y, yhat, rowbuf);
         if ((rc = sci_tracer_record(&tr, it, x, res, NAN)) != 0)
             break;
+        if (io->checkpoint_fn && io->checkpoint_every > 0 && it % io->checkpoint_every == 0 &&
+            it < params->iters && (rc = ckpt_write(io, params, problem, it, x, ybar, xm, has_match)) != 0)
+            break;
+    }
+    /* at the end and on a cancel: the state after the last complete iteration */
+    if (io->checkpoint_fn && (rc == 0 || rc == SCI_ECANCELED)) {
+        const int crc = ckpt_write(io, params, problem, done, x, ybar, xm, has_match);
+        if (crc != 0 && rc == 0)
+            rc = crc;
     }
     if (rc != SCI_EDIVERGED) {
         result->frames = x; /* never hand out a diverged estimate */
@@ -230,9 +375,19 @@ out:
     sci_cube_free(xprev);
     sci_cube_free(yhat);
     sci_cube_free(ybar);
+    sci_cube_free(ybprev);
+    sci_cube_free(xm);
+    sci_cube_free(xmn);
     sci_cube_free(phi);
     sci_cube_free(r);
     return rc;
+}
+
+int sci_desci_solve(const sci_problem *problem, const sci_desci_params *params, sci_result *result,
+                    sci_progress_fn progress, void *user, const atomic_int *cancel)
+{
+    const solver_io io = {.progress = progress, .user = user, .cancel = cancel};
+    return sci_desci_solve_io(problem, params, &io, result);
 }
 
 /* --- the method's row in the solver table (recon/solver.h) ------------------------------------------------ */
@@ -264,7 +419,7 @@ static int desci_check(const void *s, sci_error *err) { return sci_desci_params_
 
 static int desci_run(const sci_problem *p, const void *s, const solver_io *io, sci_result *r)
 {
-    return sci_desci_solve(p, s, r, io->progress, io->user, io->cancel);
+    return sci_desci_solve_io(p, s, io, r);
 }
 
 /* The bench grid: a short σ 12 run from GAP-TV, then fast and balanced. Best (the reference recipe, 20 minutes or
@@ -276,7 +431,7 @@ static const char *const desci_bench_full[] = {"{\"iters\":10,\"sigma\":[12],\"t
 const solver_ops sci_desci_solver = {
     .name = "desci",
     .summary = "GAP with weighted-nuclear-norm (WNNM) denoising of similar-patch groups across frames (slow, best)",
-    .caps = 0,
+    .caps = SOLVER_CHECKPOINTS,
     .settings_size = sizeof(sci_desci_params),
     .fields = {{desci_fields, sizeof desci_fields / sizeof desci_fields[0], 0}},
     .defaults = desci_defaults,

@@ -69,6 +69,14 @@ int sci_desci_params_check(const sci_desci_params *p, sci_error *err);
 int sci_desci_solve(const sci_problem *problem, const sci_desci_params *params, sci_result *result,
                     sci_progress_fn progress, void *user, const atomic_int *cancel);
 
+/* As sci_desci_solve with solver_io's checkpoint hooks (recon/solver.h): a checkpoint every checkpoint_every
+ * iterations, at the end and on a cancel, holding x, ȳ, the iteration and the image the current groups were matched
+ * on (about 2N + 1 frames of floats), so that a run resumed from it (io->resume) gives the same frames as one never
+ * stopped. A blob of another problem size, measurement or setting (threads and metrics intervals aside) is refused
+ * with -EINVAL saying which. io must not be NULL. */
+int sci_desci_solve_io(const sci_problem *problem, const sci_desci_params *params, const solver_io *io,
+                       sci_result *result);
+
 /* The method's row in the solver table (settings: sci_desci_params). */
 extern const solver_ops sci_desci_solver;
 

@@ -313,12 +313,116 @@ static void test_settings(void **state)
     sci_problem_free(p);
 }
 
+/* Checkpoints kept by the test: the blob of every call, by iteration. */
+typedef struct ckpt_store {
+    void *blob[64];
+    size_t bytes[64];
+    int iter[64], calls;
+} ckpt_store;
+
+static int on_checkpoint(const void *blob, size_t bytes, int iter, void *user)
+{
+    ckpt_store *c = user;
+    assert_true(c->calls < 64);
+    c->blob[c->calls] = malloc(bytes);
+    assert_non_null(c->blob[c->calls]);
+    memcpy(c->blob[c->calls], blob, bytes);
+    c->bytes[c->calls] = bytes, c->iter[c->calls] = iter;
+    c->calls++;
+    return 0;
+}
+
+static void ckpt_store_free(ckpt_store *c)
+{
+    for (int i = 0; i < c->calls; i++)
+        free(c->blob[i]);
+}
+
+static void assert_same_frames(const sci_result *a, const sci_result *b)
+{
+    assert_non_null(a->frames);
+    assert_non_null(b->frames);
+    assert_int_equal(sci_cube_count(a->frames), sci_cube_count(b->frames));
+    assert_memory_equal(a->frames->data, b->frames->data, sci_cube_count(a->frames) * sizeof(float));
+}
+
+/* The best preset's five σ stages shortened to 10 iterations, block matching every 3 (at 1, 4, 7, 10, and at the
+ * stage changes that alter the patch geometry), 2 threads. A run canceled after iteration 6 hands out a checkpoint
+ * of iteration 6; resumed from it — and from the periodic checkpoint of iteration 5, whose groups were matched at
+ * iteration 4 — the runs end on frames bitwise equal to an uninterrupted run's. Blobs of other settings, another
+ * problem size, or damaged ones are refused with messages. */
+static void test_checkpoint_resume(void **state)
+{
+    (void)state;
+    sci_problem *p = drop_crop(96, 96, 32, 32);
+    const char *cfg = "{\"preset\":\"best\",\"iters\":10,\"match_every\":3,\"threads\":2,\"ssim_every\":0}";
+    sci_result whole = {0};
+    assert_int_equal(run(p, "desci", cfg, &(solver_io){0}, &whole, NULL, NULL), 0);
+
+    /* interrupted after iteration 6 by the cancel flag, a checkpoint every 5 */
+    atomic_int flag = 0;
+    progress_log log = {.stop_at = 6, .flag = &flag};
+    ckpt_store c = {0};
+    solver_io io = {.progress = on_progress, .user = &log, .cancel = &flag, .checkpoint_fn = on_checkpoint,
+                    .checkpoint_user = &c, .checkpoint_every = 5};
+    sci_result cut = {0};
+    assert_int_equal(run(p, "desci", cfg, &io, &cut, NULL, NULL), SCI_ECANCELED);
+    assert_int_equal(c.calls, 2);
+    assert_int_equal(c.iter[0], 5);
+    assert_int_equal(c.iter[1], 6); /* cancel: the last complete iterate */
+    sci_result_free_contents(&cut);
+
+    for (int k = 0; k < 2; k++) {
+        ckpt_store end = {0};
+        solver_io rio = {.resume = c.blob[k], .resume_bytes = c.bytes[k], .checkpoint_fn = on_checkpoint,
+                         .checkpoint_user = &end};
+        sci_result resumed = {0};
+        assert_int_equal(run(p, "desci", cfg, &rio, &resumed, NULL, NULL), 0);
+        assert_int_equal(resumed.trace.len, 10 - c.iter[k]);
+        assert_same_frames(&whole, &resumed);
+        assert_int_equal(end.calls, 1); /* at the end */
+        assert_int_equal(end.iter[0], 10);
+        sci_result_free_contents(&resumed);
+        ckpt_store_free(&end);
+    }
+
+    /* refusals */
+    const char *other = "{\"preset\":\"best\",\"iters\":10,\"match_every\":4,\"threads\":2}";
+    solver_io rio = {.resume = c.blob[1], .resume_bytes = c.bytes[1]};
+    sci_result bad = {0};
+    assert_int_equal(run(p, "desci", other, &rio, &bad, NULL, NULL), -EINVAL);
+    assert_non_null(strstr(bad.error.msg, "other settings"));
+    sci_result_free_contents(&bad);
+    sci_problem *q = drop_crop(96, 96, 24, 32);
+    sci_result bad2 = {0};
+    assert_int_equal(run(q, "desci", cfg, &rio, &bad2, NULL, NULL), -EINVAL);
+    assert_non_null(strstr(bad2.error.msg, "32x32x8"));
+    sci_result_free_contents(&bad2);
+    sci_problem_free(q);
+    rio.resume_bytes = c.bytes[1] - 4;
+    sci_result bad3 = {0};
+    assert_int_equal(run(p, "desci", cfg, &rio, &bad3, NULL, NULL), -EINVAL);
+    assert_non_null(strstr(bad3.error.msg, "damaged"));
+    sci_result_free_contents(&bad3);
+    ((char *)c.blob[1])[0] = 'X';
+    rio.resume_bytes = c.bytes[1];
+    sci_result bad4 = {0};
+    assert_int_equal(run(p, "desci", cfg, &rio, &bad4, NULL, NULL), -EINVAL);
+    assert_non_null(strstr(bad4.error.msg, "magic"));
+    sci_result_free_contents(&bad4);
+
+    ckpt_store_free(&c);
+    sci_result_free_contents(&whole);
+    sci_problem_free(p);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_settings),
         cmocka_unit_test(test_hard_cases),
         cmocka_unit_test(test_cancel),
+        cmocka_unit_test(test_checkpoint_resume),
         cmocka_unit_test(test_crop_beats_gaptv),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
