@@ -105,7 +105,9 @@ static int publish(scicapd_workers *w, const scicapd_job *j, const char *dir, co
     json_t *params = scicapd_recon_spec_json(&j->recon.spec);
     /* which queued job wrote it: a restart after a crash before the entry is dropped finds it done
      * (daemon/reconq.h) rather than running it again */
-    json_t *job = json_pack("{s:{s:I, s:s}}", "job", "id", (json_int_t)j->id, "queue_entry", j->persisted);
+    /* and for whom: the uid that asked (SO_PEERCRED), so a result is attributed to its user whoever else reads it */
+    json_t *job = json_pack("{s:{s:I, s:s, s:I}}", "job", "id", (json_int_t)j->id, "queue_entry", j->persisted,
+                            "owner", (json_int_t)j->owner);
     /* storage.fsync promises that a reconstruction the queue forgets after this survives a power cut: its files
      * and the rename that published it reach the disk before the write returns, and a new recon/ folder's name
      * before the entry is dropped */
@@ -235,6 +237,7 @@ static void run(scicapd_workers *w, scicapd_job *j)
             json_object_set_new(d, "ssim", json_real(last->ssim));
         scicapd_job_set_progress(w->env.jobs, j, r.iters_done, ctx.iters, last->psnr);
     }
+    json_object_set_new(d, "owner", json_integer((json_int_t)j->owner));
     scicapd_job_add_output(w->env.jobs, j, out);
     scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_DONE, NULL);
     sci_log_write(w->env.log, SCI_LOG_INFO, "job %llu: %s of %s done in %.2f s", (unsigned long long)j->id, method,
