@@ -2,10 +2,16 @@
 #include "daemon/capture.h"
 
 #include <errno.h>
+#include <jansson.h>
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
 
 #include "daemon/package.h"
+#include "daemon/store.h"
+#include "io/staging.h"
 
 /* Snapshot `index` of job j taken and packaged for the store (*out; its id not yet set). */
 static int shoot(scicapd_acquire *a, const scicapd_job *j, int index, const sci_cube *masks, uint32_t exposure,
@@ -25,6 +31,32 @@ static int shoot(scicapd_acquire *a, const scicapd_job *j, int index, const sci_
     return scicapd_package_snapshot(&pin, out, err);
 }
 
+/* ROOT/capture.running names the capture in progress, so that a daemon killed during it (kill -9, a power cut)
+ * reports it interrupted at its next start (daemon.c) instead of losing it silently; removed when the capture
+ * ends in any way. Written whole (tmp + rename); failures only logged: it is a report, not the capture. */
+static void running_mark(const scicapd_acquire_env *env, const scicapd_job *j, int count)
+{
+    char path[1100], tmp[1200];
+    snprintf(path, sizeof path, "%s/capture.running", scicapd_store_root(env->store));
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    json_t *m = json_pack("{s:I, s:I, s:i, s:I}", "job", (json_int_t)j->id, "owner", (json_int_t)j->owner, "count",
+                          count, "started_unix", (json_int_t)time(NULL));
+    int ok = m && json_dump_file(m, tmp, JSON_COMPACT) == 0 && rename(tmp, path) == 0;
+    json_decref(m);
+    if (ok && scicapd_store_fsync_on(env->store))
+        sci_staging_sync(path, SCI_SYNC_PARENT);
+    if (!ok)
+        sci_log_write(env->log, SCI_LOG_WARNING, "%s: %s (an interruption of this capture would go unreported)",
+                      path, strerror(errno));
+}
+
+static void running_clear(const scicapd_acquire_env *env)
+{
+    char path[1100];
+    snprintf(path, sizeof path, "%s/capture.running", scicapd_store_root(env->store));
+    unlink(path);
+}
+
 void scicapd_capture_run(scicapd_acquire *a, scicapd_job *j)
 {
     const scicapd_capture_args *c = &j->capture;
@@ -33,6 +65,7 @@ void scicapd_capture_run(scicapd_acquire *a, scicapd_job *j)
     sci_error err = {0};
     scicapd_job_set_state(env->jobs, j, SCICAPD_JOB_RUNNING, NULL);
     scicapd_job_set_progress(env->jobs, j, 0, c->count, NAN);
+    running_mark(env, j, c->count);
     scicapd_acquire_post(a, j, "capture.started",
                          json_pack("{s:s, s:i}", "mask_set", c->mask_set.name, "count", c->count));
     int rc = scicapd_acquire_bind(a, c->sync, &err);
@@ -94,5 +127,6 @@ void scicapd_capture_run(scicapd_acquire *a, scicapd_job *j)
         scicapd_job_set_state(env->jobs, j, SCICAPD_JOB_CANCELED, "canceled");
         scicapd_acquire_post(a, j, "capture.canceled", json_pack("{s:i}", "acquired", i));
     }
+    running_clear(env);
 }
 

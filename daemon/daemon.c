@@ -49,6 +49,7 @@ struct scicapd {
     scicapd_store *store;
     scicapd_store_recovery recovered;
     int resumed;                /* reconstructions read back from ROOT/recon-queue at start */
+    json_t *interrupted;        /* the capture a killed daemon left running (ROOT/capture.running), or NULL */
     scicapd_jobs *jobs;
     scicapd_mailbox *mailbox;
     scicapd_queue *acq_q, *store_q, *recon_q;
@@ -218,6 +219,26 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
     scicapd_snapshot_free(d->jobs, s);
 }
 
+/* The capture a daemon killed during it left in ROOT/capture.running (daemon/capture.c): logged, reported by
+ * status as recovered.capture_interrupted, and the mark removed. Its snapshots stored before the kill stay. */
+static json_t *interrupted_capture(const char *root, const sci_log *log)
+{
+    char path[1100];
+    snprintf(path, sizeof path, "%s/capture.running", root);
+    json_t *m = json_load_file(path, 0, NULL);
+    if (!m && access(path, F_OK) != 0)
+        return NULL;
+    if (!m)
+        m = json_pack("{s:s}", "error", "capture.running unreadable");
+    sci_log_write(log, SCI_LOG_WARNING, "capture job %lld (uid %lld, %lld snapshots asked) was interrupted when the "
+                  "daemon last stopped: not resumed; the snapshots stored before stay",
+                  (long long)json_integer_value(json_object_get(m, "job")),
+                  (long long)json_integer_value(json_object_get(m, "owner")),
+                  (long long)json_integer_value(json_object_get(m, "count")));
+    unlink(path);
+    return m;
+}
+
 /* ---- requests ---- */
 
 /* Root, the daemon's own user, or a member of control.admin_group (primary or supplementary). */
@@ -269,7 +290,7 @@ static json_t *status_json(scicapd *d)
     int q, r, f;
     scicapd_jobs_count(d->jobs, &q, &r, &f);
     return json_pack("{s:s, s:i, s:i, s:f, s:s, s:s, s:s, s:b, s:{s:[i,i], s:[i,i], s:[i,i]}, s:{s:i, s:i, s:i},"
-                     " s:i, s:i, s:I, s:{s:i, s:i, s:i}, s:b, s:o, s:o}",
+                     " s:i, s:i, s:I, s:{s:i, s:i, s:i, s:o}, s:b, s:o, s:o}",
                      "version", SCICAP_VERSION, "protocol", SCICAPD_PROTOCOL_VERSION, "pid", (int)getpid(),
                      "uptime_s", sci_clock_s(d->started_ns, sci_clock_mono_ns()), "config",
                      d->cfg->path[0] ? d->cfg->path : "(built-in defaults)", "socket", d->cfg->socket_path,
@@ -280,7 +301,8 @@ static json_t *status_json(scicapd *d)
                      "running", r, "finished", f, "workers_busy", scicapd_workers_busy(d->workers), "clients",
                      scicapd_control_clients(d->ctl), "captures_stored", (json_int_t)atomic_load(&d->stored),
                      "recovered", "captures", d->recovered.captures, "removed_partial", d->recovered.removed,
-                     "reconstructions_resumed", d->resumed,
+                     "reconstructions_resumed", d->resumed, "capture_interrupted",
+                     d->interrupted ? json_incref(d->interrupted) : json_null(),
                      "stopping", atomic_load(&d->stopping), "devices", scicapd_acquire_devices_json(d->acq),
                      "timing", scicapd_timing_json(d->timing));
 }
@@ -564,6 +586,7 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
         sci_log_write(log, SCI_LOG_WARNING, "storage %s: removed %d partial folders left by an interrupted run",
                       d->cfg->storage_root, d->recovered.removed);
     sci_log_write(log, SCI_LOG_INFO, "storage %s: %d captures", d->cfg->storage_root, d->recovered.captures);
+    d->interrupted = interrupted_capture(d->cfg->storage_root, log);
     scicapd_import_sweep(d->store); /* staging copies an interrupted import left */
     /* 3. queues and the job table */
     if ((rc = scicapd_jobs_new(&d->jobs)) < 0 || (rc = scicapd_mailbox_new(&d->mailbox)) < 0 ||
@@ -733,6 +756,8 @@ void scicapd_free(scicapd *d)
 {
     if (!d)
         return;
+    json_decref(d->interrupted);
+    d->interrupted = NULL;
     atomic_store(&d->stopping, 1);
     scicapd_notify_stopping(&d->notify, "stopping: finishing the current snapshot, canceling reconstructions");
     scicapd_control_stop_listening(d->ctl);
