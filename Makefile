@@ -202,11 +202,11 @@ bench: deps
 	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" bench/run $(BENCH_BIN)
 
 # The published accuracy-against-time report: every method over its cost knobs on the fixed suite; writes
-# bench/results.csv, bench/results/report.md and the plots, and copies the report into README.md.
+# bench/results.csv, bench/results/report.md and the plots, and copies the report into docs/benchmarks.md.
 bench-report: deps
 	@$(MAKE) --no-print-directory all
 	$(BUILD)/scicap bench --full --data "$(SCICAP_DATA)"
-	@bench/update-readme
+	@bench/update-docs
 
 install: all python
 	install -d $(DESTDIR)$(PREFIX)/bin

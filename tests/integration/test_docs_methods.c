@@ -12,6 +12,7 @@
  * What a preset sets is found by trying: each setting is given two values (its range's ends, or false and true,
  * or two names), the preset applied, and the setting counts as the preset's when the value changed. */
 #include <errno.h>
+#include <glob.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -454,6 +455,48 @@ static void test_writer_on_known_presets(void **state)
     method_doc_free(&d);
 }
 
+/* The measurements live in docs/, not in README.md: bench/update-docs copies each bench/results/NAME.md between
+ * <!-- bench:NAME --> markers of the Markdown files in docs/, so the README holds none, and every result that has markers has them
+ * once, in docs/ (the accuracy-against-time report in docs/benchmarks.md). */
+static void test_bench_markers_in_docs(void **state)
+{
+    char *readme = slurp("README.md");
+    if (strstr(readme, "<!-- bench:"))
+        fail_msg("README.md: holds a <!-- bench:... --> block; the measured tables belong in docs/benchmarks.md");
+    free(readme);
+    char *bm = slurp("docs/benchmarks.md");
+    if (!strstr(bm, "\n<!-- bench:report -->\n") || !strstr(bm, "\n<!-- /bench:report -->\n"))
+        fail_msg("docs/benchmarks.md: no bench:report block for make bench-report to fill");
+    if (strstr(bm, "](bench/results/"))
+        fail_msg("docs/benchmarks.md: an image link relative to the top folder; from docs/ it is ../bench/results/");
+    free(bm);
+    glob_t g;
+    assert_int_equal(glob("bench/results/*.md", 0, NULL, &g), 0);
+    int found = 0;
+    for (size_t i = 0; i < g.gl_pathc; i++) {
+        char name[256], marker[300];
+        const char *base = strrchr(g.gl_pathv[i], '/') + 1;
+        snprintf(name, sizeof name, "%.*s", (int)(strlen(base) - 3), base);
+        snprintf(marker, sizeof marker, "\n<!-- bench:%s -->\n", name);
+        glob_t d;
+        int copies = 0;
+        assert_int_equal(glob("docs/*.md", 0, NULL, &d), 0);
+        for (size_t j = 0; j < d.gl_pathc; j++) {
+            char *doc = slurp(d.gl_pathv[j]);
+            for (const char *at = strstr(doc, marker); at; at = strstr(at + 1, marker))
+                copies++;
+            free(doc);
+        }
+        globfree(&d);
+        if (copies > 1)
+            fail_msg("docs/: the block bench:%s appears %d times", name, copies);
+        found += copies;
+    }
+    globfree(&g);
+    printf("docs/: %d bench blocks, none in README.md\n", found);
+    assert_true(found >= 1);
+}
+
 int main(int argc, char **argv)
 {
     if (argc == 3 && strcmp(argv[1], "--print") == 0) {
@@ -475,6 +518,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_readme_methods),
         cmocka_unit_test(test_presets_block_has_every_iters),
         cmocka_unit_test(test_writer_on_known_presets),
+        cmocka_unit_test(test_bench_markers_in_docs),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
