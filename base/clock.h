@@ -4,7 +4,7 @@
 
 #include <stdint.h>
 
-/* CLOCK_MONOTONIC, nanoseconds. The project's timestamp everywhere (DESIGN.md, Units). */
+/* CLOCK_MONOTONIC, nanoseconds. The project's timestamp everywhere (docs/architecture.md, Contracts: Units). */
 int64_t sci_clock_mono_ns(void);
 /* CLOCK_REALTIME, nanoseconds since the epoch: only for human-facing metadata (meta.json). */
 int64_t sci_clock_real_ns(void);

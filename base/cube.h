@@ -1,6 +1,6 @@
 /* base/cube.h — the project's one array type: a float32 stack of n frames of h rows by w columns.
  *
- * Layout (DESIGN.md, Contracts): frame-major, row-major within a frame, element (x, y, k) at
+ * Layout (docs/architecture.md, Contracts: Cube): frame-major, row-major within a frame, element (x, y, k) at
  * data[(k*h + y)*w + x]. MATLAB's column-major H×W×N is converted at the io boundary and nowhere else.
  * Storage is float32; reductions over a cube are done in double.
  *

@@ -1,4 +1,4 @@
-/* drivers/dmd.h — the DMD device interface (DESIGN.md, Contracts: Devices).
+/* drivers/dmd.h — the DMD device interface (docs/architecture.md, Contracts: Devices).
  *
  * A DMD shows N binary masks per camera exposure. A backend is a const dmd_ops table; an open device is the opaque
  * `dmd` handle (the table plus the backend's state), used through the dmd_* calls below, never the table directly —

@@ -8,7 +8,7 @@
  *     timestamp and the exposure setting when no strobe is wired).
  * Output (sync_report): for each mask its display interval, how much of it lies inside the exposure (inside,
  * partial, outside), the timing error of each measured pattern start against the plan, and flags; `broken` is
- * set when the snapshot must not be stored as good (DESIGN.md, data flow step 2).
+ * set when the snapshot must not be stored as good (docs/architecture.md, Contracts: Acquisition).
  *
  * Matching edges to patterns: with exactly N edges they pair in order (robust to any latency). Otherwise the
  * first edge fixes the offset and each edge pairs with the nearest planned start within half that pattern's

@@ -11,8 +11,8 @@
  * Stored value = cube value × scale (integer types rounded and clamped); reading divides by scale again, so a
  * float stack round-trips bit for bit and a 16-bit stack round-trips to within half a count.
  *
- * Pixel types by use (DESIGN.md, Formats): raw snapshots 16-bit TIFF (counts, never rescaled), reconstructions
- * float EXR, previews 8- or 16-bit PNG.
+ * Pixel types by use (docs/formats.md; docs/architecture.md, Contracts: Storage writes): raw snapshots 16-bit
+ * TIFF (counts, never rescaled), reconstructions float EXR, previews 8- or 16-bit PNG.
  *
  * Writes are atomic per file: written to "<path>.tmp-<pid>" and renamed, so a reader never sees half a file.
  * Errors: -errno for I/O, SCI_EFORMAT for files OpenImageIO cannot read or that have the wrong channel count;

@@ -23,7 +23,8 @@ int py_cube_from_array(PyObject *obj, int dims, const char *what, sci_cube **out
         Py_DECREF(any);
         return -1;
     }
-    /* float64 and integer inputs are cast on purpose: the library works in float32 (DESIGN.md, Numerics). */
+    /* float64 and integer inputs are cast on purpose: the library works in float32
+     * (docs/architecture.md, Contracts: Numerics). */
     PyArrayObject *a = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)any, NPY_FLOAT32,
                                                         NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED |
                                                             NPY_ARRAY_FORCECAST);

@@ -9,10 +9,11 @@
  * Defaults (sci_gaptv_params_default) are the reference benchmark script's: accelerated, λ = 1, 100 iterations,
  * TV weight 0.07, 5 TV passes — on /255 data. (gapdenoise.m's own function default is λ = 0.2.)
  *
- * sci_gaptv_solve follows the solver contract of DESIGN.md: it validates the problem, fills result->frames and
- * result->trace, calls `progress` after every iteration, and returns 0, SCI_ECANCELED (result holds the estimate
- * so far), SCI_EDIVERGED, or a validation error; the message is in result->error. `result` must be zeroed by the
- * caller and is freed with sci_result_free_contents. Blocks; uses OpenMP threads; reentrant.
+ * sci_gaptv_solve follows the solver contract of docs/architecture.md (Contracts: Solvers): it validates the
+ * problem, fills result->frames and result->trace, calls `progress` after every iteration, and returns 0,
+ * SCI_ECANCELED (result holds the estimate so far), SCI_EDIVERGED, or a validation error; the message is in
+ * result->error. `result` must be zeroed by the caller and is freed with sci_result_free_contents. Blocks; uses
+ * OpenMP threads; reentrant.
  */
 #ifndef SCICAP_RECON_GAPTV_H
 #define SCICAP_RECON_GAPTV_H
