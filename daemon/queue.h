@@ -1,4 +1,4 @@
-/* daemon/queue.h — a bounded FIFO of pointers between threads (DESIGN.md, Threads: bounded queues).
+/* daemon/queue.h — a bounded FIFO of pointers between threads (docs/architecture.md, Threads: bounded queues).
  *
  * Producers either refuse when full (scicapd_queue_push: SCI_EBUSY, the caller reports "busy" — never a silent
  * drop) or wait for room (scicapd_queue_push_wait, for hand-overs that must not lose data, e.g. snapshot → store).

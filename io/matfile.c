@@ -231,7 +231,7 @@ static matvar_t *read_var(mat_t *mat, const char *path, const char *name, int re
 }
 
 /* Copy frames [f0, f0+n) of column-major H×W×F `v` into a frame-major cube, dividing by scale. This is the one
- * place where MATLAB's layout is converted (DESIGN.md, Contracts). */
+ * place where MATLAB's layout is converted (docs/architecture.md, Contracts). */
 static int to_cube(const matvar_t *v, const size_t dims[3], size_t f0, int n, double scale, const char *path,
                    const char *name, sci_cube **out, sci_error *err)
 {
