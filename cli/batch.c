@@ -332,7 +332,7 @@ int batch_run_local(batch *b, int parallel, int quiet)
     if (stop_signal) {
         fprintf(stderr, "scicap batch: interrupted; the state is in %s/%s (run again to go on)\n", b->outdir,
                 BATCH_STATE_DIR);
-        return stop_signal;
+        return 128 + stop_signal;
     }
     for (int i = 0; i < b->njobs; i++)
         if (b->jobs[i].state != BATCH_DONE)
@@ -481,11 +481,11 @@ static int batch_main_run(batch *b, char *const *inputs, int ninputs, const char
         return rc < 0 ? 1 : 0;
     }
     int rc = batch_run_local(b, parallel, quiet);
-    if (rc == SIGINT || rc == SIGTERM || rc == SIGHUP || rc == SIGQUIT) {
+    if (rc > 128) { /* interrupted: die of the signal, as the shell expects */
         batch_free(b);
         fflush(NULL);
-        signal(rc, SIG_DFL);
-        raise(rc);
+        signal(rc - 128, SIG_DFL);
+        raise(rc - 128);
     }
     return rc;
 }

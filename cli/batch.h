@@ -79,8 +79,9 @@ char **batch_job_argv(const batch *b, const batch_job *j);
 void batch_argv_free(char **argv);
 
 /* Run the unfinished jobs here, `parallel` at a time, with a progress line per job and an overall one on stderr
- * and the summary table on stdout. 0 when every job is done, 1 when some failed, or the signal number (SIGINT,
- * SIGTERM) that interrupted it (the children were stopped; the state saved). */
+ * and the summary table on stdout. 0 when every job is done, 1 when some failed, or 128 + the signal (SIGINT,
+ * SIGTERM, SIGHUP, SIGQUIT) that interrupted it (the children were stopped; the state saved): apart from 1, since
+ * SIGHUP is 1. */
 int batch_run_local(batch *b, int parallel, int quiet);
 /* Print the summary table of every job to stdout. */
 void batch_print_summary(const batch *b);
