@@ -74,6 +74,10 @@ help:
 	@echo "make bench-report  accuracy against time for every method (bench/results.csv, report, plots)"
 	@echo "make install   install binaries, units, config, man pages (PREFIX, DESTDIR)"
 
+# The builds inside check, demo and the other test targets use every core unless the caller chose (make -jN passes
+# its own job server down; JOBS= builds serially).
+JOBS ?= $(if $(filter -j%,$(MAKEFLAGS)),,-j$(shell nproc))
+
 deps:
 	@missing=$$(for p in $(DEB_PKGS); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q '^install ok installed' || echo $$p; done); \
 	if [ -n "$$missing" ]; then \
@@ -155,7 +159,7 @@ python: $(PY_EXT) $(PY_PURE)
 
 # The C tests, then the Python module's (tests/python, pytest): both always run; either failing fails the check.
 check: deps
-	@$(MAKE) --no-print-directory tests python
+	@$(MAKE) --no-print-directory $(JOBS) tests python
 	@rc=0; BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" tests/run $(TEST_BIN) tests/vm/test_resolve || rc=1; \
 	  $(MAKE) --no-print-directory check-python || rc=1; exit $$rc
 
@@ -168,43 +172,43 @@ check-python: python $(BINS)
 # (scicap, scicapd) included. Leak checking is off: the goal is memory errors and undefined behaviour.
 ASAN_BUILD ?= build-asan
 check-asan: deps
-	@$(MAKE) --no-print-directory BUILD=$(ASAN_BUILD) OPT=-O1 SANITIZE=1 tests
+	@$(MAKE) --no-print-directory $(JOBS) BUILD=$(ASAN_BUILD) OPT=-O1 SANITIZE=1 tests
 	@ASAN_OPTIONS=detect_leaks=0:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=0 \
 	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 BUILD=$(ASAN_BUILD) SCICAP_DATA="$(SCICAP_DATA)" \
 	  tests/run $(TEST_BIN:$(BUILD)/%=$(ASAN_BUILD)/%)
 
 demo: deps
-	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory $(JOBS) all
 	@BUILD=$(BUILD) cli/demo-daemon.sh
 
 # GenICam over GigE Vision on loopback (tests/aravis-gv/): Aravis's arv-fake-gv-camera-0.8 serves a camera on
 # 127.0.0.1 and the Aravis backend captures from it; the script starts and stops the camera, bounded in time.
 GV_TEST_BIN := $(patsubst %.c,$(BUILD)/%,$(wildcard tests/aravis-gv/test_*.c))
 check-gv: deps
-	@$(MAKE) --no-print-directory $(GV_TEST_BIN)
+	@$(MAKE) --no-print-directory $(JOBS) $(GV_TEST_BIN)
 	@BUILD=$(BUILD) tests/aravis-gv/run $(GV_TEST_BIN)
 
 # scicap batch --slurm against a real single-node Slurm started in a temporary folder (tests/slurm/run: munge,
 # slurmctld, slurmd; 8 reconstructions as an array job, one task cancelled and resubmitted; under 5 minutes).
 check-slurm: deps
-	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory $(JOBS) all
 	@BUILD=$(BUILD) tests/slurm/run
 
 # Kernel-level device tests under qemu (tests/vm/, README "Kernel-level tests"): the drivers against the real
 # V4L2 (vivid), hidraw (uhid) and GPIO (gpio-sim) subsystems. VM_CACHE keeps downloads and builds between runs.
 VM_CACHE ?= $(HOME)/.cache/scicap-vm
 check-vm: deps
-	@$(MAKE) --no-print-directory all tests
+	@$(MAKE) --no-print-directory $(JOBS) all tests
 	@BUILD=$(BUILD) VM_CACHE="$(VM_CACHE)" tests/vm/run
 
 bench: deps
-	@$(MAKE) --no-print-directory benches
+	@$(MAKE) --no-print-directory $(JOBS) benches
 	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" bench/run $(BENCH_BIN)
 
 # The published accuracy-against-time report: every method over its cost knobs on the fixed suite; writes
 # bench/results.csv, bench/results/report.md and the plots, and copies the report into docs/benchmarks.md.
 bench-report: deps
-	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory $(JOBS) all
 	$(BUILD)/scicap bench --full --data "$(SCICAP_DATA)"
 	@bench/update-docs
 
@@ -256,7 +260,7 @@ $(BUILD)/fuzz/%: tests/fuzz/%.c $(FUZZ_LIB)
 	@mkdir -p $(dir $@)
 	clang $(FUZZ_CFLAGS) -fsanitize=fuzzer -o $@ $< $(FUZZ_LIB) $(PKG_LIBS) -lgif -lstdc++ -lm -lpthread
 fuzz: deps
-	@$(MAKE) --no-print-directory $(FUZZ_BIN)
+	@$(MAKE) --no-print-directory $(JOBS) $(FUZZ_BIN)
 	@set -e; for f in $(FUZZ_BIN); do n=$$(basename $$f); mkdir -p $(BUILD)/fuzz/corpus-$$n; \
 	  seeds=tests/fuzz/corpus/$${n#fuzz_}; [ -d $$seeds ] || seeds=; \
 	  echo "fuzz: $$n for $(FUZZ_SECONDS) s"; \
