@@ -346,7 +346,7 @@ static int rf_run(const sci_problem *p, const void *s, const solver_io *io, sci_
 /* The bench grid on the fast preset: fewer steps, and at 300 steps one other knob at a time (samples per ray, the
  * patch size at the same rays per step, the hash table: levels × features is the transformer width, so the table
  * is rayformer's hash knob). */
-static const char *const rf_bench_quick[] = {"{\"preset\":\"fast\",\"iters\":20}", NULL};
+static const char *const rf_bench_quick[] = {"{\"preset\":\"fast\",\"iters\":10}", NULL};
 static const char *const rf_bench_full[] = {
     "{\"preset\":\"fast\"}",
     "{\"preset\":\"fast\",\"iters\":100}",

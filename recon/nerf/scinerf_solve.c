@@ -263,7 +263,7 @@ static int sn_run(const sci_problem *p, const void *s, const solver_io *io, sci_
 }
 
 /* The bench grid on the fast preset: fewer steps, and samples per ray at 300 steps. */
-static const char *const sn_bench_quick[] = {"{\"preset\":\"fast\",\"iters\":20}", NULL};
+static const char *const sn_bench_quick[] = {"{\"preset\":\"fast\",\"iters\":10}", NULL};
 static const char *const sn_bench_full[] = {
     "{\"preset\":\"fast\"}",
     "{\"preset\":\"fast\",\"iters\":100}",

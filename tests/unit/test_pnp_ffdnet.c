@@ -77,9 +77,11 @@ static void test_drop40_reaches_reference(void **state)
     int k = 0;
     sci_problem **p = load_drop(&k);
     if (!SANITIZED) {
-        /* PyTorch-CPU on PnP-SCI's recipe (σ 50, 25, 12, 6 × 10, accelerated GAP): 39.57 dB; balanced (60 at
-         * σ 50, 25, 12) measured 40.27 */
-        assert_true(run(p[0], "{\"preset\":\"balanced\"}", NULL) >= 39.5);
+        /* PnP-SCI's recipe (σ 50, 25, 12, 6 × 10, accelerated GAP) gives 39.57 dB with PyTorch-CPU; the same
+         * recipe here must land within 0.1 dB of it (measured 39.57). The balanced preset (40.27 dB) costs 4.5×
+         * more and is measured by the bench, not here. */
+        const double ref = run(p[0], "{\"iters\":40,\"sigma\":[50,25,12,6]}", NULL);
+        assert_true(fabs(ref - 39.57) < 0.1);
         /* ADMM dips at each σ change before it recovers: measured 39.96 dB at 40 iterations */
         assert_true(run(p[0], "{\"projection\":\"admm\",\"iters\":40}", NULL) > 39.0);
     } else {
