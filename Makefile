@@ -17,7 +17,7 @@ OPT     ?= -O3
 CFLAGS  ?= $(OPT) -g
 CXXFLAGS ?= $(OPT) -g
 WARN    := -Wall -Wextra -Werror -Wshadow -Wno-unused-parameter -Wno-format-truncation
-PKGS    := OpenImageIO matio zlib jansson openblas hidapi-hidraw libusb-1.0 libgpiod libsystemd aravis-0.8
+PKGS    := OpenImageIO matio zlib jansson openblas hidapi-hidraw libusb-1.0 libgpiod libsystemd aravis-0.8 libmicrohttpd
 PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 # libgpiod 1.6 (Debian 12) and 2.x have different APIs; drivers/ picks one at compile time.
@@ -55,7 +55,8 @@ BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
 DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools libmatio-dev libjansson-dev \
             libcmocka-dev libopenblas-dev libhidapi-dev libusb-1.0-0-dev libgpiod-dev gpiod libsystemd-dev \
             gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools systemd zlib1g-dev \
-            python3-dev python3-numpy python3-pytest slurm-wlm munge libgif-dev
+            python3-dev python3-numpy python3-pytest slurm-wlm munge libgif-dev \
+            libmicrohttpd-dev libjs-chart.js chromium
 
 .PHONY: all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
 .PHONY: python check-python check-slurm

@@ -1,6 +1,7 @@
 /* daemon/config.c — parse and validate scicapd.json (docs/config.md). */
 #include "daemon/config.h"
 
+#include <arpa/inet.h>
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -89,6 +90,10 @@ static void defaults(scicapd_config *c)
     c->recon_checkpoint_every = 100; /* as scicap recon --checkpoint-every */
     c->capture_queue = 16;
     c->recon_queue = 16;
+    snprintf(c->web_host, sizeof c->web_host, "127.0.0.1");
+    c->web_port = 8080;
+    c->web_max_connections = 64;
+    c->web_timeout_s = 10;
 }
 
 int scicapd_config_default(scicapd_config **out, sci_error *err)
@@ -537,10 +542,62 @@ static int parse_queues(const sci_json_doc *doc, const json_t *o, scicapd_config
     return 0;
 }
 
+/* "listen": "HOST:PORT" or "[V6]:PORT" with a numeric address: a name would be resolved at each start and
+ * could quietly mean every interface. */
+static int parse_listen(const sci_json_doc *doc, const char *s, scicapd_config *c, sci_error *err)
+{
+    const char *colon = strrchr(s, ':');
+    const char *host = s, *host_end = colon;
+    if (s[0] == '[') {
+        host = s + 1;
+        host_end = strchr(s, ']');
+        if (!host_end || host_end[1] != ':')
+            host_end = NULL;
+    }
+    char *end = NULL;
+    long port = colon ? strtol(colon + 1, &end, 10) : -1;
+    if (!colon || !host_end || host_end <= host || (size_t)(host_end - host) >= sizeof c->web_host ||
+        !end || *end || end == colon + 1 || port < 0 || port > 65535)
+        return sci_json_fail(doc, err, "web.listen", "must be \"ADDRESS:PORT\" with a numeric address, e.g. "
+                             "\"127.0.0.1:8080\" or \"[::1]:8080\" (got \"%s\")", s);
+    char host_buf[64];
+    snprintf(host_buf, sizeof host_buf, "%.*s", (int)(host_end - host), host);
+    unsigned char addr[16];
+    if (inet_pton(s[0] == '[' ? AF_INET6 : AF_INET, host_buf, addr) != 1)
+        return sci_json_fail(doc, err, "web.listen", "\"%s\" is not a numeric %s address", host_buf,
+                             s[0] == '[' ? "IPv6" : "IPv4");
+    snprintf(c->web_host, sizeof c->web_host, "%s", host_buf);
+    c->web_port = (int)port;
+    return 0;
+}
+
+static int parse_web(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
+{
+    static const char *const keys[] = {"enabled", "listen", "control", "token_file", "max_connections",
+                                       "timeout_s", NULL};
+    int rc;
+    char listen[96] = "";
+    c->web_enabled = 1;
+    if ((rc = sci_json_check_keys(doc, o, "web", keys, err)) < 0 ||
+        (rc = sci_json_get_bool(doc, o, "web", "enabled", 0, &c->web_enabled, err)) < 0 ||
+        (rc = sci_json_get_bool(doc, o, "web", "control", 0, &c->web_control, err)) < 0 ||
+        (rc = get_str(doc, o, "web", "listen", listen, sizeof listen, err)) < 0 ||
+        (rc = get_str(doc, o, "web", "token_file", c->web_token_file, sizeof c->web_token_file, err)) < 0 ||
+        (rc = get_int(doc, o, "web", "max_connections", 4, 1000, &c->web_max_connections, err)) < 0 ||
+        (rc = get_int(doc, o, "web", "timeout_s", 1, 3600, &c->web_timeout_s, err)) < 0)
+        return rc;
+    if (listen[0] && (rc = parse_listen(doc, listen, c, err)) < 0)
+        return rc;
+    if (c->web_token_file[0] && c->web_token_file[0] != '/')
+        return sci_json_fail(doc, err, "web.token_file", "must be an absolute path (got \"%s\")",
+                             c->web_token_file);
+    return 0;
+}
+
 static int parse_doc(const sci_json_doc *doc, scicapd_config *c, sci_error *err)
 {
     static const char *const keys[] = {"version", "control", "storage", "devices", "simulator", "mask_sets",
-                                       "capture", "reconstruction", "queues", NULL};
+                                       "capture", "reconstruction", "queues", "web", NULL};
     const json_t *root = sci_json_doc_root(doc);
     if (!json_is_object(root))
         return sci_json_fail(doc, err, "", "the configuration must be a JSON object");
@@ -554,7 +611,7 @@ static int parse_doc(const sci_json_doc *doc, scicapd_config *c, sci_error *err)
         int (*parse)(const sci_json_doc *, const json_t *, scicapd_config *, sci_error *);
     } sections[] = {{"control", parse_control},     {"storage", parse_storage},     {"devices", parse_devices},
                     {"simulator", parse_simulator}, {"mask_sets", parse_mask_sets}, {"capture", parse_capture},
-                    {"reconstruction", parse_recon}, {"queues", parse_queues}};
+                    {"reconstruction", parse_recon}, {"queues", parse_queues},     {"web", parse_web}};
     for (size_t i = 0; i < sizeof sections / sizeof sections[0]; i++) {
         const json_t *o;
         if ((rc = get_obj(doc, root, "", sections[i].key, &o, err)) < 0)
@@ -669,6 +726,10 @@ json_t *scicapd_config_restart_keys(const scicapd_config *a, const scicapd_confi
         json_array_append_new(r, json_string("reconstruction.workers"));
     if (a->recon_checkpoint_every != b->recon_checkpoint_every) /* the workers took it at the start */
         json_array_append_new(r, json_string("reconstruction.checkpoint_every"));
+    if (a->web_enabled != b->web_enabled || strcmp(a->web_host, b->web_host) || a->web_port != b->web_port ||
+        a->web_control != b->web_control || strcmp(a->web_token_file, b->web_token_file) ||
+        a->web_max_connections != b->web_max_connections || a->web_timeout_s != b->web_timeout_s)
+        json_array_append_new(r, json_string("web")); /* the server and its token are made once, at start */
     return r;
 }
 
@@ -680,7 +741,7 @@ json_t *scicapd_config_to_json(const scicapd_config *c)
     for (int i = 0; i < c->mask_set_count; i++)
         json_array_append_new(sets, json_string(c->mask_sets[i].name));
     return json_pack("{s:s, s:{s:s, s:s, s:s, s:s, s:i, s:I}, s:{s:s, s:s, s:b, s:i, s:b}, s:{s:s, s:s, s:s}, s:s, s:o,"
-                     " s:{s:s, s:I, s:I, s:I, s:s}, s:{s:s, s:s, s:b, s:i, s:i, s:i}, s:{s:i, s:i}}",
+                     " s:{s:s, s:I, s:I, s:I, s:s}, s:{s:s, s:s, s:b, s:i, s:i, s:i}, s:{s:i, s:i}, s:{s:b, s:s, s:i, s:b}}",
                      "path", c->path, "control", "socket", c->socket_path, "mode", mode, "group", c->socket_group,
                      "admin_group", c->admin_group, "max_clients", c->max_clients, "max_line_bytes", (json_int_t)c->max_line_bytes, "storage",
                      "root", c->storage_root, "runtime_dir", c->runtime_dir, "fsync", c->fsync, "writers",
@@ -692,5 +753,6 @@ json_t *scicapd_config_to_json(const scicapd_config *c)
                      sync_mode_name(c->sync_mode), "reconstruction", "method", c->recon_method, "preset",
                      c->recon_preset, "auto", c->recon_auto, "workers", c->workers, "threads", c->recon_threads,
                      "checkpoint_every", c->recon_checkpoint_every,
-                     "queues", "capture", c->capture_queue, "reconstruction", c->recon_queue);
+                     "queues", "capture", c->capture_queue, "reconstruction", c->recon_queue, "web", "enabled",
+                     c->web_enabled, "host", c->web_host, "port", c->web_port, "control", c->web_control);
 }

@@ -110,6 +110,14 @@ typedef struct scicapd_config {
                                              stops in order) */
     /* queues */
     int capture_queue, recon_queue;       /* bounded job queues: a full queue answers "busy" */
+    /* web view (daemon/web.h, docs/web.md): off unless the "web" section is present */
+    int web_enabled;                      /* 1 when the file has a "web" section (web.enabled may say 0) */
+    char web_host[64];                    /* "127.0.0.1": a numeric IPv4 or IPv6 address, never a name */
+    int web_port;                         /* 8080; 0 = any free port (the log says which) */
+    int web_control;                      /* 0: read-only; 1: capture/reconstruct/cancel behind the token */
+    char web_token_file[SCICAPD_PATH_MAX];/* "" = RUNTIME_DIR/web.token (mode 0640, group control.group) */
+    int web_max_connections;              /* 64: HTTP connections at once (SSE streams included) */
+    int web_timeout_s;                    /* 10: an HTTP connection silent this long is closed */
 } scicapd_config;
 
 /* Built-in defaults (no file). -ENOMEM only. */

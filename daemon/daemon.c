@@ -32,6 +32,7 @@
 #include "daemon/reconq.h"
 #include "daemon/store.h"
 #include "daemon/timing.h"
+#include "daemon/web.h"
 #include "daemon/workers.h"
 
 /* Snapshots waiting for a writer: enough to keep every writer busy while the acquisition thread runs ahead. */
@@ -57,6 +58,7 @@ struct scicapd {
     scicapd_workers *workers;
     scicapd_timing *timing;     /* per-stage time counters, shown by status */
     scicapd_control *ctl;
+    scicapd_web *web;           /* the web view, or NULL when web is off (the default) */
     int sfd, stopfd;
     sigset_t oldmask;
     int store_started;
@@ -548,6 +550,21 @@ static int resume_reconstructions(scicapd *d, sci_error *err)
     return 0;
 }
 
+static int web_start(scicapd *d, sci_error *err)
+{
+    const scicapd_config *c = d->cfg;
+    char token[SCICAPD_PATH_MAX + 16];
+    if (c->web_token_file[0])
+        snprintf(token, sizeof token, "%s", c->web_token_file);
+    else
+        snprintf(token, sizeof token, "%s/web.token", c->runtime_dir);
+    scicapd_web_options o = {.host = c->web_host, .port = c->web_port, .control = c->web_control,
+                             .token_file = token, .token_group = c->socket_group, .socket_path = c->socket_path,
+                             .storage_root = c->storage_root, .max_connections = c->web_max_connections,
+                             .timeout_s = c->web_timeout_s};
+    return scicapd_web_start(&d->web, &o, d->log, err);
+}
+
 /* Threads created before scicapd_new (OpenBLAS starts its pool from a library constructor) do not block the
  * signals; one delivered there is sent on to the main thread (tid == pid), where it is blocked and read from
  * the signalfd. Async-signal-safe. */
@@ -633,6 +650,9 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
     if ((rc = scicapd_control_open(&d->ctl, d->cfg->socket_path, d->cfg->socket_mode, d->cfg->socket_group, &lim,
                                    &hooks, log, err)) < 0)
         goto fail;
+    /* 6b. the web view, a client of that socket (off unless the configuration has a "web" section) */
+    if (d->cfg->web_enabled && (rc = web_start(d, err)) < 0)
+        goto fail;
     /* 7. threads: writer, reconstruction workers, acquisition */
     scicapd_store_set_previews(d->store, d->cfg->previews);
     d->store_started = 1; /* stop joins whatever threads did start */
@@ -673,8 +693,10 @@ static void deliver(scicapd *d)
     for (scicapd_letter *p = l; p; p = p->next) {
         if (p->client)
             scicapd_control_send(d->ctl, p->client, p->line);
-        if (p->broadcast)
+        if (p->broadcast) {
             scicapd_control_broadcast(d->ctl, p->line, p->client, p->owner);
+            scicapd_web_publish(d->web, p->line); /* what an admin's `scicap watch` sees */
+        }
     }
     scicapd_letters_free(l);
 }
@@ -760,6 +782,9 @@ void scicapd_free(scicapd *d)
     d->interrupted = NULL;
     atomic_store(&d->stopping, 1);
     scicapd_notify_stopping(&d->notify, "stopping: finishing the current snapshot, canceling reconstructions");
+    /* first: its threads call the control socket, which stops serving below */
+    scicapd_web_stop(d->web);
+    d->web = NULL;
     scicapd_control_stop_listening(d->ctl);
     /* acquisition: no new jobs; the current snapshot finishes and goes to the writer */
     if (d->acq_q)

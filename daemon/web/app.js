@@ -1,0 +1,247 @@
+/* scicap web view: the state from /api/state, then live from /api/events (server-sent events, no polling).
+ * State the headless test reads from the DOM: body[data-points] (points plotted for the current reconstruction),
+ * body[data-points-while-running] (points that arrived before its recon.done), body[data-recon] (running|done),
+ * #captures a[data-capture=ID], #recon-frames img[data-loaded]. */
+'use strict';
+
+const $ = (id) => document.getElementById(id);
+let state = null;
+let chart = null;
+let current = null;      // {job, capture, method, points, truth}
+let lastJob = null;      // the newest job this page started (for "cancel last job")
+let refreshTimer = null;
+
+function el(tag, attrs, text) {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs || {})) e.setAttribute(k, v);
+  if (text !== undefined) e.textContent = text;
+  return e;
+}
+
+function fmt(x, digits) { return typeof x === 'number' && isFinite(x) ? x.toFixed(digits) : '–'; }
+
+function scheduleRefresh(ms) {
+  if (refreshTimer) return;
+  refreshTimer = setTimeout(() => { refreshTimer = null; loadState(); }, ms);
+}
+
+async function loadState() {
+  try {
+    const r = await fetch('/api/state', {cache: 'no-store'});
+    if (!r.ok) throw new Error('state: HTTP ' + r.status);
+    state = await r.json();
+    render();
+  } catch (e) {
+    $('summary').textContent = String(e);
+  }
+}
+
+function render() {
+  const s = state.status || {};
+  $('summary').textContent = `scicapd ${s.version || ''} · up ${fmt(s.uptime_s, 0)} s · ` +
+    `${s.captures_stored || 0} stored this run`;
+  renderDevices(s);
+  renderJobs(state.jobs || []);
+  renderCaptures(state.captures || {});
+  $('control-card').hidden = !state.control;
+}
+
+function renderDevices(s) {
+  const ul = $('devices');
+  ul.replaceChildren();
+  const devs = s.devices || {};
+  for (const name of Object.keys(devs)) {
+    const d = devs[name] || {};
+    const id = d.identity || {};
+    const li = el('li');
+    li.append(el('b', {}, name + ' '));
+    li.append(el('span', {class: d.connected ? 'ok' : 'bad'}, d.connected ? 'connected' : 'disconnected'));
+    const what = [d.backend, id.model, id.serial, id.width && id.height ? `${id.width}×${id.height}` : '']
+      .filter(Boolean).join(' · ');
+    li.append(el('span', {class: 'muted'}, ' ' + what + (d.error ? ' — ' + d.error : '')));
+    ul.append(li);
+  }
+  const q = s.queues || {};
+  const fq = (v) => Array.isArray(v) ? `${v[0]}/${v[1]}` : '–';
+  $('queues').textContent = `queues: capture ${fq(q.capture)}, reconstruction ${fq(q.reconstruction)}, ` +
+    `storage ${fq(q.storage)} · workers busy ${s.workers_busy ?? '–'}`;
+}
+
+function renderJobs(jobs) {
+  const tb = $('jobs');
+  tb.replaceChildren();
+  const shown = jobs.filter((j) => ['queued', 'running'].includes(j.state)).concat(
+    jobs.filter((j) => !['queued', 'running'].includes(j.state)).slice(-6).reverse());
+  for (const j of shown) {
+    const tr = el('tr', {'data-job': j.job});
+    const pct = j.total ? `${j.done}/${j.total}` : '';
+    tr.append(el('td', {}, j.job), el('td', {}, j.kind), el('td', {}, j.state), el('td', {}, pct),
+              el('td', {}, fmt(j.psnr, 2)));
+    tb.append(tr);
+  }
+  if (!shown.length) tb.append(el('tr', {}, '')).firstChild.append(el('td', {colspan: 5, class: 'muted'}, 'no jobs'));
+}
+
+function renderCaptures(c) {
+  const box = $('captures');
+  const list = (c.captures || []).slice().reverse();
+  $('captures-total').textContent = c.total !== undefined ? `${c.total} stored` : '';
+  box.replaceChildren();
+  for (const cap of list) {
+    const a = el('a', {href: `/captures/${cap.capture}/preview_meas_000.png`, 'data-capture': cap.capture});
+    a.append(el('img', {src: `/captures/${cap.capture}/preview_meas_000.png`, alt: cap.capture, loading: 'lazy'}));
+    const best = (cap.recons || []).map((r) => r.psnr).filter((x) => typeof x === 'number');
+    a.append(el('span', {}, cap.capture + (best.length ? ` · ${fmt(Math.max(...best), 1)} dB` : '')));
+    box.append(a);
+  }
+  if (list.length && !current) showSnapshot(list[0].capture, list[0].truth);
+}
+
+function showSnapshot(id, truth) {
+  $('latest-id').textContent = id;
+  $('latest-meas').src = `/captures/${id}/preview_meas_000.png`;
+  const t = $('latest-truth');
+  if (truth !== false) t.src = `/captures/${id}/preview_truth.gif`;
+}
+
+function makeChart(ylabel) {
+  if (chart) chart.destroy();
+  chart = new Chart($('trace'), {
+    type: 'line',
+    data: {datasets: [{label: ylabel, data: [], borderColor: '#2f6fde', backgroundColor: '#2f6fde',
+                       pointRadius: 2, borderWidth: 2, tension: 0.2}]},
+    options: {
+      animation: false, responsive: true, maintainAspectRatio: false, parsing: false,
+      scales: {x: {type: 'linear', title: {display: true, text: 'wall time (s)'}},
+               y: {title: {display: true, text: ylabel}}},
+      plugins: {legend: {display: false}},
+    },
+  });
+}
+
+function setPoints() {
+  document.body.dataset.points = current ? current.points : 0;
+}
+
+function onReconStarted(ev) {
+  const d = ev.data || {};
+  current = {job: ev.job, capture: d.capture, method: d.method, points: 0, truth: null, done: false};
+  document.body.dataset.recon = 'running';
+  document.body.dataset.pointsWhileRunning = 0;
+  $('recon-title').textContent = `job ${ev.job}: ${d.method} on ${d.capture}`;
+  $('recon-frames').replaceChildren();
+  $('recon-status').textContent = 'running';
+  makeChart('PSNR (dB)');
+  setPoints();
+  showSnapshot(d.capture);
+}
+
+function onReconProgress(ev) {
+  const d = ev.data || {};
+  if (!current || current.job !== ev.job || !chart) return;
+  const truth = typeof d.psnr === 'number';
+  if (current.truth === null) {
+    current.truth = truth;
+    if (!truth) makeChart('residual ‖y − Ax‖/‖y‖'); // without truth there is no PSNR, only the residual
+  }
+  const y = truth ? d.psnr : d.residual;
+  if (typeof y !== 'number' || typeof d.elapsed_s !== 'number') return;
+  chart.data.datasets[0].data.push({x: d.elapsed_s, y: y});
+  chart.update('none');
+  current.points++;
+  setPoints();
+  $('recon-status').textContent = `iteration ${d.iter}/${d.iters} · ${fmt(d.elapsed_s, 1)} s · ` +
+    (truth ? `PSNR ${fmt(d.psnr, 2)} dB` : `residual ${fmt(d.residual, 4)}`) +
+    (typeof d.eta_s === 'number' ? ` · ${fmt(d.eta_s, 1)} s left` : '');
+}
+
+function frameCount(capture) {
+  const c = ((state && state.captures && state.captures.captures) || []).find((x) => x.capture === capture);
+  return c && c.frames ? c.frames : 8;
+}
+
+async function onReconDone(ev) {
+  const d = ev.data || {};
+  if (!current || current.job !== ev.job) {
+    current = {job: ev.job, capture: d.capture, method: d.method, points: 0};
+  }
+  document.body.dataset.pointsWhileRunning = current.points;
+  document.body.dataset.recon = 'done';
+  $('recon-status').textContent = `done in ${fmt(d.solve_s, 2)} s` +
+    (typeof d.psnr === 'number' ? ` · PSNR ${fmt(d.psnr, 2)} dB, SSIM ${fmt(d.ssim, 3)}` :
+                                  ` · residual ${fmt(d.residual, 4)}`);
+  await loadState();
+  const box = $('recon-frames');
+  box.replaceChildren();
+  const n = frameCount(d.capture);
+  for (let k = 0; k < n; k++) {
+    const img = el('img', {alt: `frame ${k}`, 'data-loaded': '0'});
+    img.addEventListener('load', () => img.setAttribute('data-loaded', '1'));
+    img.addEventListener('error', () => img.setAttribute('data-loaded', 'error'));
+    img.src = `/captures/${d.capture}/recon/${d.folder}/preview_${String(k).padStart(3, '0')}.png`;
+    box.append(img);
+  }
+}
+
+function onEvent(msg) {
+  let ev;
+  try { ev = JSON.parse(msg.data); } catch (e) { return; }
+  switch (ev.event) {
+    case 'recon.started': onReconStarted(ev); break;
+    case 'recon.progress': onReconProgress(ev); return; // frequent: no state reload
+    case 'recon.done': onReconDone(ev); return;
+    case 'recon.failed': case 'recon.canceled':
+      if (current && current.job === ev.job) {
+        document.body.dataset.recon = ev.event.slice(6);
+        $('recon-status').textContent = ev.event + (ev.data && ev.data.error ? ': ' + ev.data.error : '');
+      }
+      break;
+    case 'capture.stored': showSnapshot(ev.data.capture); break;
+    default: break;
+  }
+  scheduleRefresh(300);
+}
+
+function connect() {
+  const es = new EventSource('/api/events');
+  es.addEventListener('open', () => { $('conn').textContent = 'live'; $('conn').className = 'pill'; loadState(); });
+  es.addEventListener('error', () => { $('conn').textContent = 'reconnecting'; $('conn').className = 'pill off'; });
+  es.addEventListener('message', onEvent);
+  es.addEventListener('reset', () => loadState());
+}
+
+async function control(cmd, args) {
+  const token = $('token').value.trim();
+  const r = await fetch('/api/' + cmd, {
+    method: 'POST', headers: {'Authorization': 'Bearer ' + token, 'Content-Type': 'application/json'},
+    body: JSON.stringify(args),
+  });
+  const body = await r.json().catch(() => ({}));
+  $('control-status').textContent = r.ok ? `${cmd}: job ${body.job} ${body.state}` :
+    `${cmd} refused (${r.status}): ${body.error || ''}`;
+  if (r.ok && cmd !== 'cancel') lastJob = body.job;
+}
+
+function reconArgs() {
+  const a = {method: $('method').value, preset: $('preset').value};
+  const b = parseFloat($('budget').value);
+  if (isFinite(b) && b > 0) a.budget_s = b;
+  return a;
+}
+
+function wireControl() {
+  $('btn-capture').addEventListener('click', () => control('capture', {count: 1}));
+  $('btn-capture-recon').addEventListener('click', () => {
+    const a = reconArgs();
+    const args = {count: 1, reconstruct: true, method: a.method, preset: a.preset};
+    control('capture', args);
+  });
+  $('btn-cancel').addEventListener('click', () => { if (lastJob) control('cancel', {job: lastJob}); });
+}
+
+document.addEventListener('DOMContentLoaded', () => {
+  document.body.dataset.points = 0;
+  wireControl();
+  loadState();
+  connect();
+});
