@@ -59,7 +59,7 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             libmicrohttpd-dev libjs-chart.js chromium
 
 .PHONY: all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
-.PHONY: python check-python check-slurm
+.PHONY: python check-python check-slurm check-web
 all: $(BINS)
 
 help:
@@ -71,6 +71,7 @@ help:
 	@echo "make check-slurm  scicap batch --slurm on a single-node Slurm started in a temporary folder"
 	@echo "make check-gv  the GenICam (Aravis) backend against a fake GigE Vision camera on loopback"
 	@echo "make check-vm  run the device tests against real kernel drivers under qemu"
+	@echo "make check-web  the web view: its security tests, then the page in headless Chromium (screenshots kept)"
 	@echo "make bench     run the benchmarks and print the figures (writes bench/results/)"
 	@echo "make bench-report  accuracy against time for every method (bench/results.csv, report, plots)"
 	@echo "make install   install binaries, units, config, man pages (PREFIX, DESTDIR)"
@@ -195,6 +196,16 @@ check-slurm: deps
 	@$(MAKE) --no-print-directory $(JOBS) all
 	@BUILD=$(BUILD) tests/slurm/run
 
+# The web view (docs/web.md): tests/integration/test_web_*.c (also part of check), then the page in Debian's
+# headless chromium against scicapd on the simulated bench (tests/web/run); its screenshots at phone and desktop
+# size stay in $(BUILD)/web-artifacts (WEB_ARTIFACTS) for CI to keep.
+WEB_TEST_BIN := $(patsubst %.c,$(BUILD)/%,$(wildcard tests/integration/test_web_*.c))
+WEB_ARTIFACTS ?= $(abspath $(BUILD)/web-artifacts)
+check-web: deps
+	@$(MAKE) --no-print-directory $(JOBS) all $(WEB_TEST_BIN)
+	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" tests/run $(WEB_TEST_BIN)
+	@BUILD=$(BUILD) SCICAP_WEB_ARTIFACTS="$(WEB_ARTIFACTS)" tests/web/run
+
 # Kernel-level device tests under qemu (tests/vm/, README "Kernel-level tests"): the drivers against the real
 # V4L2 (vivid), hidraw (uhid) and GPIO (gpio-sim) subsystems. VM_CACHE keeps downloads and builds between runs.
 VM_CACHE ?= $(HOME)/.cache/scicap-vm
@@ -220,6 +231,8 @@ install: all python
 	install -m 644 $(PY_EXT) $(PY_PURE) $(DESTDIR)$(PY_SITE)/scicap/
 	install -d $(DESTDIR)$(PREFIX)/share/scicap/scenes
 	install -m 644 bench/results.csv $(DESTDIR)$(PREFIX)/share/scicap/results.csv
+	install -d $(DESTDIR)$(PREFIX)/share/scicap/web
+	install -m 644 daemon/web/index.html daemon/web/app.js daemon/web/style.css $(DESTDIR)$(PREFIX)/share/scicap/web/
 	install -m 644 etc/scenes/*.json etc/scenes/*.pgm $(DESTDIR)$(PREFIX)/share/scicap/scenes/
 	install -d $(DESTDIR)$(PREFIX)/share/scicap/scenes/textures
 	install -m 644 etc/scenes/textures/*.png etc/scenes/textures/README.md $(DESTDIR)$(PREFIX)/share/scicap/scenes/textures/

@@ -504,6 +504,8 @@ static enum MHD_Result serve_get(scicapd_web *w, struct MHD_Connection *c, const
                 MHD_create_response_from_buffer(w->asset_len[i], w->asset[i], MHD_RESPMEM_PERSISTENT);
             return respond(c, 200, asset_table[i].type, r);
         }
+    if (strcmp(url, "/favicon.ico") == 0) /* browsers ask for it unprompted: no icon, and no 404 to log */
+        return respond(c, 204, NULL, MHD_create_response_from_buffer(0, (void *)"", MHD_RESPMEM_PERSISTENT));
     if (strcmp(url, "/api/state") == 0)
         return serve_state(w, c);
     if (strcmp(url, "/api/events") == 0)

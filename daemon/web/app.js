@@ -10,6 +10,7 @@ let chart = null;
 let current = null;      // {job, capture, method, points, truth}
 let lastJob = null;      // the newest job this page started (for "cancel last job")
 let refreshTimer = null;
+let latest = null;       // the capture shown as the latest snapshot
 
 function el(tag, attrs, text) {
   const e = document.createElement(tag);
@@ -98,23 +99,32 @@ function renderCaptures(c) {
 }
 
 function showSnapshot(id, truth) {
+  latest = id;
   $('latest-id').textContent = id;
   $('latest-meas').src = `/captures/${id}/preview_meas_000.png`;
   const t = $('latest-truth');
   if (truth !== false) t.src = `/captures/${id}/preview_truth.gif`;
 }
 
-function makeChart(ylabel) {
+// Two curves against wall time: the residual ‖y − Ax‖/‖y‖ (every progress event; the only one without truth) and
+// the PSNR when the solver's trace has it (with truth; some methods compute it only every few iterations).
+function makeChart() {
   if (chart) chart.destroy();
   chart = new Chart($('trace'), {
     type: 'line',
-    data: {datasets: [{label: ylabel, data: [], borderColor: '#2f6fde', backgroundColor: '#2f6fde',
-                       pointRadius: 2, borderWidth: 2, tension: 0.2}]},
+    data: {datasets: [
+      {label: 'PSNR (dB)', data: [], yAxisID: 'psnr', borderColor: '#2f6fde', backgroundColor: '#2f6fde',
+       pointRadius: 2, borderWidth: 2, tension: 0.2},
+      {label: 'residual', data: [], yAxisID: 'res', borderColor: '#d9822b', backgroundColor: '#d9822b',
+       pointRadius: 1.5, borderWidth: 1.5, tension: 0.2},
+    ]},
     options: {
       animation: false, responsive: true, maintainAspectRatio: false, parsing: false,
       scales: {x: {type: 'linear', title: {display: true, text: 'wall time (s)'}},
-               y: {title: {display: true, text: ylabel}}},
-      plugins: {legend: {display: false}},
+               psnr: {type: 'linear', position: 'left', display: 'auto', title: {display: true, text: 'PSNR (dB)'}},
+               res: {type: 'logarithmic', position: 'right', display: 'auto', grid: {drawOnChartArea: false},
+                     title: {display: true, text: 'residual ‖y − Ax‖/‖y‖'}}},
+      plugins: {legend: {display: true, position: 'bottom', labels: {boxWidth: 12}}},
     },
   });
 }
@@ -131,27 +141,22 @@ function onReconStarted(ev) {
   $('recon-title').textContent = `job ${ev.job}: ${d.method} on ${d.capture}`;
   $('recon-frames').replaceChildren();
   $('recon-status').textContent = 'running';
-  makeChart('PSNR (dB)');
+  makeChart();
   setPoints();
   showSnapshot(d.capture);
 }
 
 function onReconProgress(ev) {
   const d = ev.data || {};
-  if (!current || current.job !== ev.job || !chart) return;
-  const truth = typeof d.psnr === 'number';
-  if (current.truth === null) {
-    current.truth = truth;
-    if (!truth) makeChart('residual ‖y − Ax‖/‖y‖'); // without truth there is no PSNR, only the residual
-  }
-  const y = truth ? d.psnr : d.residual;
-  if (typeof y !== 'number' || typeof d.elapsed_s !== 'number') return;
-  chart.data.datasets[0].data.push({x: d.elapsed_s, y: y});
+  if (!current || current.job !== ev.job || !chart || typeof d.elapsed_s !== 'number') return;
+  const psnr = typeof d.psnr === 'number' && isFinite(d.psnr);
+  if (psnr) chart.data.datasets[0].data.push({x: d.elapsed_s, y: d.psnr});
+  if (typeof d.residual === 'number' && d.residual > 0) chart.data.datasets[1].data.push({x: d.elapsed_s, y: d.residual});
   chart.update('none');
   current.points++;
   setPoints();
   $('recon-status').textContent = `iteration ${d.iter}/${d.iters} · ${fmt(d.elapsed_s, 1)} s · ` +
-    (truth ? `PSNR ${fmt(d.psnr, 2)} dB` : `residual ${fmt(d.residual, 4)}`) +
+    (psnr ? `PSNR ${fmt(d.psnr, 2)} dB · ` : '') + `residual ${fmt(d.residual, 4)}` +
     (typeof d.eta_s === 'number' ? ` · ${fmt(d.eta_s, 1)} s left` : '');
 }
 
@@ -236,6 +241,7 @@ function wireControl() {
     const args = {count: 1, reconstruct: true, method: a.method, preset: a.preset};
     control('capture', args);
   });
+  $('btn-recon').addEventListener('click', () => { if (latest) control('reconstruct', {capture: latest, ...reconArgs()}); });
   $('btn-cancel').addEventListener('click', () => { if (lastJob) control('cancel', {job: lastJob}); });
 }
 
