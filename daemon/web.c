@@ -374,9 +374,8 @@ static enum MHD_Result serve_state(scicapd_web *w, struct MHD_Connection *c)
         json_decref(caps);
         return respond_json(c, 503, json_pack("{s:s}", "error", msg));
     }
-    json_t *o = json_pack("{s:o, s:o, s:o, s:b}", "status", status, "jobs", json_object_get(jobs, "jobs"),
+    json_t *o = json_pack("{s:o, s:O, s:o, s:b}", "status", status, "jobs", json_object_get(jobs, "jobs"),
                           "captures", caps, "control", w->o.control);
-    json_incref(json_object_get(jobs, "jobs"));
     json_decref(jobs);
     char *s = o ? json_dumps(o, JSON_COMPACT) : NULL;
     json_decref(o);
