@@ -124,7 +124,7 @@ int nerf_train_prepare(const sci_problem *pb, nerf_train_config *c, sci_error *e
 
 /* ------------------------------------------------------------------ run state (trainer_run.h) */
 
-static void pass_free(pass *p)
+static void pass_free(nerf_trainer_pass *p)
 {
     nerf_adam_free(p->adam);
     void *b[] = {p->params, p->grad,  p->t,       p->pcam,    p->delta, p->pos,   p->sigma, p->rgb,
@@ -134,7 +134,7 @@ static void pass_free(pass *p)
         free(b[i]);
 }
 
-static void run_free(run *r)
+static void run_free(nerf_trainer_run_state *r)
 {
     for (int k = 0; k < 2; k++)
         pass_free(&r->ps[k]);
@@ -146,7 +146,8 @@ static void run_free(run *r)
         free(b[i]);
 }
 
-static int pass_init(run *r, pass *p, const nerf_model *m, int L, int per_group, int pose_grads, sci_error *err)
+static int pass_init(nerf_trainer_run_state *r, nerf_trainer_pass *p, const nerf_model *m, int L, int per_group,
+                     int pose_grads, sci_error *err)
 {
     const nerf_train_config *c = r->c;
     p->m = m;
@@ -188,8 +189,8 @@ static int pass_init(run *r, pass *p, const nerf_model *m, int L, int per_group,
     return 0;
 }
 
-static int run_init(run *r, const sci_problem *pb, const nerf_train_config *c, const nerf_model *coarse,
-                    const nerf_model *fine, sci_error *err)
+static int run_init(nerf_trainer_run_state *r, const sci_problem *pb, const nerf_train_config *c,
+                    const nerf_model *coarse, const nerf_model *fine, sci_error *err)
 {
     r->pb = pb;
     r->c = c;
@@ -256,11 +257,14 @@ static int run_init(run *r, const sci_problem *pb, const nerf_train_config *c, c
 
 /* ------------------------------------------------------------------ passes */
 
-static inline size_t cam_slot(const pass *p, int n_loc, int i, int b) { return p->per_group ? (size_t)i * n_loc + b : (size_t)b; }
+static inline size_t cam_slot(const nerf_trainer_pass *p, int n_loc, int i, int b)
+{
+    return p->per_group ? (size_t)i * n_loc + b : (size_t)b;
+}
 
 /* World transform, model forward and rendering of n_loc locations seen from n_pose poses (group q = i·n_loc + b);
  * the camera-frame samples are in p->pcam / p->delta, the directions in r->dcam. */
-static int pass_forward(run *r, pass *p, int n_loc, int n_pose, const double (*T)[12])
+static int pass_forward(nerf_trainer_run_state *r, nerf_trainer_pass *p, int n_loc, int n_pose, const double (*T)[12])
 {
     const int R = r->R, L = p->L;
     const size_t gp = (size_t)R * L;
@@ -300,9 +304,9 @@ static int pass_forward(run *r, pass *p, int n_loc, int n_pose, const double (*T
 /* Importance samples for the fine pass from the coarse pass's weights: per group q and ray, the coarse depths
  * (midpoint bins) and Lf draws by inverse CDF (stratified u, jittered when rng is given), merged and sorted with
  * the coarse depths into fine->t; then the fine camera-frame samples. Locations' pixels are r->px/py. */
-static void importance(run *r, int n_loc, int n_pose, sci_rng *rng)
+static void importance(nerf_trainer_run_state *r, int n_loc, int n_pose, sci_rng *rng)
 {
-    pass *pc = &r->ps[0], *pf = &r->ps[1];
+    nerf_trainer_pass *pc = &r->ps[0], *pf = &r->ps[1];
     const int R = r->R, Lc = pc->L, Lf = r->c->fine_samples, L = pf->L;
     const int ng = n_loc * n_pose;
     double *cdf = r->imp_cdf, *u = r->imp_u;
@@ -362,7 +366,7 @@ static void importance(run *r, int n_loc, int n_pose, sci_rng *rng)
 /* Measurement loss of a pass over the step's B locations × N poses (+ TV, the GAP-TV prior and the distortion
  * loss when asked; prior_w is the prior's weight at this step): fills p->dC (and p->d_sigma_dist), returns the
  * loss; *data = Σ r². */
-static double pass_loss(run *r, pass *p, int with_tv, double prior_w, double *data)
+static double pass_loss(nerf_trainer_run_state *r, nerf_trainer_pass *p, int with_tv, double prior_w, double *data)
 {
     const nerf_train_config *c = r->c;
     const int N = r->n, ng = r->G;
@@ -408,7 +412,7 @@ static double pass_loss(run *r, pass *p, int with_tv, double prior_w, double *da
     return loss;
 }
 
-static int pass_backward(run *r, pass *p, int pose_grads)
+static int pass_backward(nerf_trainer_run_state *r, nerf_trainer_pass *p, int pose_grads)
 {
     const int R = r->R, L = p->L, ng = r->G;
     const size_t gp = (size_t)R * L, nr = (size_t)ng * R;
@@ -453,7 +457,7 @@ static double lr_at(double lr0, double lr1, int it, int iters)
     return lr0 * pow(lr1 / lr0, (double)(it - 1) / fmax(1, iters - 1));
 }
 
-static int train_step(run *r, int it, double *loss_out, double *residual)
+static int train_step(nerf_trainer_run_state *r, int it, double *loss_out, double *residual)
 {
     const nerf_train_config *c = r->c;
     const int R = r->R, B = r->B, N = r->n, w = r->w;
@@ -471,7 +475,7 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
             }
         }
     }
-    pass *pc = &r->ps[0], *pf = &r->ps[1], *last = &r->ps[r->n_pass - 1];
+    nerf_trainer_pass *pc = &r->ps[0], *pf = &r->ps[1], *last = &r->ps[r->n_pass - 1];
     nerf_rays_camera(r->pb->camera, (int)P, r->px, r->py, pc->L, r->near, r->far, c->spacing, &r->rng,
                      c->window_jitter && c->patch_sampling ? R : 1, pc->pcam, r->dcam, pc->delta);
     const double prior_w = r->Xp && it <= c->prior_steps ? c->prior_weight * (1.0 - (double)(it - 1) / c->prior_steps)
@@ -507,7 +511,7 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
     const int pose_grads = nerf_poses_param_count(r->poses) > 0;
     const double lr = lr_at(c->lr, c->lr_final, it, c->iters);
     for (int k = 0; k < r->n_pass; k++) {
-        pass *p = &r->ps[k];
+        nerf_trainer_pass *p = &r->ps[k];
         if ((rc = pass_backward(r, p, pose_grads)) < 0)
             return rc;
         const size_t scaled_end = p->m->n_scaled > p->m->n_hash ? p->m->n_scaled : p->m->n_params;
@@ -531,7 +535,7 @@ static int train_step(run *r, int it, double *loss_out, double *residual)
 }
 
 /* Largest sample weight of each ray that hits something (opacity ≥ 0.5): adds to *sum, counts in *cnt. */
-static void max_weights(const pass *p, int n_rays, double *sum, long *cnt)
+static void max_weights(const nerf_trainer_pass *p, int n_rays, double *sum, long *cnt)
 {
     const int L = p->L;
     for (int k = 0; k < n_rays; k++) {
@@ -552,13 +556,14 @@ static void max_weights(const pass *p, int n_rays, double *sum, long *cnt)
 /* Render one tiling of the frame seen from pose T, offset (ox, oy) pixels up and left (windows clamped inside the
  * image), into frame (w×h, every pixel written once: a later window overwrites an earlier one where clamping makes
  * them meet). */
-static int render_tiling(run *r, const double T[1][12], int ox, int oy, float *frame, double *wsum, long *wcnt)
+static int render_tiling(nerf_trainer_run_state *r, const double T[1][12], int ox, int oy, float *frame, double *wsum,
+                         long *wcnt)
 {
     const nerf_train_config *c = r->c;
     const int pw = c->group_w, ph = c->group_h, R = r->R;
     const int nx = (r->w + ox + pw - 1) / pw, ny = (r->h + oy + ph - 1) / ph, tiles = nx * ny;
     const int chunk = r->G;
-    pass *pc = &r->ps[0], *last = &r->ps[r->n_pass - 1];
+    nerf_trainer_pass *pc = &r->ps[0], *last = &r->ps[r->n_pass - 1];
     for (int t0 = 0; t0 < tiles; t0 += chunk) {
         int cnt = tiles - t0 < chunk ? tiles - t0 : chunk;
         for (int b = 0; b < cnt; b++) {
@@ -587,7 +592,7 @@ static int render_tiling(run *r, const double T[1][12], int ox, int oy, float *f
 /* Render all N frames window-wise into x (w×h×N); *max_weight (or NULL) gets the mean largest ray weight over the
  * rays that hit something (NaN if none do), over every tiling rendered. With render_tilings 4, each pixel is the
  * mean of the tiling and the three offset by half a window across, down and both (in that order). */
-static int render_all(run *r, sci_cube *x, double *max_weight)
+static int render_all(nerf_trainer_run_state *r, sci_cube *x, double *max_weight)
 {
     double wsum = 0.0;
     long wcnt = 0;
@@ -622,7 +627,7 @@ static int render_all(run *r, sci_cube *x, double *max_weight)
     return 0;
 }
 
-static int emit_checkpoint(run *r, const sci_tracer *tr, int iter, sci_error *err)
+static int emit_checkpoint(nerf_trainer_run_state *r, const sci_tracer *tr, int iter, sci_error *err)
 {
     const nerf_train_config *c = r->c;
     if (!c->checkpoint_fn)
@@ -672,7 +677,7 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
         return sci_error_set(err, -EINVAL, "%s: model takes %d groups per call, the step needs %d", c->method,
                              coarse->max_groups, G);
 
-    run r = {0};
+    nerf_trainer_run_state r = {0};
     sci_cube *x = NULL;
     int start = 0;
     if ((rc = run_init(&r, pb, c, coarse, fine, err)) < 0 ||

@@ -31,7 +31,7 @@ static uint64_t fnv1a(const unsigned char *p, size_t n)
     return h;
 }
 
-static size_t ckpt_bytes(const run *r)
+static size_t ckpt_bytes(const nerf_trainer_run_state *r)
 {
     size_t b = sizeof(ckpt_header);
     for (int k = 0; k < r->n_pass; k++)
@@ -46,7 +46,8 @@ static unsigned char *put(unsigned char *o, const void *src, size_t n)
     return o + n;
 }
 
-int nerf_trainer_ckpt_save(run *r, int iter, double wall_s, double cpu_s, unsigned char **out, size_t *bytes)
+int nerf_trainer_ckpt_save(nerf_trainer_run_state *r, int iter, double wall_s, double cpu_s, unsigned char **out,
+                           size_t *bytes)
 {
     size_t n = ckpt_bytes(r);
     unsigned char *buf = malloc(n), *o = buf;
@@ -62,7 +63,7 @@ int nerf_trainer_ckpt_save(run *r, int iter, double wall_s, double cpu_s, unsign
     memcpy(h.rng, r->rng.s, sizeof h.rng);
     o = put(o, &h, sizeof h);
     for (int k = 0; k < r->n_pass; k++) {
-        pass *p = &r->ps[k];
+        nerf_trainer_pass *p = &r->ps[k];
         float *m, *s;
         uint32_t *t;
         nerf_adam_buffers(p->adam, &m, &s, &t);
@@ -125,7 +126,7 @@ static int all_finite_f(const float *v, size_t n)
     return 1;
 }
 
-int nerf_trainer_ckpt_load(run *r, const void *blob, size_t bytes, sci_error *err)
+int nerf_trainer_ckpt_load(nerf_trainer_run_state *r, const void *blob, size_t bytes, sci_error *err)
 {
     ckpt_header h;
     int rc = ckpt_header_check(blob, bytes, &h, err);
@@ -159,7 +160,7 @@ int nerf_trainer_ckpt_load(run *r, const void *blob, size_t bytes, sci_error *er
         return sci_error_set(err, SCI_EFORMAT, "checkpoint: iteration %d or times out of range", h.iter);
     const unsigned char *in = (const unsigned char *)blob + sizeof h;
     for (int k = 0; k < r->n_pass; k++) {
-        pass *p = &r->ps[k];
+        nerf_trainer_pass *p = &r->ps[k];
         float *mm, *s;
         uint32_t *t;
         nerf_adam_buffers(p->adam, &mm, &s, &t);
