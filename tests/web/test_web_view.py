@@ -185,14 +185,16 @@ def http(port, path, body=None, token=None):
         return e.code, e.read()
 
 
-def start_daemon(tmp, port):
+def start_daemon(tmp, port, web=True):
     binary = os.path.join(ROOT, BUILD, "scicapd")
     if not os.access(binary, os.X_OK):
         fail(f"no {binary}: build it first (make BUILD={BUILD} all)")
     cfg = os.path.join(tmp, "scicapd.json")
     with open(cfg, "w") as f:
-        json.dump({"version": 1, "web": {"listen": f"127.0.0.1:{port}", "control": True,
-                                         "token_file": os.path.join(tmp, "web.token")}}, f)
+        doc = {"version": 1}
+        if web:
+            doc["web"] = {"listen": f"127.0.0.1:{port}", "control": True, "token_file": os.path.join(tmp, "web.token")}
+        json.dump(doc, f)
     sock = os.path.join(tmp, "control.sock")
     args = [binary, "--config", cfg, "--socket", sock, "--storage", os.path.join(tmp, "store"),
             "--runtime-dir", os.path.join(tmp, "run"), "--no-fsync"]
@@ -200,6 +202,13 @@ def start_daemon(tmp, port):
         args.append("--allow-root")
     log = open(os.path.join(tmp, "scicapd.log"), "w")
     proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
+    if not web:
+        while not os.path.exists(sock):
+            if proc.poll() is not None:
+                fail(f"scicapd exited at start ({proc.returncode}); log {log.name}")
+            time.sleep(0.05)
+        time.sleep(0.2)
+        return proc, None
     while left() > 0:
         if proc.poll() is not None:
             fail(f"scicapd exited at start ({proc.returncode}); log {log.name}")
