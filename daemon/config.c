@@ -562,6 +562,9 @@ static int parse_listen(const sci_json_doc *doc, const char *s, scicapd_config *
                              "\"127.0.0.1:8080\" or \"[::1]:8080\" (got \"%s\")", s);
     char host_buf[64];
     snprintf(host_buf, sizeof host_buf, "%.*s", (int)(host_end - host), host);
+    if (s[0] != '[' && strchr(host_buf, ':'))
+        return sci_json_fail(doc, err, "web.listen", "an IPv6 address goes in brackets: \"[%s]:PORT\" (got \"%s\")",
+                             host_buf, s);
     unsigned char addr[16];
     if (inet_pton(s[0] == '[' ? AF_INET6 : AF_INET, host_buf, addr) != 1)
         return sci_json_fail(doc, err, "web.listen", "\"%s\" is not a numeric %s address", host_buf,

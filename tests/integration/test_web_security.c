@@ -1,7 +1,7 @@
 /* The web view's defences, against the real scicapd on the simulated bench with web on 127.0.0.1 (docs/web.md):
  * off by default (no TCP socket listening at all); path traversal, raw and percent-encoded, refused; unknown
- * routes 404; control refused without the token (401) and with a wrong one (403), accepted with it; oversized
- * bodies, URLs and headers refused; a foreign Host refused; every response with its Content-Security-Policy and
+ * routes 404; control refused when off (403), and when on refused without the token (401) and with a wrong one
+ * (403), accepted with it; oversized bodies, URLs and headers refused; a foreign Host refused; every response with its Content-Security-Policy and
  * nosniff; capture previews served and other files of the capture folder not; the event stream carries the
  * daemon's events; 50 connections held open half-sent while the control socket answers status and a capture is
  * stored, and the server drops them after its timeout. */
@@ -467,15 +467,44 @@ static void slow_connections_do_not_block(void **s)
     hconn_close(&c);
 }
 
+/* ---- web on, read-only (the default for control) ---- */
+
+static void read_only_refuses_control(void **s)
+{
+    (void)s;
+    harness h;
+    int port = free_port();
+    harness_init(&h, NULL);
+    char cfg[256];
+    snprintf(cfg, sizeof cfg, "{\"version\": 1, \"web\": {\"listen\": \"127.0.0.1:%d\"}}\n", port);
+    harness_write_config(&h, cfg);
+    harness_spawn(&h, NULL);
+    http_reply r;
+    http_get(port, "/api/state", &r);
+    assert_int_equal(r.status, 200);
+    assert_non_null(strstr(r.body, "\"control\":false"));
+    http_post(port, "/api/capture", "Bearer 0000000000000000000000000000000000000000000000000000000000000000",
+              "{\"count\": 1}", &r);
+    assert_int_equal(r.status, 403);
+    assert_non_null(strstr(r.body, "control is off"));
+    http_post(port, "/api/cancel", NULL, "{\"job\": 1}", &r);
+    assert_int_equal(r.status, 403);
+    char token[400];
+    snprintf(token, sizeof token, "%s/web.token", h.run);
+    assert_int_not_equal(access(token, F_OK), 0); /* no token is written without control */
+    harness_stop(&h);
+    harness_cleanup(&h);
+}
+
 int main(void)
 {
-    const struct CMUnitTest off[] = {cmocka_unit_test(off_by_default)};
+    const struct CMUnitTest off[] = {cmocka_unit_test(off_by_default), cmocka_unit_test(read_only_refuses_control)};
     const struct CMUnitTest on[] = {
         cmocka_unit_test(listens_and_serves_page), cmocka_unit_test(traversal_refused),
         cmocka_unit_test(unknown_routes_404),      cmocka_unit_test(control_needs_the_token),
         cmocka_unit_test(oversized_refused),       cmocka_unit_test(foreign_host_refused),
         cmocka_unit_test(events_stream_and_previews), cmocka_unit_test(slow_connections_do_not_block),
     };
-    int rc = cmocka_run_group_tests_name("web off", off, NULL, NULL);
+    int rc = cmocka_run_group_tests_name("web off, and read-only", off, NULL, NULL);
     return rc | cmocka_run_group_tests_name("web on", on, setup_web, teardown_web);
 }
