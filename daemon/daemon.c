@@ -560,7 +560,8 @@ static int web_start(scicapd *d, sci_error *err)
         snprintf(token, sizeof token, "%s/web.token", c->runtime_dir);
     scicapd_web_options o = {.host = c->web_host, .port = c->web_port, .control = c->web_control,
                              .token_file = token, .token_group = c->socket_group, .socket_path = c->socket_path,
-                             .storage_root = c->storage_root, .max_connections = c->web_max_connections,
+                             .storage_root = c->storage_root, .curves_path = c->recon_curves,
+                             .max_connections = c->web_max_connections,
                              .timeout_s = c->web_timeout_s};
     return scicapd_web_start(&d->web, &o, d->log, err);
 }

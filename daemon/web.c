@@ -52,6 +52,8 @@ struct scicapd_web {
     char token[WEB_TOKEN_HEX + 1];
     char *asset[ASSET_COUNT];
     size_t asset_len[ASSET_COUNT];
+    char *curves;                /* the curves CSV, or NULL */
+    size_t curves_len;
     web_events *events;
     int loopback;
     pthread_mutex_t mu;          /* state cache and the job list */
@@ -139,6 +141,14 @@ static int assets_load(scicapd_web *w, sci_error *err)
         }
     }
     return 0;
+}
+
+/* Optional: a daemon without measured curves still serves the page. */
+static void curves_load(scicapd_web *w)
+{
+    sci_error e = {0};
+    if (w->o.curves_path && read_file(w->o.curves_path, &w->curves, &w->curves_len, &e) < 0)
+        sci_log_write(w->log, SCI_LOG_INFO, "%s: the page goes without its accuracy-against-time chart", e.msg);
 }
 
 /* ---- the token ---- */
@@ -509,6 +519,9 @@ static enum MHD_Result serve_get(scicapd_web *w, struct MHD_Connection *c, const
         return serve_state(w, c);
     if (strcmp(url, "/api/events") == 0)
         return serve_events(w, c);
+    if (strcmp(url, "/api/curves") == 0 && w->curves)
+        return respond(c, 200, "text/csv; charset=utf-8",
+                       MHD_create_response_from_buffer(w->curves_len, w->curves, MHD_RESPMEM_PERSISTENT));
     if (strncmp(url, "/captures/", 10) == 0)
         return serve_file(w, c, url + 10);
     return respond_error(c, 404, "no such page");
@@ -662,6 +675,7 @@ int scicapd_web_start(scicapd_web **out, const scicapd_web_options *o, const sci
         sci_error_set(err, rc, "web: out of memory");
         goto fail;
     }
+    curves_load(w);
     if ((rc = assets_load(w, err)) < 0 || (o->control && (rc = token_write(w, err)) < 0) ||
         (rc = listen_start(w, err)) < 0)
         goto fail;
@@ -697,6 +711,7 @@ void scicapd_web_stop(scicapd_web *w)
     for (int i = 0; i < ASSET_COUNT; i++)
         free(w->asset[i]);
     free(w->state);
+    free(w->curves);
     pthread_mutex_destroy(&w->mu);
     free(w);
 }

@@ -12,6 +12,7 @@
  *   GET /assets/NAME            except through the capture routes below)
  *   GET /api/state              {status, jobs, captures, control}: what `scicap status`, `jobs` and `captures`
  *                               show, asked over the control socket (the web acts as one more client)
+ *   GET /api/curves             the measured accuracy-against-time curves (scicap bench CSV), read at start
  *   GET /api/events             server-sent events: each event line the daemon delivers to watchers
  *   GET /captures/ID/FILE       a capture's previews, and a reconstruction's previews, trace.csv, result.json;
  *                               ID and FILE must match a strict pattern (traversal cannot be expressed)
@@ -49,6 +50,8 @@ typedef struct scicapd_web_options {
     const char *storage_root;  /* captures are read from ROOT/captures/ID/ */
     const char *assets_dir;    /* index.html, app.js, style.css; NULL = installed or build-tree copy */
     const char *chartjs_path;  /* Chart.js UMD build; NULL = /usr/share/javascript/chart.js/chart.min.js */
+    const char *curves_path;   /* accuracy-against-time CSV (reconstruction.curves); NULL or unreadable: the
+                                  page goes without its method chart and /api/curves is 404 */
     int max_connections;       /* HTTP connections at once, >= 4 */
     int timeout_s;             /* idle HTTP connection closed after this many seconds, >= 1 */
 } scicapd_web_options;

@@ -114,9 +114,9 @@ function makeChart() {
     type: 'line',
     data: {datasets: [
       {label: 'PSNR (dB)', data: [], yAxisID: 'psnr', borderColor: '#2f6fde', backgroundColor: '#2f6fde',
-       pointRadius: 2, borderWidth: 2, tension: 0.2},
+       pointRadius: 2, borderWidth: 2, tension: 0},
       {label: 'residual', data: [], yAxisID: 'res', borderColor: '#d9822b', backgroundColor: '#d9822b',
-       pointRadius: 1.5, borderWidth: 1.5, tension: 0.2},
+       pointRadius: 1.5, borderWidth: 1.5, tension: 0},
     ]},
     options: {
       animation: false, responsive: true, maintainAspectRatio: false, parsing: false,
@@ -140,6 +140,7 @@ function onReconStarted(ev) {
   document.body.dataset.pointsWhileRunning = 0;
   $('recon-title').textContent = `job ${ev.job}: ${d.method} on ${d.capture}`;
   $('recon-frames').replaceChildren();
+  $('recon-anim-box').hidden = true;
   $('recon-status').textContent = 'running';
   makeChart();
   setPoints();
@@ -186,6 +187,8 @@ async function onReconDone(ev) {
     img.src = `/captures/${d.capture}/recon/${d.folder}/preview_${String(k).padStart(3, '0')}.png`;
     box.append(img);
   }
+  $('recon-anim').src = `/captures/${d.capture}/recon/${d.folder}/preview.gif`;
+  $('recon-anim-box').hidden = false;
 }
 
 function onEvent(msg) {
@@ -245,9 +248,55 @@ function wireControl() {
   $('btn-cancel').addEventListener('click', () => { if (lastJob) control('cancel', {job: lastJob}); });
 }
 
+// The measured curves (bench/results.csv columns scene, method, setting, psnr_db, wall_s, ...): for each method and
+// setting the mean PSNR and solver time over the scenes, one line per method, solver time on a log axis.
+const PALETTE = ['#2f6fde', '#d9822b', '#2c9a5b', '#b03aa8', '#c23b3b', '#6b6f7a', '#1a9fb0', '#8a6d1f'];
+
+async function loadCurves() {
+  const r = await fetch('/api/curves');
+  if (!r.ok) return;
+  const lines = (await r.text()).trim().split('\n');
+  const head = lines.shift().split(',');
+  const col = (name) => head.indexOf(name);
+  const [cm, cs, cp, cw] = [col('method'), col('setting'), col('psnr_db'), col('wall_s')];
+  if (cm < 0 || cs < 0 || cp < 0 || cw < 0) return;
+  const acc = new Map();
+  for (const line of lines) {
+    const f = line.split(',');
+    const key = f[cm] + '\u0000' + f[cs];
+    const a = acc.get(key) || {method: f[cm], setting: f[cs], psnr: 0, wall: 0, n: 0};
+    a.psnr += parseFloat(f[cp]); a.wall += parseFloat(f[cw]); a.n++;
+    acc.set(key, a);
+  }
+  const byMethod = new Map();
+  for (const a of acc.values()) {
+    if (!isFinite(a.psnr) || !isFinite(a.wall) || a.wall <= 0) continue;
+    if (!byMethod.has(a.method)) byMethod.set(a.method, []);
+    byMethod.get(a.method).push({x: a.wall / a.n, y: a.psnr / a.n, setting: a.setting});
+  }
+  const datasets = [...byMethod.entries()].map(([m, pts], i) => ({
+    label: m, data: pts.sort((p, q) => p.x - q.x), borderColor: PALETTE[i % PALETTE.length],
+    backgroundColor: PALETTE[i % PALETTE.length], pointRadius: 2.5, borderWidth: 1.5, showLine: true}));
+  if (!datasets.length) return;
+  $('curves-card').hidden = false;
+  new Chart($('curves'), {
+    type: 'scatter', data: {datasets},
+    options: {
+      animation: false, responsive: true, maintainAspectRatio: false, parsing: false,
+      scales: {x: {type: 'logarithmic', title: {display: true, text: 'solver time (s, log)'}},
+               y: {title: {display: true, text: 'PSNR (dB)'}}},
+      plugins: {legend: {position: 'bottom', labels: {boxWidth: 12}},
+                tooltip: {callbacks: {label: (c) => `${c.dataset.label} ${c.raw.setting}: ` +
+                                                      `${fmt(c.raw.y, 2)} dB in ${fmt(c.raw.x, 3)} s`}}},
+    },
+  });
+  document.body.dataset.curves = datasets.length;
+}
+
 document.addEventListener('DOMContentLoaded', () => {
   document.body.dataset.points = 0;
   wireControl();
   loadState();
+  loadCurves();
   connect();
 });

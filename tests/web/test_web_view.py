@@ -255,7 +255,8 @@ DOM_PROBE = """(() => {
           frames: imgs.length, framesLoaded: imgs.filter(i => i.dataset.loaded === '1' && i.naturalWidth > 0).length,
           framesFailed: imgs.filter(i => i.dataset.loaded === 'error').length,
           jobs: document.querySelectorAll('#jobs tr[data-job]').length,
-          devices: document.querySelectorAll('#devices li').length,
+          devices: document.querySelectorAll('#devices li').length, curves: +(b.curves || 0),
+          anim: (() => { const a = document.getElementById('recon-anim'); return a.complete && a.naturalWidth > 0; })(),
           overflow: document.documentElement.scrollWidth - window.innerWidth};
 })()"""
 
@@ -297,13 +298,19 @@ def main():
             time.sleep(0.1)
         print(f"tests/web: DOM: {p['captures']} listed; {p['pointsWhileRunning']} points plotted before recon.done "
               f"({seen_running_points} seen while it ran, {samples} samples); {p['framesLoaded']}/{p['frames']} "
-              f"frame previews loaded; {p['jobs']} jobs, {p['devices']} devices shown")
+              f"frame previews loaded; {p['jobs']} jobs, {p['devices']} devices shown; {p['curves']} methods in the "
+              f"accuracy-against-time chart")
         if not p["captures"]:
             fail("the capture did not appear in the captures list")
         if p["pointsWhileRunning"] < 2:
             fail(f"the plot got {p['pointsWhileRunning']} points while the reconstruction ran (want >= 2)")
         if p["framesLoaded"] != p["frames"]:
             fail(f"{p['framesFailed']} of {p['frames']} frame previews did not load")
+        if p["curves"] < 2:
+            fail(f"the accuracy-against-time chart has {p['curves']} methods (want the measured ones)")
+        while not dt.eval(DOM_PROBE)["anim"]:
+            time.sleep(0.1)
+            left()
         if p["devices"] < 3:
             fail(f"{p['devices']} devices shown (want dmd, camera, trigger)")
         desk = dt.screenshot(os.path.join(OUT, "desktop-1280x800.png"), 1280, 800, False)
