@@ -3,7 +3,8 @@
  * Every reconstruct job, from a request or a capture's auto-reconstruction, is saved as one small JSON file
  * under ROOT/recon-queue/ before it enters the in-memory queue, and its file is removed when the job ends for
  * good (done, failed, or canceled by a user). A job stopped because the daemon stops (SIGTERM, shutdown, or a
- * kill -9 that never ran the cleanup) keeps its file; at the next start scicapd_reconq_load reads the files in
+ * kill -9 that never ran the cleanup) keeps its file, and so does one waiting for room to write its result
+ * (daemon/workers.h); at the next start scicapd_reconq_load reads the files in
  * submission order and the daemon queues them again, with their owner uid, before it accepts connections.
  *
  *     r-<CLOCK_REALTIME ns, 20 digits>-<job id>.json

@@ -12,6 +12,8 @@
 #include <stddef.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "base/clock.h"
@@ -121,6 +123,56 @@ static int publish(scicapd_workers *w, const scicapd_job *j, const char *dir, co
     return rc;
 }
 
+/* A publish that failed for lack of room (ENOSPC or EDQUOT from the write, or a library that dropped errno —
+ * OpenEXR says only "File output failed" — while the store has less free than twice the frames as float32 and
+ * 1 MiB): 1, with err saying so and naming the bytes free, so the user knows what to free. */
+static int no_room(scicapd_workers *w, const sci_result *r, int rc, sci_error *err)
+{
+    if (rc == -EDQUOT || strstr(err->msg, strerror(EDQUOT)))
+        return 1;
+    struct statvfs v;
+    const char *root = scicapd_store_root(w->env.store);
+    if (statvfs(root, &v) != 0)
+        return rc == -ENOSPC;
+    double free_b = (double)v.f_bavail * (double)v.f_frsize;
+    double need = r->frames ? (double)sci_cube_count(r->frames) * 8.0 : 0;
+    if (rc != -ENOSPC && !strstr(err->msg, strerror(ENOSPC)) && free_b >= need + 1048576.0 && v.f_favail > 0)
+        return 0;
+    if (!strstr(err->msg, strerror(ENOSPC))) {
+        char msg[sizeof err->msg];
+        snprintf(msg, sizeof msg, "%s: %s", strerror(ENOSPC), err->msg);
+        sci_error_set(err, -ENOSPC, "%s", msg);
+    }
+    size_t l = strlen(err->msg);
+    snprintf(err->msg + l, sizeof err->msg - l, " (%.0f bytes free on %s)", free_b, root);
+    return 1;
+}
+
+/* Wait before the attempt-th retry of a publish that found no room: 1 s, doubling up to
+ * SCICAPD_ROOM_RETRY_MAX_S (a disk freed by a person is seen within a minute, and a full disk costs a stat and a
+ * failed write per wait, not a busy loop). The job keeps its queue entry and its result in memory meanwhile;
+ * "recon.waiting" says why and when. SCI_ECANCELED when the job is canceled or the daemon stops while waiting
+ * (the entry is then dropped or kept as for any cancel), else 0. */
+#define SCICAPD_ROOM_RETRY_MAX_S 60
+static int wait_for_room(scicapd_workers *w, scicapd_job *j, int attempt, const sci_error *why)
+{
+    int wait_s = attempt < 6 ? 1 << attempt : SCICAPD_ROOM_RETRY_MAX_S;
+    if (wait_s > SCICAPD_ROOM_RETRY_MAX_S)
+        wait_s = SCICAPD_ROOM_RETRY_MAX_S;
+    sci_log_write(w->env.log, SCI_LOG_WARNING, "job %llu: %s; kept in the queue, written again in %d s",
+                  (unsigned long long)j->id, why->msg, wait_s);
+    post(w, j, "recon.waiting", json_pack("{s:s, s:s, s:s, s:i, s:i}", "capture", j->recon.capture_id, "method",
+                                          j->recon.spec.method->name, "error", why->msg, "attempt", attempt + 1,
+                                          "retry_in_s", wait_s));
+    for (int i = 0; i < wait_s * 10; i++) { /* 100 ms steps: a cancel or a stop is seen at once */
+        if (atomic_load(&j->cancel) || atomic_load(&w->stop))
+            return SCI_ECANCELED;
+        struct timespec ts = {0, 100000000L};
+        nanosleep(&ts, NULL);
+    }
+    return atomic_load(&j->cancel) || atomic_load(&w->stop) ? SCI_ECANCELED : 0;
+}
+
 static void run(scicapd_workers *w, scicapd_job *j)
 {
     const scicapd_recon_args *ra = &j->recon;
@@ -218,8 +270,18 @@ static void run(scicapd_workers *w, scicapd_job *j)
     }
     scicapd_span_begin(&sp);
     char folder[96];
-    if ((rc = publish(w, j, dir, pp[0], &r, folder, sizeof folder, out, sizeof out, &err)) < 0)
-        goto done;
+    /* no room: the result waits in memory and its entry in the queue until there is (a full disk is a person's
+     * to fix, and the solve need not be run again); any other write error fails the job */
+    for (int attempt = 0; (rc = publish(w, j, dir, pp[0], &r, folder, sizeof folder, out, sizeof out, &err)) < 0;
+         attempt++) {
+        if (!no_room(w, &r, rc, &err))
+            goto done;
+        if ((rc = wait_for_room(w, j, attempt, &err)) < 0) {
+            sci_error_set(&err, rc, "canceled while waiting for room to write it");
+            goto done;
+        }
+        memset(&err, 0, sizeof err);
+    }
     scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_WRITE, &sp);
     const sci_trace_entry *last = r.trace.len ? &r.trace.e[r.trace.len - 1] : NULL;
     json_t *d = json_pack("{s:s, s:s, s:s, s:s, s:i, s:f, s:f}", "capture", ra->capture_id, "method", method, "dir",

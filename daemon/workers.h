@@ -5,7 +5,10 @@
  * (iteration, PSNR when the truth is known, ETA; at most every 100 ms plus the last iteration) and stops at once
  * when the job is canceled or the pool is stopping. A finished run is written atomically (io/recon_store.h) to
  * <capture>/recon/<method>/, or <method>.2, .3, ... when the method already has one (daemon/reconout.h: nothing
- * is replaced); its "recon.done" names the folder. A canceled or failed run writes nothing. A job that ends for good (done,
+ * is replaced); its "recon.done" names the folder. A canceled or failed run writes nothing. A finished run that finds
+ * no room to be written (ENOSPC, EDQUOT) is not failed: it keeps its queue entry and its result in memory, says
+ * "recon.waiting", and writes again after a back-off (1 s doubling to 60 s) until there is room, a user cancels
+ * it or the daemon stops (then it is resumed at the next start). A job that ends for good (done,
  * failed, canceled by a user) has its saved copy removed (daemon/reconq.h); one stopped by the daemon's own
  * stop keeps it, to be resumed at the next start. A method with checkpoints (the NeRF methods) saves one beside
  * that copy every env->checkpoint_every steps and when the daemon stops ("recon.checkpoint" event), and a resumed
