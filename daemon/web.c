@@ -652,8 +652,9 @@ static int listen_start(scicapd_web *w, sci_error *err)
                               MHD_OPTION_EXTERNAL_LOGGER, on_mhd_log, w,
                               MHD_OPTION_END);
     if (!w->mhd)
-        return sci_error_set(err, -EADDRINUSE, "web: cannot listen on %s port %d (in use, or not an address of "
-                             "this machine)", w->host, w->o.port);
+        return sci_error_set(err, -EADDRINUSE, "web: cannot listen on %s port %d (in use, not an address of this "
+                             "machine, or TCP refused by the service's sandbox: docs/web.md, Under systemd)",
+                             w->host, w->o.port);
     const union MHD_DaemonInfo *i = MHD_get_daemon_info(w->mhd, MHD_DAEMON_INFO_BIND_PORT);
     w->port = i && i->port ? i->port : w->o.port;
     return 0;
