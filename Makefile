@@ -1,5 +1,5 @@
 # scicap — one build for everything (GNU make).
-# Targets: all deps demo check check-asan check-gv check-vm bench fuzz install clean.  `make help` lists them.
+# Targets: all deps demo check check-asan check-gv check-vm check-web bench fuzz install clean.  `make help` lists them.
 
 PREFIX  ?= /usr/local
 DESTDIR ?=

@@ -189,6 +189,63 @@ async function onReconDone(ev) {
   }
   $('recon-anim').src = `/captures/${d.capture}/recon/${d.folder}/preview.gif`;
   $('recon-anim-box').hidden = false;
+  const cap = ((state && state.captures && state.captures.captures) || []).find((x) => x.capture === d.capture);
+  if (cap && cap.truth) showDifference(d.capture, [...box.querySelectorAll('img')]);
+}
+
+// The difference to the truth, frame by frame, from the previews: the truth's animated GIF decoded with the
+// browser's ImageDecoder (WebCodecs; without it, no difference row), each reconstructed frame's PNG once loaded.
+function pixels(source, w, h) {
+  const c = document.createElement('canvas');
+  c.width = w; c.height = h;
+  const g = c.getContext('2d');
+  g.drawImage(source, 0, 0, w, h);
+  return g.getImageData(0, 0, w, h);
+}
+
+function loaded(img) {
+  return img.complete ? Promise.resolve() : new Promise((ok, bad) => {
+    img.addEventListener('load', ok, {once: true});
+    img.addEventListener('error', bad, {once: true});
+  });
+}
+
+async function showDifference(capture, imgs) {
+  const box = $('diff-frames');
+  box.replaceChildren();
+  $('diff-box').hidden = true;
+  document.body.dataset.diff = 0;
+  if (typeof ImageDecoder === 'undefined' || !imgs.length) return;
+  try {
+    const r = await fetch(`/captures/${capture}/preview_truth.gif`);
+    if (!r.ok) return;
+    const dec = new ImageDecoder({data: r.body, type: 'image/gif'});
+    let drawn = 0;
+    for (let k = 0; k < imgs.length; k++) {
+      await loaded(imgs[k]);
+      const w = imgs[k].naturalWidth, h = imgs[k].naturalHeight;
+      const frame = (await dec.decode({frameIndex: k})).image;
+      const t = pixels(frame, w, h);
+      frame.close();
+      const x = pixels(imgs[k], w, h);
+      const c = document.createElement('canvas');
+      c.width = w; c.height = h;
+      const out = c.getContext('2d').createImageData(w, h);
+      for (let i = 0; i < out.data.length; i += 4) {
+        const v = Math.min(255, 4 * Math.abs(x.data[i] - t.data[i]));
+        out.data[i] = out.data[i + 1] = out.data[i + 2] = v;
+        out.data[i + 3] = 255;
+      }
+      c.getContext('2d').putImageData(out, 0, 0);
+      c.setAttribute('aria-label', `difference, frame ${k}`);
+      box.append(c);
+      drawn++;
+    }
+    $('diff-box').hidden = false;
+    document.body.dataset.diff = drawn;
+  } catch (e) {
+    $('recon-status').textContent += ` · no difference row: ${e.message || e}`;
+  }
 }
 
 function onEvent(msg) {

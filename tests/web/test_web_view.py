@@ -255,7 +255,7 @@ DOM_PROBE = """(() => {
           frames: imgs.length, framesLoaded: imgs.filter(i => i.dataset.loaded === '1' && i.naturalWidth > 0).length,
           framesFailed: imgs.filter(i => i.dataset.loaded === 'error').length,
           jobs: document.querySelectorAll('#jobs tr[data-job]').length,
-          devices: document.querySelectorAll('#devices li').length, curves: +(b.curves || 0),
+          devices: document.querySelectorAll('#devices li').length, curves: +(b.curves || 0), diff: +(b.diff || 0),
           anim: (() => { const a = document.getElementById('recon-anim'); return a.complete && a.naturalWidth > 0; })(),
           overflow: document.documentElement.scrollWidth - window.innerWidth};
 })()"""
@@ -308,9 +308,13 @@ def main():
             fail(f"{p['framesFailed']} of {p['frames']} frame previews did not load")
         if p["curves"] < 2:
             fail(f"the accuracy-against-time chart has {p['curves']} methods (want the measured ones)")
-        while not dt.eval(DOM_PROBE)["anim"]:
+        while True:  # the animation, and the difference to the truth (the simulated bench knows it)
+            q = dt.eval(DOM_PROBE)
+            if q["anim"] and q["diff"] == p["frames"]:
+                break
             time.sleep(0.1)
             left()
+        print(f"tests/web: the animation loaded; {q['diff']} difference frames drawn against the truth")
         if p["devices"] < 3:
             fail(f"{p['devices']} devices shown (want dmd, camera, trigger)")
         desk = dt.screenshot(os.path.join(OUT, "desktop-1280x800.png"), 1280, 800, False)
