@@ -10,6 +10,14 @@
 #include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
+
+/* Under AddressSanitizer (make check-asan: memory errors, not accuracy) the learning test trains 40 steps instead
+ * of 150 and checks that the loss falls; the optimised build checks how far. */
+#if defined(__SANITIZE_ADDRESS__)
+#define SANITIZED 1
+#else
+#define SANITIZED 0
+#endif
 #include <omp.h>
 
 #include "recon/metrics.h"
@@ -79,7 +87,7 @@ static void test_learns_tiny_scene(void **state)
     sci_problem *p = nerf_tiny_problem(32, seed);
     sci_rayformer_params prm;
     small_params(&prm, seed);
-    prm.iters = 150;
+    prm.iters = SANITIZED ? 40 : 150;
     sci_result r = {0};
     int rc = sci_rayformer_solve(p, &prm, &r, NULL, NULL);
     if (rc != 0)
@@ -90,8 +98,13 @@ static void test_learns_tiny_scene(void **state)
     double base = nerf_mean_frame_psnr(p), psnr = r.trace.e[r.trace.len - 1].psnr_peak1;
     printf("loss %.4g -> %.4g; PSNR %.2f dB vs mean frame %.2f dB; %.1f s\n", first, last, psnr, base,
            r.trace.e[r.trace.len - 1].wall_s);
-    assert_true(last < 0.5 * first);
-    assert_true(psnr > base + 1.5);
+    if (SANITIZED) {
+        printf("(AddressSanitizer build: 40 steps, the loss must fall)\n");
+        assert_true(last < first);
+    } else {
+        assert_true(last < 0.5 * first);
+        assert_true(psnr > base + 1.5);
+    }
     /* the diagnostics of the final render: the residual over the whole snapshot agrees with the frames (recomputed
      * here), the largest ray weight is a weight; rows without a render carry NaN */
     const sci_trace_entry *e = &r.trace.e[r.trace.len - 1];
