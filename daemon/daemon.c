@@ -642,6 +642,11 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
                               .out = d->store_q, .timing = d->timing, .log = log};
     if ((rc = scicapd_acquire_new(&d->acq, d->cfg, &ae, err)) < 0)
         goto fail;
+    /* 5b. the web view (off unless the configuration has a "web" section): before the control socket, so that a
+     * client that found the socket listening finds the web view and its token file too; until the socket below
+     * listens, the web's state and control requests answer 503 */
+    if (d->cfg->web_enabled && (rc = web_start(d, err)) < 0)
+        goto fail;
     /* 6. the control socket */
     if (d->cfg->admin_group[0] && strcmp(d->cfg->admin_group, d->cfg->socket_group) == 0)
         sci_log_write(log, SCI_LOG_WARNING, "control.admin_group is the socket's group \"%s\": every user who can "
@@ -650,9 +655,6 @@ int scicapd_new(scicapd **out, const scicapd_options *o, const sci_log *log, sci
     scicapd_control_hooks hooks = {.on_line = on_line, .is_admin = hook_is_admin, .busy = hook_busy, .user = d};
     if ((rc = scicapd_control_open(&d->ctl, d->cfg->socket_path, d->cfg->socket_mode, d->cfg->socket_group, &lim,
                                    &hooks, log, err)) < 0)
-        goto fail;
-    /* 6b. the web view, a client of that socket (off unless the configuration has a "web" section) */
-    if (d->cfg->web_enabled && (rc = web_start(d, err)) < 0)
         goto fail;
     /* 7. threads: writer, reconstruction workers, acquisition */
     scicapd_store_set_previews(d->store, d->cfg->previews);
