@@ -108,6 +108,18 @@ function showSnapshot(id, truth) {
 
 // Two curves against wall time: the residual ‖y − Ax‖/‖y‖ (every progress event; the only one without truth) and
 // the PSNR when the solver's trace has it (with truth; some methods compute it only every few iterations).
+// The sync report of the newest snapshot (capture.snapshot): the flags (or ok), whether the mask sequence fell
+// inside the exposure, and the offset between them.
+function showSync(ev) {
+  const d = ev.data || {};
+  const sync = Array.isArray(d.sync) ? d.sync.join(', ') : String(d.sync ?? '–');
+  const off = typeof d.offset_ns === 'number' ? `${fmt(d.offset_ns / 1000, 1)} µs` : '–';
+  const p = $('latest-sync');
+  p.textContent = `sync of snapshot ${(d.index ?? 0) + 1}/${d.count ?? '?'} (job ${ev.job}): ${sync} · ` +
+    `sequence ${d.inside ? 'inside' : 'NOT inside'} the exposure · offset ${off}` + (d.broken ? ' · broken' : '');
+  p.className = sync === 'ok' && d.inside && !d.broken ? 'muted ok' : 'muted bad';
+}
+
 function makeChart() {
   if (chart) chart.destroy();
   chart = new Chart($('trace'), {
@@ -262,6 +274,7 @@ function onEvent(msg) {
       }
       break;
     case 'capture.stored': showSnapshot(ev.data.capture); break;
+    case 'capture.snapshot': showSync(ev); return; // its capture.stored follows
     default: break;
   }
   scheduleRefresh(300);
