@@ -19,8 +19,8 @@
  * the baseline and + patch rows are kept; part "full": only the ladder's last rung, the full method). --seeds N
  * trains every NeRF row N times (seeds 1 … N) and keeps the mean
  * and the PSNR's standard deviation: one seed moves a fast-preset row by up to 0.35 dB, more than most ladder steps
- * (docs/nerf-methods.md, "The ablation ladder over three seeds"), so the steps are judged on the mean. --more-seeds N adds seeds n+1 … n+N to
- * each row the run measures that the table holds with n seeds at the same steps and rays (a row it does not hold:
+ * (docs/nerf-methods.md, "The ablation ladder over three seeds"), so the steps are judged on the mean.
+ * --more-seeds N adds seeds n+1 … n+N to each row the run measures that the table holds with n seeds at the same steps and rays (a row it does not hold:
  * seeds 1 … N), so a third seed costs one training per row, not three.
  * Run from the repository root (it reads etc/scenes/ and writes bench/results/). Rows persist in
  * the table's .tsv beside it: a run replaces the rows of the scenes it measures and keeps the others, so the
