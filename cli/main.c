@@ -5,6 +5,7 @@
 #include "base/runtime_env.h"
 #include "cli/client.h"
 #include "cli/commands.h"
+#include "cli/recon_opts.h"
 #include "recon/solver.h"
 
 typedef struct command {
@@ -39,10 +40,7 @@ static void usage(FILE *f)
         fprintf(f, "  %-10s %s\n", commands[i].name, commands[i].summary);
     /* the methods as the table lists them (recon/solver.h): a new row shows up here by itself */
     fprintf(f, "\nreconstruction methods (scicap recon --method; the first is the default):\n");
-    size_t nm = 0;
-    const solver_ops *const *methods = solver_list(&nm);
-    for (size_t i = 0; i < nm; i++)
-        fprintf(f, "  %-11s %s\n", methods[i]->name, methods[i]->summary);
+    cli_recon_methods_usage(f, solver_list(NULL), 11);
     fprintf(f, "\n'scicap COMMAND --help' documents each command; man scicap documents them all.\n");
 }
 

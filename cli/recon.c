@@ -1,4 +1,6 @@
-/* scicap recon — reconstruct SCI snapshots from a .mat benchmark file or a problem folder. */
+/* scicap recon — reconstruct SCI snapshots from a .mat benchmark file or a problem folder: parse the command line
+ * into recon_opts, check it and the output against the limits, read the input, run the method on each snapshot
+ * and report. The method's settings come from the solver table through cli/recon_opts.h. */
 #include <dirent.h>
 #include <errno.h>
 #include <getopt.h>
@@ -18,6 +20,7 @@
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "cli/recon_color.h"
+#include "cli/recon_opts.h"
 #include "io/limits.h"
 #include "io/problem_dir.h"
 #include "io/recon_store.h"
@@ -26,10 +29,59 @@
 #include "recon/metrics.h"
 #include "recon/solver.h"
 
+enum { OPT_MASK = 256, OPT_MASK_VAR, OPT_MEAS_VAR, OPT_TRUTH_VAR, OPT_SCALE, OPT_FRAMES, OPT_MASK_SCALE,
+       OPT_PREVIEW, OPT_CFA, OPT_DEMOSAIC, OPT_ALLOW_LARGE, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME };
+#define SETTING CLI_RECON_OPT_SETTING
+#define SETTING_SHORT CLI_RECON_OPT_SETTING_SHORT
+
+/* The command's own options, then the method settings the man page documents by name (test_cli_help reads this
+ * table from the source to check help and man page). A setting's type, range and help are the method table's,
+ * and every other key of every method is an option too (cli_recon_opts_longopts). */
+static const struct option longopts[] = {
+    {"method", required_argument, 0, 'm'}, {"output", required_argument, 0, 'o'},
+    {"force", no_argument, 0, 'f'}, {"snapshot", required_argument, 0, 's'},
+    {"threads", required_argument, 0, 'j'}, {"quiet", no_argument, 0, 'q'},
+    {"help", no_argument, 0, 'h'}, {"allow-large", no_argument, 0, OPT_ALLOW_LARGE},
+    {"preset", required_argument, 0, CLI_RECON_OPT_PRESET}, {"set", required_argument, 0, CLI_RECON_OPT_SET},
+    {"checkpoint", required_argument, 0, OPT_CKPT}, {"checkpoint-every", required_argument, 0, OPT_CKPT_EVERY},
+    {"resume", required_argument, 0, OPT_RESUME},
+    {"mask", required_argument, 0, OPT_MASK}, {"mask-var", required_argument, 0, OPT_MASK_VAR},
+    {"meas-var", required_argument, 0, OPT_MEAS_VAR}, {"truth-var", required_argument, 0, OPT_TRUTH_VAR},
+    {"scale", required_argument, 0, OPT_SCALE}, {"frames", required_argument, 0, OPT_FRAMES},
+    {"mask-scale", required_argument, 0, OPT_MASK_SCALE}, {"preview-range", required_argument, 0, OPT_PREVIEW},
+    {"cfa", required_argument, 0, OPT_CFA}, {"demosaic", required_argument, 0, OPT_DEMOSAIC},
+    {"iters", required_argument, 0, SETTING_SHORT('i')}, {"lambda", required_argument, 0, SETTING_SHORT('l')},
+    {"tv-weight", required_argument, 0, SETTING_SHORT('w')}, {"tv-iters", required_argument, 0, SETTING_SHORT('t')},
+    {"gamma", required_argument, 0, SETTING_SHORT('g')}, {"plain", no_argument, 0, SETTING},
+    {"metrics-every", required_argument, 0, SETTING}, {"ssim-every", required_argument, 0, SETTING},
+    {"patch", required_argument, 0, SETTING}, {"patches-per-step", required_argument, 0, SETTING},
+    {"samples", required_argument, 0, SETTING}, {"lr", required_argument, 0, SETTING},
+    {"pose-mode", required_argument, 0, SETTING}, {"seed", required_argument, 0, SETTING},
+    {"ablation", required_argument, 0, SETTING}, {"net-lr-scale", required_argument, 0, SETTING},
+    {"spacing", required_argument, 0, SETTING}, {"distortion", required_argument, 0, SETTING},
+    {"prior-steps", required_argument, 0, SETTING}, {"prior-weight", required_argument, 0, SETTING},
+    {"density-bias", required_argument, 0, SETTING}, {"zero-gates", required_argument, 0, SETTING},
+    {"sh-degree", required_argument, 0, SETTING}, {0, 0, 0, 0},
+};
+static const char shortopts[] = "m:o:fs:i:l:w:t:g:j:qh";
+
+/* What one `scicap recon` was asked to do. Owns all and settings (recon_opts_free). */
+typedef struct recon_opts {
+    const solver_ops *const *methods; /* the method table (recon/solver.h) */
+    struct option *all;               /* longopts, then the other settings keys (owned) */
+    cli_recon_given given;            /* the settings options as given */
+    const solver_ops *method;
+    void *settings;                   /* the method's, owned; NULL until the options are parsed */
+    const char *input, *out, *ckpt_path, *resume_path, *cfa_opt;
+    int force, quiet, preview_auto, snapshot, threads, ckpt_every, help;
+    sci_demosaic_method demosaic;
+    sci_mat_options mo;
+    sci_io_limits limits;             /* mo.limits points here */
+} recon_opts;
+
 /* "a, b and c": the methods with (want = 1) or without (want = 0) the capability bits `caps`. */
-static char *methods_with(char *buf, size_t n, unsigned caps, int want)
+static char *methods_with(const solver_ops *const *l, char *buf, size_t n, unsigned caps, int want)
 {
-    const solver_ops *const *l = solver_list(NULL);
     int k = 0, total = 0;
     for (int i = 0; l[i]; i++)
         total += ((l[i]->caps & caps) != 0) == want;
@@ -44,15 +96,13 @@ static char *methods_with(char *buf, size_t n, unsigned caps, int want)
     return buf;
 }
 
-static void usage(FILE *f)
+static void usage(FILE *f, const recon_opts *o)
 {
-    const solver_ops *const *l = solver_list(NULL);
     fprintf(f, "usage: scicap recon [OPTIONS] INPUT -o OUTDIR\n"
                "       scicap recon [OPTIONS] INPUT... -o OUTDIR   (several: as scicap batch, OUTDIR/NAME each)\n"
                "       scicap recon --capture ID [--method M] [--wait]   (ask scicapd; see scicap status)\n\n"
-               "Methods (-m, --method NAME; default %s):\n", l[0]->name);
-    for (int i = 0; l[i]; i++)
-        fprintf(f, "  %-12s %s\n", l[i]->name, l[i]->summary);
+               "Methods (-m, --method NAME; default %s):\n", o->methods[0]->name);
+    cli_recon_methods_usage(f, o->methods, 12);
     fprintf(f,
             "\n"
             "Reconstruct the N frames of each SCI snapshot in INPUT: a .mat file (MATLAB v5 or v7.3; by default the\n"
@@ -64,39 +114,14 @@ static void usage(FILE *f)
             "\n"
             "  -m, --method NAME      one of the methods above (those that need a camera want a static scene\n"
             "                         seen by a moving camera, e.g. from a static3d scene; see docs/nerf-methods.md)\n"
-            "      --preset P         fast, balanced or best for every method (scicap --help lists each one's\n"
-            "                         settings; the options below override it); none: the method's defaults\n"
             "  -o, --output DIR       output folder (required); replaced only with --force\n"
             "  -f, --force            replace an existing output folder\n"
             "      --allow-large      lift the size limits checked before any work: %.0f GB of input in memory,\n"
             "                         %.0f GB or %zu files of output (a small file can declare huge sizes)\n"
             "  -s, --snapshot J       reconstruct only snapshot J (1-based); default all\n"
-            "  -i, --iters N          outer iterations (default: the method's, 100 for gap-tv and admm-tv)\n"
-            "  -l, --lambda X         step size lambda (default 1)\n"
-            "  -w, --tv-weight X      TV weight on the data's [0, peak] scale (default 0.07)\n"
-            "  -t, --tv-iters N       TV denoiser passes per iteration (default 5)\n"
-            "      --plain            gap-tv: plain GAP instead of accelerated\n"
-            "  -g, --gamma X          admm-tv: gamma added to the mask energy (default 1e-3)\n"
-            "  rayformer, scinerf:\n"
-            "              --samples L (per ray)  --lr X  --pose-mode known|linear|per-frame  --seed S\n"
-            "              (--iters applies too; rayformer also --patch P (2,4,8,16) --patches-per-step B --tv-weight)\n"
-            "              --net-lr-scale X  rayformer: the transformer learns at lr × X, the hash table at lr\n"
-            "              --ablation STEP   rayformer: the paper's ladder, baseline|patch|inter|intra|tv (tv: the\n"
-            "                                full method; each step adds its switch to the ones before)\n"
-            "              --checkpoint FILE write a checkpoint every --checkpoint-every K steps (default 100), at\n"
-            "                                the end, and when interrupted (Ctrl-C, SIGTERM)\n"
-            "              --resume FILE     continue a run from its checkpoint (same input and options)\n"
-            "              --checkpoint-every K  steps between checkpoints (default 100)\n"
-            "              recipe knobs (the defaults are the presets' recipe, docs/nerf-methods.md):\n"
-            "              --spacing linear|disparity|log  how the coarse samples divide [near, far]\n"
-            "              --distortion X    weight of the distortion loss on the coarse weights (0: off)\n"
-            "              --prior-steps K   GAP-TV warm start: the first K steps also pull the frames toward\n"
-            "                                GAP-TV's reconstruction, --prior-weight X falling linearly to 0\n"
-            "              --density-bias X  added to the density before its activation\n"
-            "              --zero-gates 0|1  rayformer: each block's output projections start at zero\n"
-            "              --sh-degree D     spherical-harmonics degree of the view direction encoding (1-4)\n"
-            "  any method:  --set KEY=VALUE    any setting by its key, e.g. --set inter_gate=false (repeatable;\n"
-            "                                 after the options above; result.json's params list every key)\n"
+            "      --checkpoint FILE  %s: write a checkpoint every --checkpoint-every K steps (default 100),\n"
+            "                         at the end, and when interrupted (Ctrl-C, SIGTERM)\n"
+            "      --resume FILE      continue a run from its checkpoint (same input and options)\n"
             "  .mat input:  --mask FILE        the masks are in FILE (its only variable, or --mask-var)\n"
             "              --mask-var NAME    the masks' variable (default mask): H×W×N shared, H×W×N×k per snapshot\n"
             "              --meas-var NAME    the measurements' variable (default meas), H×W×k\n"
@@ -113,28 +138,20 @@ static void usage(FILE *f)
             "                                 are solved; writes rgb_NNN.exr, colour preview_rgb_NNN.png, RGB PSNR\n"
             "      --preview-range fixed|auto  previews on [0, white] (default) or auto-contrast to the frames'\n"
             "                         99.5th percentile (stated in result.json and each PNG's description)\n"
-            "      --metrics-every K  PSNR against truth in the trace every K iterations (default 1)\n"
-            "      --ssim-every K     SSIM in the trace every K iterations (default 10; 0 = last only)\n"
             "  -j, --threads N        OpenMP threads (default: all cores)\n"
             "  -q, --quiet            no progress on stderr\n"
-            "  -h, --help             this text\n"
-            "\n"
-            "Defaults are the PnP-SCI benchmark settings (accelerated GAP, lambda 1, 100 iterations, TV weight\n"
-            "0.07, 5 TV passes). PSNR 'peak = frame max' uses each truth frame's maximum (the MATLAB reference's\n"
-            "convention); 'peak = 1' uses the data's white level. Exit status: 0 ok, 1 failure, 2 usage; on\n"
-            "SIGINT/SIGTERM/SIGHUP/SIGQUIT it stops, removes what it had begun to write, and dies of that signal:\n"
-            "OUTDIR appears only once complete (written as OUTDIR.tmp-PID and renamed; one left by a process that\n"
-            "no longer runs is removed at the next run into OUTDIR).\n",
+            "  -h, --help             this text\n",
             (double)SCI_IO_LIMIT_INPUT_BYTES / 1e9, (double)SCI_IO_LIMIT_OUTPUT_BYTES / 1e9,
-            (size_t)SCI_IO_LIMIT_OUTPUT_FILES);
+            (size_t)SCI_IO_LIMIT_OUTPUT_FILES, methods_with(o->methods, (char[256]){0}, 256, SOLVER_CHECKPOINTS, 1));
+    cli_recon_opts_usage(f, o->methods, o->all);
+    fprintf(f, "\n"
+               "Without --preset a method runs its defaults (the classical ones: the PnP-SCI benchmark's settings);\n"
+               "result.json's params records every value. PSNR 'peak = frame max' uses each truth frame's maximum\n"
+               "(the MATLAB reference's convention); 'peak = 1' uses the data's white level. Exit status: 0 ok,\n"
+               "1 failure, 2 usage; on SIGINT/SIGTERM/SIGHUP/SIGQUIT it stops, removes what it had begun to write,\n"
+               "and dies of that signal: OUTDIR appears only once complete (written as OUTDIR.tmp-PID and renamed;\n"
+               "one left by a process that no longer runs is removed at the next run into OUTDIR).\n");
 }
-
-typedef struct recon_opts {
-    const solver_ops *method; /* recon/solver.h */
-    void *settings;           /* the method's, owned */
-    int quiet;
-} recon_opts;
-
 /* Ctrl-C / SIGTERM: the progress callback asks the solver to stop (a NeRF run first hands over its checkpoint);
  * nothing more is written and the process then dies of the same signal, so a calling shell loop stops too. The
  * handler is one-shot: a second Ctrl-C kills at once. */
@@ -247,80 +264,6 @@ static json_t *params_json(const recon_opts *o, int resumed)
     return j;
 }
 
-/* One option given on the command line, as a settings key and a JSON value (stolen). */
-typedef struct opt_value {
-    const char *key, *option;
-    json_t *value;
-} opt_value;
-
-/* Apply the options in their fixed order to the method's settings. An option the method has no setting for is
- * ignored (common options map onto whichever method runs), except those in `strict` (NULL-terminated keys),
- * which are refused naming the methods that have them. 0, or 2 (usage) after a message. */
-static int apply_options(const recon_opts *o, opt_value *v, int n, const char *const *strict)
-{
-    for (int i = 0; i < n; i++) {
-        sci_error err = {0};
-        int rc = solver_settings_set(o->method, o->settings, v[i].key, v[i].value, NULL, v[i].option, &err);
-        if (rc == 1) {
-            for (int k = 0; strict[k]; k++)
-                if (strcmp(strict[k], v[i].key) == 0) {
-                    const solver_ops *const *l = solver_list(NULL);
-                    char who[256] = "";
-                    size_t off = 0;
-                    for (int m = 0; l[m] && off < sizeof who; m++)
-                        if (solver_field_find(l[m], v[i].key, NULL))
-                            off += (size_t)snprintf(who + off, sizeof who - off, "%s%s", off ? ", " : "", l[m]->name);
-                    fprintf(stderr, "scicap recon: %s is for %s\n", v[i].option, who);
-                    return 2;
-                }
-            continue;
-        }
-        if (rc < 0) {
-            fprintf(stderr, "scicap recon: %s\n", err.msg);
-            return 2;
-        }
-    }
-    return 0;
-}
-
-/* --set KEY=VALUE: any setting of the method by its key (result.json's "params" names them all). VALUE is read as
- * JSON (numbers, true/false) and otherwise as a string, so "--set spacing=log" needs no quotes. Through the
- * method's table, as a params file would be: range-checked; an unknown key is refused with the method's keys and
- * what each does. Returns 0, or 2 (usage) after the message. */
-static int apply_sets(const recon_opts *o, const char *const *kv, int n)
-{
-    json_t *obj = json_object();
-    int rc = obj ? 0 : -ENOMEM;
-    for (int i = 0; i < n && rc == 0; i++) {
-        const char *eq = strchr(kv[i], '=');
-        char key[128];
-        snprintf(key, sizeof key, "%.*s", (int)(eq - kv[i]), kv[i]);
-        if (!solver_field_find(o->method, key, NULL)) {
-            fprintf(stderr, "scicap recon: --set %s: %s has no such setting; its settings are:\n", key,
-                    o->method->name);
-            for (int g = 0; g < 2; g++)
-                for (int k = 0; k < o->method->fields[g].n; k++)
-                    fprintf(stderr, "  %-20s %s\n", o->method->fields[g].f[k].key, o->method->fields[g].f[k].help);
-            json_decref(obj);
-            return 2;
-        }
-        json_t *v = json_loads(eq + 1, JSON_DECODE_ANY, NULL);
-        if (!v)
-            v = json_string(eq + 1);
-        rc = v ? json_object_set_new(obj, key, v) : -ENOMEM;
-    }
-    sci_error err = {0};
-    if (rc == 0 && solver_settings_from_json(o->method, o->settings, obj, NULL, NULL, &err) < 0) {
-        fprintf(stderr, "scicap recon: --set: %s\n", err.msg);
-        rc = 2;
-    } else if (rc) {
-        fprintf(stderr, "scicap recon: out of memory\n");
-        rc = 2;
-    }
-    json_decref(obj);
-    return rc;
-}
-
 static void print_metrics(const sci_problem *p, const sci_result *r)
 {
     const int n = r->frames->n;
@@ -363,499 +306,416 @@ static json_t *input_json(const sci_mat_info *mi)
     return json_pack("{s:o}", "input", in);
 }
 
-int cli_recon_main(int argc, char **argv)
+
+/* --scale / --mask-scale: "auto" (auto_value) or a number > 0. */
+static int parse_white(const char *s, const char *opt, const char *what, double auto_value, double *out)
 {
-    /* `scicap recon --capture ID` asks the daemon to reconstruct one of its captures. */
-    for (int i = 1; i < argc; i++)
-        if (strcmp(argv[i], "--capture") == 0 || strncmp(argv[i], "--capture=", 10) == 0)
-            return cli_client_recon(argc, argv);
-    recon_opts o = {.method = solver_list(NULL)[0]};
-    const char *preset = NULL;
-    int nf_patch = 0, nf_pps = 0, nf_samples = 0, nf_pose = -1, nf_seed = -1, nf_ablation = -1, ckpt_every = 100;
-    const char *ckpt_path = NULL, *resume_path = NULL;
-    double nf_lr = NAN, nf_net_lr = NAN, nf_dist = NAN, nf_prior_w = NAN, nf_dbias = NAN;
-    const char *nf_spacing = NULL, *nf_pose_name = NULL;
-    int nf_prior_steps = -1, nf_zero_gates = -1, nf_sh = 0, plain = 0;
-    double gamma = NAN;
-    const char *out = NULL;
-    int force = 0, preview_auto = 0, snapshot = 0, threads = 0, iters = -1, tv_iters = -1, metrics_every = -1, ssim_every = -1;
-    double lambda = NAN, tv_weight = NAN;
-    enum { OPT_PLAIN = 256, OPT_METRICS, OPT_SSIM, OPT_PATCH, OPT_PPS, OPT_SAMPLES, OPT_LR, OPT_POSE, OPT_SEED, OPT_PRESET,
-           OPT_ABLATION, OPT_CKPT, OPT_CKPT_EVERY, OPT_RESUME, OPT_NET_LR, OPT_SPACING, OPT_DIST, OPT_PRIOR_STEPS,
-           OPT_PRIOR_W, OPT_DBIAS, OPT_ZERO_GATES, OPT_SH, OPT_MASK, OPT_MASK_VAR, OPT_MEAS_VAR, OPT_TRUTH_VAR,
-           OPT_SCALE, OPT_CFA, OPT_DEMOSAIC, OPT_ALLOW_LARGE, OPT_SET, OPT_FRAMES, OPT_MASK_SCALE, OPT_PREVIEW };
-    const char *set_kv[32]; /* --set KEY=VALUE, applied after every named option */
-    int n_set = 0;
-    const char *cfa_opt = NULL;
-    sci_demosaic_method demosaic = SCI_DEMOSAIC_MHC;
-    sci_mat_options mo = {0};
-    sci_io_limits limits;
-    sci_io_limits_default(&limits);
-    mo.limits = &limits;
-    static const struct option longopts[] = {
-        {"method", required_argument, 0, 'm'},   {"output", required_argument, 0, 'o'},
-        {"force", no_argument, 0, 'f'},          {"snapshot", required_argument, 0, 's'},
-        {"iters", required_argument, 0, 'i'},    {"lambda", required_argument, 0, 'l'},
-        {"tv-weight", required_argument, 0, 'w'}, {"tv-iters", required_argument, 0, 't'},
-        {"plain", no_argument, 0, OPT_PLAIN},    {"gamma", required_argument, 0, 'g'},
-        {"metrics-every", required_argument, 0, OPT_METRICS}, {"ssim-every", required_argument, 0, OPT_SSIM},
-        {"threads", required_argument, 0, 'j'},  {"quiet", no_argument, 0, 'q'},
-        {"patch", required_argument, 0, OPT_PATCH}, {"patches-per-step", required_argument, 0, OPT_PPS},
-        {"samples", required_argument, 0, OPT_SAMPLES}, {"lr", required_argument, 0, OPT_LR},
-        {"pose-mode", required_argument, 0, OPT_POSE}, {"seed", required_argument, 0, OPT_SEED},
-        {"preset", required_argument, 0, OPT_PRESET}, {"ablation", required_argument, 0, OPT_ABLATION},
-        {"checkpoint", required_argument, 0, OPT_CKPT}, {"checkpoint-every", required_argument, 0, OPT_CKPT_EVERY},
-        {"resume", required_argument, 0, OPT_RESUME}, {"net-lr-scale", required_argument, 0, OPT_NET_LR},
-        {"spacing", required_argument, 0, OPT_SPACING}, {"distortion", required_argument, 0, OPT_DIST},
-        {"prior-steps", required_argument, 0, OPT_PRIOR_STEPS}, {"prior-weight", required_argument, 0, OPT_PRIOR_W},
-        {"density-bias", required_argument, 0, OPT_DBIAS}, {"zero-gates", required_argument, 0, OPT_ZERO_GATES},
-        {"sh-degree", required_argument, 0, OPT_SH},
-        {"mask", required_argument, 0, OPT_MASK}, {"mask-var", required_argument, 0, OPT_MASK_VAR},
-        {"meas-var", required_argument, 0, OPT_MEAS_VAR}, {"truth-var", required_argument, 0, OPT_TRUTH_VAR},
-        {"scale", required_argument, 0, OPT_SCALE}, {"frames", required_argument, 0, OPT_FRAMES},
-        {"mask-scale", required_argument, 0, OPT_MASK_SCALE}, {"preview-range", required_argument, 0, OPT_PREVIEW},
-        {"cfa", required_argument, 0, OPT_CFA}, {"demosaic", required_argument, 0, OPT_DEMOSAIC},
-        {"allow-large", no_argument, 0, OPT_ALLOW_LARGE}, {"set", required_argument, 0, OPT_SET},
-        {"help", no_argument, 0, 'h'},           {0, 0, 0, 0},
-    };
-    optind = 1;
-    int c;
-    while ((c = getopt_long(argc, argv, "m:o:fs:i:l:w:t:g:j:qh", longopts, NULL)) != -1) {
-        int bad = 0;
-        switch (c) {
-        case 'm': {
-            sci_error merr = {0};
-            if (!(o.method = solver_find_err(optarg, &merr))) {
-                fprintf(stderr, "scicap recon: %s\n", merr.msg);
-                return 2;
-            }
-            break;
-        }
-        case 'o': out = optarg; break;
-        case 'f': force = 1; break;
-        case OPT_ALLOW_LARGE: sci_io_limits_none(&limits); break;
-        case OPT_SET:
-            if (!strchr(optarg, '=') || optarg[0] == '=') {
-                fprintf(stderr, "scicap recon: --set wants KEY=VALUE, got '%s'\n", optarg);
-                bad = -1;
-            } else if (n_set == (int)(sizeof set_kv / sizeof set_kv[0])) {
-                fprintf(stderr, "scicap recon: at most %d --set options\n", n_set);
-                bad = -1;
-            } else
-                set_kv[n_set++] = optarg;
-            break;
-        case 's': bad = parse_int(optarg, "--snapshot", 1, 1 << 30, &snapshot); break;
-        case 'i': bad = parse_int(optarg, "--iters", 1, 10000000, &iters); break;
-        case 'l': bad = parse_double(optarg, "--lambda", &lambda); break;
-        case 'w': bad = parse_double(optarg, "--tv-weight", &tv_weight); break;
-        case 't': bad = parse_int(optarg, "--tv-iters", 1, 100000, &tv_iters); break;
-        case OPT_PLAIN: plain = 1; break;
-        case 'g': bad = parse_double(optarg, "--gamma", &gamma); break;
-        case OPT_METRICS: bad = parse_int(optarg, "--metrics-every", 0, 1 << 30, &metrics_every); break;
-        case OPT_SSIM: bad = parse_int(optarg, "--ssim-every", 0, 1 << 30, &ssim_every); break;
-        case 'j': bad = parse_int(optarg, "--threads", 1, 1024, &threads); break;
-        case OPT_PRESET: preset = optarg; break;
-        case OPT_PATCH: bad = parse_int(optarg, "--patch", 2, 16, &nf_patch); break;
-        case OPT_PPS: bad = parse_int(optarg, "--patches-per-step", 1, 4096, &nf_pps); break;
-        case OPT_SAMPLES: bad = parse_int(optarg, "--samples", 2, 1024, &nf_samples); break;
-        case OPT_LR: bad = parse_double(optarg, "--lr", &nf_lr); break;
-        case OPT_POSE:
-            if (strcmp(optarg, "known") == 0 || strcmp(optarg, "linear") == 0 || strcmp(optarg, "per-frame") == 0)
-                nf_pose_name = optarg, nf_pose = 1;
-            else {
-                fprintf(stderr, "scicap recon: --pose-mode wants known, linear or per-frame, got '%s'\n", optarg);
-                bad = -1;
-            }
-            break;
-        case OPT_ABLATION: {
-            /* the paper's steps; "+patch" … "+tv" (the ladder's labels) name the same */
-            static const char *const steps[] = {"baseline", "patch", "inter", "intra", "tv"};
-            const char *a = optarg[0] == '+' ? optarg + 1 : optarg;
-            for (int k = 0; k < 5; k++)
-                if (strcmp(a, steps[k]) == 0 && (k > 0 || a == optarg))
-                    nf_ablation = k;
-            if (nf_ablation < 0) {
-                fprintf(stderr, "scicap recon: --ablation wants baseline, patch, inter, intra or tv, got '%s'\n",
-                        optarg);
-                bad = -1;
-            }
-            break;
-        }
-        case OPT_CKPT: ckpt_path = optarg; break;
-        case OPT_CKPT_EVERY: bad = parse_int(optarg, "--checkpoint-every", 1, 1 << 30, &ckpt_every); break;
-        case OPT_RESUME: resume_path = optarg; break;
-        case OPT_NET_LR: bad = parse_double(optarg, "--net-lr-scale", &nf_net_lr); break;
-        case OPT_SPACING:
-            if (strcmp(optarg, "linear") == 0 || strcmp(optarg, "disparity") == 0 || strcmp(optarg, "log") == 0)
-                nf_spacing = optarg;
-            else {
-                fprintf(stderr, "scicap recon: --spacing wants linear, disparity or log, got '%s'\n", optarg);
-                bad = -1;
-            }
-            break;
-        case OPT_DIST: bad = parse_double(optarg, "--distortion", &nf_dist); break;
-        case OPT_PRIOR_STEPS: bad = parse_int(optarg, "--prior-steps", 0, 10000000, &nf_prior_steps); break;
-        case OPT_PRIOR_W: bad = parse_double(optarg, "--prior-weight", &nf_prior_w); break;
-        case OPT_DBIAS: bad = parse_double(optarg, "--density-bias", &nf_dbias); break;
-        case OPT_ZERO_GATES: bad = parse_int(optarg, "--zero-gates", 0, 1, &nf_zero_gates); break;
-        case OPT_SH: bad = parse_int(optarg, "--sh-degree", 1, 4, &nf_sh); break;
-        case OPT_MASK: mo.mask_path = optarg; break;
-        case OPT_MASK_VAR: mo.mask_var = optarg; break;
-        case OPT_MEAS_VAR: mo.meas_var = optarg; break;
-        case OPT_TRUTH_VAR: mo.truth_var = optarg; break;
-        case OPT_SCALE:
-            if (strcmp(optarg, "auto") == 0)
-                mo.white = SCI_MAT_WHITE_AUTO;
-            else if ((bad = parse_double(optarg, "--scale", &mo.white)) == 0 && !(mo.white > 0)) {
-                fprintf(stderr, "scicap recon: --scale wants auto or a number > 0 (the value of white), got '%s'\n",
-                        optarg);
-                bad = -1;
-            }
-            break;
-        case OPT_FRAMES: bad = parse_int(optarg, "--frames", 1, 1 << 16, &mo.frames); break;
-        case OPT_MASK_SCALE:
-            if (strcmp(optarg, "auto") == 0)
-                mo.mask_white = 0;
-            else if ((bad = parse_double(optarg, "--mask-scale", &mo.mask_white)) == 0 && !(mo.mask_white > 0)) {
-                fprintf(stderr, "scicap recon: --mask-scale wants auto or a number > 0 (a fully open mask pixel), "
-                                "got '%s'\n", optarg);
-                bad = -1;
-            }
-            break;
-        case OPT_PREVIEW:
-            if (strcmp(optarg, "auto") == 0 || strcmp(optarg, "fixed") == 0)
-                preview_auto = optarg[0] == 'a';
-            else {
-                fprintf(stderr, "scicap recon: --preview-range wants fixed or auto, got '%s'\n", optarg);
-                bad = -1;
-            }
-            break;
-        case OPT_CFA: {
-            sci_cfa tmp;
-            cfa_opt = optarg;
-            if (sci_cfa_parse(optarg, &tmp) < 0) {
-                fprintf(stderr, "scicap recon: --cfa wants RGGB, BGGR, GRBG, GBRG or none, got '%s'\n", optarg);
-                bad = -1;
-            }
-            break;
-        }
-        case OPT_DEMOSAIC:
-            if (sci_demosaic_parse(optarg, &demosaic) < 0) {
-                fprintf(stderr, "scicap recon: --demosaic wants mhc or bilinear, got '%s'\n", optarg);
-                bad = -1;
-            }
-            break;
-        case OPT_SEED: {
-            bad = parse_int(optarg, "--seed", 0, 1 << 30, &nf_seed);
-            break;
-        }
-        case 'q': o.quiet = 1; break;
-        case 'h':
-            usage(stdout);
-            printf("\nThrough the daemon (scicap recon --capture ID ...):\n\n");
-            cli_client_usage(stdout, "reconstruct");
+    if (strcmp(s, "auto") == 0) {
+        *out = auto_value;
+        return 0;
+    }
+    if (parse_double(s, opt, out) < 0)
+        return -1;
+    if (*out > 0)
+        return 0;
+    fprintf(stderr, "scicap recon: %s wants auto or a number > 0 (%s), got '%s'\n", opt, what, s);
+    return -1;
+}
+
+/* One of the command's own options (not a method setting). 0, 1 when c is not one of them, or -1 after a message. */
+static int take_own(recon_opts *o, int c, const char *arg)
+{
+    sci_cfa cfa;
+    sci_error err = {0};
+    switch (c) {
+    case 'm':
+        o->method = solver_list_find(o->methods, arg, &err);
+        return o->method ? 0 : (fprintf(stderr, "scicap recon: %s\n", err.msg), -1);
+    case 'o': o->out = arg; return 0;
+    case 'f': o->force = 1; return 0;
+    case 'q': o->quiet = 1; return 0;
+    case 'h': o->help = 1; return 0;
+    case 's': return parse_int(arg, "--snapshot", 1, 1 << 30, &o->snapshot);
+    case 'j': return parse_int(arg, "--threads", 1, 1024, &o->threads);
+    case OPT_ALLOW_LARGE: sci_io_limits_none(&o->limits); return 0;
+    case OPT_CKPT: o->ckpt_path = arg; return 0;
+    case OPT_CKPT_EVERY: return parse_int(arg, "--checkpoint-every", 1, 1 << 30, &o->ckpt_every);
+    case OPT_RESUME: o->resume_path = arg; return 0;
+    case OPT_MASK: o->mo.mask_path = arg; return 0;
+    case OPT_MASK_VAR: o->mo.mask_var = arg; return 0;
+    case OPT_MEAS_VAR: o->mo.meas_var = arg; return 0;
+    case OPT_TRUTH_VAR: o->mo.truth_var = arg; return 0;
+    case OPT_FRAMES: return parse_int(arg, "--frames", 1, 1 << 16, &o->mo.frames);
+    case OPT_SCALE: return parse_white(arg, "--scale", "the value of white", SCI_MAT_WHITE_AUTO, &o->mo.white);
+    case OPT_MASK_SCALE: return parse_white(arg, "--mask-scale", "a fully open mask pixel", 0, &o->mo.mask_white);
+    case OPT_PREVIEW:
+        if (strcmp(arg, "auto") == 0 || strcmp(arg, "fixed") == 0)
+            return o->preview_auto = arg[0] == 'a', 0;
+        fprintf(stderr, "scicap recon: --preview-range wants fixed or auto, got '%s'\n", arg);
+        return -1;
+    case OPT_CFA:
+        o->cfa_opt = arg;
+        if (sci_cfa_parse(arg, &cfa) == 0)
             return 0;
-        default: usage(stderr); return 2;
-        }
-        if (bad)
-            return 2;
+        fprintf(stderr, "scicap recon: --cfa wants RGGB, BGGR, GRBG, GBRG or none, got '%s'\n", arg);
+        return -1;
+    case OPT_DEMOSAIC:
+        if (sci_demosaic_parse(arg, &o->demosaic) == 0)
+            return 0;
+        fprintf(stderr, "scicap recon: --demosaic wants mhc or bilinear, got '%s'\n", arg);
+        return -1;
     }
-    /* Several inputs (or a folder of them, or a quoted glob): the batch of cli/batch.c, one scicap recon per input
-     * into OUTDIR/NAME, resumable. getopt has moved the options before the inputs. */
-    if (out && (optind < argc - 1 || (optind == argc - 1 && cli_batch_is_many(argv[optind]))))
-        return cli_batch_recon(optind - 1, argv + 1, argc - optind, argv + optind);
-    if (optind != argc - 1 || !out) {
-        fprintf(stderr, "scicap recon: %s\n", !out ? "-o OUTDIR is required" : "exactly one INPUT is required");
-        usage(stderr);
-        return 2;
-    }
-    const char *input = argv[optind];
-    /* The method's settings: its defaults, the preset, then the options given explicitly, in this order (the
-     * ablation step sets tv_weight, which --tv-weight then overrides). */
-    if (!(o.settings = solver_settings_new(o.method))) {
+    return 1;
+}
+
+/* The command line into o (argv is permuted: options first, as getopt_long leaves it). 0, 1 (out of memory), or 2
+ * after a message; o->help set by -h. Free o with recon_opts_free whatever it returns. */
+static int recon_opts_parse(recon_opts *o, const solver_ops *const *methods, int argc, char **argv)
+{
+    *o = (recon_opts){.methods = methods, .method = methods[0], .ckpt_every = 100, .demosaic = SCI_DEMOSAIC_MHC};
+    o->given.methods = methods;
+    sci_io_limits_default(&o->limits);
+    o->mo.limits = &o->limits;
+    if (!(o->all = cli_recon_opts_longopts(methods, longopts))) {
         fprintf(stderr, "scicap recon: out of memory\n");
         return 1;
     }
-    if (preset) {
-        solver_preset pr;
-        int deprecated;
-        sci_error perr = {0};
-        if (solver_preset_parse(preset, &pr, &deprecated, &perr) < 0) {
-            fprintf(stderr, "scicap recon: %s\n", perr.msg);
-            solver_settings_free(o.settings);
+    optind = 1;
+    int c, idx = -1;
+    while ((c = getopt_long(argc, argv, shortopts, o->all, &idx)) != -1) {
+        int rc = take_own(o, c, optarg);
+        if (rc == 1)
+            rc = cli_recon_opts_take(&o->given, o->all, c, idx, optarg);
+        if (rc == 1)
+            usage(stderr, o);
+        if (rc)
             return 2;
-        }
-        if (deprecated)
-            fprintf(stderr, "scicap recon: preset '%s' is deprecated: it is %s\n", preset, solver_preset_name(pr));
-        solver_settings_preset(o.method, o.settings, pr);
+        if (o->help)
+            return 0; /* the help, whatever follows */
+        idx = -1;
     }
-    opt_value ov[32];
-    int nov = 0;
-#define OPT_SET(k, opt, cond, val)                                                                                     \
-    do {                                                                                                               \
-        if (cond)                                                                                                      \
-            ov[nov++] = (opt_value){k, opt, val};                                                                      \
-    } while (0)
-    OPT_SET("accelerate", "--plain", plain, json_false());
-    OPT_SET("gamma", "--gamma", !isnan(gamma), json_real(gamma));
-    OPT_SET("ablation", "--ablation", nf_ablation >= 0, json_integer(nf_ablation));
-    OPT_SET("patch", "--patch", nf_patch, json_integer(nf_patch));
-    OPT_SET("patches_per_step", "--patches-per-step", nf_pps, json_integer(nf_pps));
-    OPT_SET("samples", "--samples", nf_samples, json_integer(nf_samples));
-    OPT_SET("lr", "--lr", !isnan(nf_lr), json_real(nf_lr));
-    OPT_SET("net_lr_scale", "--net-lr-scale", !isnan(nf_net_lr), json_real(nf_net_lr));
-    OPT_SET("spacing", "--spacing", nf_spacing, json_string(nf_spacing));
-    OPT_SET("distortion_weight", "--distortion", !isnan(nf_dist), json_real(nf_dist));
-    OPT_SET("prior_steps", "--prior-steps", nf_prior_steps >= 0, json_integer(nf_prior_steps));
-    OPT_SET("prior_weight", "--prior-weight", !isnan(nf_prior_w), json_real(nf_prior_w));
-    OPT_SET("density_bias", "--density-bias", !isnan(nf_dbias), json_real(nf_dbias));
-    OPT_SET("zero_gates", "--zero-gates", nf_zero_gates >= 0, json_integer(nf_zero_gates));
-    OPT_SET("sh_degree", "--sh-degree", nf_sh, json_integer(nf_sh));
-    OPT_SET("pose_mode", "--pose-mode", nf_pose >= 0, json_string(nf_pose_name));
-    OPT_SET("seed", "--seed", nf_seed >= 0, json_integer(nf_seed));
-    OPT_SET("iters", "--iters", iters > 0, json_integer(iters));
-    OPT_SET("lambda", "--lambda", !isnan(lambda), json_real(lambda));
-    OPT_SET("tv_weight", "--tv-weight", !isnan(tv_weight), json_real(tv_weight));
-    OPT_SET("tv_iters", "--tv-iters", tv_iters > 0, json_integer(tv_iters));
-    OPT_SET("metrics_every", "--metrics-every", metrics_every >= 0, json_integer(metrics_every));
-    OPT_SET("ssim_every", "--ssim-every", ssim_every >= 0, json_integer(ssim_every));
-#undef OPT_SET
-    static const char *const strict[] = {"ablation", NULL};
-    int arc = apply_options(&o, ov, nov, strict);
-    for (int i = 0; i < nov; i++)
-        json_decref(ov[i].value);
-    if (arc == 0 && n_set)
-        arc = apply_sets(&o, set_kv, n_set);
-    if (threads)
-        omp_set_num_threads(threads);
-    sci_error err = {0};
-    if (arc == 0 && solver_settings_check(o.method, o.settings, &err) < 0) {
-        fprintf(stderr, "scicap recon: %s\n", err.msg);
-        arc = 2;
-    }
+    return 0;
+}
+
+static void recon_opts_free(recon_opts *o)
+{
+    solver_settings_free(o->settings);
+    free(o->all);
+}
+
+/* The method's settings from the options, and what they allow. 0, 1 (out of memory) or 2 after a message. */
+static int recon_opts_settings(recon_opts *o)
+{
     char names[256];
-    if (arc == 0 && (ckpt_path || resume_path) && !(o.method->caps & SOLVER_CHECKPOINTS)) {
-        fprintf(stderr, "scicap recon: --checkpoint and --resume are for %s\n",
-                methods_with(names, sizeof names, SOLVER_CHECKPOINTS, 1));
-        arc = 2;
-    }
-    if (arc) {
-        solver_settings_free(o.settings);
-        return arc;
-    }
-    if (access(out, F_OK) == 0 && !force) {
-        fprintf(stderr, "scicap recon: %s already exists (use --force to replace it)\n", out);
+    if (!(o->settings = solver_settings_new(o->method))) {
+        fprintf(stderr, "scicap recon: out of memory\n");
         return 1;
     }
+    int rc = cli_recon_opts_apply(&o->given, o->method, o->settings);
+    if (o->threads)
+        omp_set_num_threads(o->threads);
+    if (rc == 0 && (o->ckpt_path || o->resume_path) && !(o->method->caps & SOLVER_CHECKPOINTS)) {
+        fprintf(stderr, "scicap recon: --checkpoint and --resume are for %s\n",
+                methods_with(o->methods, names, sizeof names, SOLVER_CHECKPOINTS, 1));
+        rc = 2;
+    }
+    return rc;
+}
 
-    /* Limits before any work (io/limits.h): what the input declares, and what writing it would make. */
+/* Before any work: the output may be written (--force), the input's declared sizes and what writing them would
+ * make are within the limits (io/limits.h), the output's folder is there and writable (not after hours of
+ * solving). 0, 1 or 2 after a message. */
+static int recon_check_output(const recon_opts *o)
+{
+    sci_error err = {0};
     long long dw, dh, dn, dk;
-    int rrc = sci_source_probe(input, &mo, &dw, &dh, &dn, &dk, &err);
-    if (rrc == 0) {
+    if (access(o->out, F_OK) == 0 && !o->force) {
+        fprintf(stderr, "scicap recon: %s already exists (use --force to replace it)\n", o->out);
+        return 1;
+    }
+    int rc = sci_source_probe(o->input, &o->mo, &dw, &dh, &dn, &dk, &err);
+    if (rc == 0) {
         double bytes, files;
-        const long long nsel = snapshot ? 1 : dk;
+        const long long nsel = o->snapshot ? 1 : dk;
         sci_recon_store_estimate(dw, dh, dn, nsel, &bytes, &files);
         char what[4400];
-        snprintf(what, sizeof what, "%s (from %s: %lld snapshot(s) of %lldx%lld pixels, %lld frames each)", out,
-                 input, nsel, dw, dh, dn);
-        rrc = sci_io_limits_check_output(&limits, what, bytes, files + (nsel > 1), &err);
+        snprintf(what, sizeof what, "%s (from %s: %lld snapshot(s) of %lldx%lld pixels, %lld frames each)", o->out,
+                 o->input, nsel, dw, dh, dn);
+        rc = sci_io_limits_check_output(&o->limits, what, bytes, files + (nsel > 1), &err);
     }
-    if (rrc < 0) {
+    if (rc < 0) {
         fprintf(stderr, "scicap recon: %s\n", err.msg);
-        return rrc == -EINVAL ? 2 : 1;
+        return rc == -EINVAL ? 2 : 1;
     }
-    /* The output's folder must be there and writable before hours of solving, not after. */
-    {
-        char parent[4096];
-        snprintf(parent, sizeof parent, "%s", out);
-        char *slash = strrchr(parent, '/');
-        while (slash && slash > parent && slash[1] == 0) /* "out/" */
-            *slash = 0, slash = strrchr(parent, '/');
-        if (!slash)
-            snprintf(parent, sizeof parent, ".");
-        else
-            slash[slash == parent] = 0; /* "/out" keeps "/" */
-        if (access(parent, W_OK | X_OK) != 0) {
-            fprintf(stderr, "scicap recon: cannot write %s: %s: %s\n", out, parent, strerror(errno));
-            return 1;
-        }
-    }
-    sci_problem **probs = NULL;
-    int k = 0;
-    sci_mat_info minfo = {0};
-    rrc = sci_source_read_opts(input, &mo, &probs, &k, &minfo, &err);
-    if (rrc < 0) {
-        fprintf(stderr, "scicap recon: %s\n", err.msg);
-        return rrc == -EINVAL ? 2 : 1;
-    }
-    if (minfo.how[0])
-        fprintf(stderr, "scicap recon: scale: %s (override with --scale / --mask-scale)\n", minfo.how);
-    if (minfo.warning[0])
-        fprintf(stderr, "scicap recon: WARNING: %s\n", minfo.warning);
-    /* Colour: a folder from a colour scene names its CFA and keeps the RGB truth; --cfa overrides (none: grey). */
-    int cfa_i = SCI_CFA_NONE, kc = 0;
-    sci_cube **truth_rgb = NULL;
-    if (!sci_source_is_mat(input) && sci_problem_dir_read_color(input, &cfa_i, &truth_rgb, &kc, &err) < 0) {
-        fprintf(stderr, "scicap recon: %s\n", err.msg);
-        sci_problem_array_free(probs, k);
+    char parent[4096];
+    snprintf(parent, sizeof parent, "%s", o->out);
+    char *slash = strrchr(parent, '/');
+    while (slash && slash > parent && slash[1] == 0) /* "out/" */
+        *slash = 0, slash = strrchr(parent, '/');
+    if (!slash)
+        snprintf(parent, sizeof parent, ".");
+    else
+        slash[slash == parent] = 0; /* "/out" keeps "/" */
+    if (access(parent, W_OK | X_OK) != 0) {
+        fprintf(stderr, "scicap recon: cannot write %s: %s: %s\n", o->out, parent, strerror(errno));
         return 1;
     }
-    sci_cfa cfa = (sci_cfa)cfa_i;
-    if (cfa_opt)
-        sci_cfa_parse(cfa_opt, &cfa);
-    if (cfa != SCI_CFA_NONE && (o.method->caps & SOLVER_NEEDS_CAMERA)) {
-        char plain_methods[256];
+    return 0;
+}
+
+/* One run over the input's snapshots: what it read and holds until recon_job_free. */
+typedef struct recon_job {
+    const recon_opts *o;
+    sci_problem **probs;
+    int k, first, last;
+    sci_mat_info minfo;
+    sci_cube **truth_rgb; /* a colour folder's RGB truth, kc of them, or NULL */
+    int kc;
+    sci_cfa cfa;
+    void *resume_blob;
+    ckpt_file ck;
+    solver_io io;
+    json_t *params, *input_info;
+    char stage[4096];     /* OUTDIR.tmp-PID of several snapshots, "" for one */
+} recon_job;
+
+static void recon_job_free(recon_job *j)
+{
+    json_decref(j->params);
+    json_decref(j->input_info);
+    for (int i = 0; j->truth_rgb && i < j->kc; i++)
+        sci_cube_free(j->truth_rgb[i]);
+    free(j->truth_rgb);
+    free(j->resume_blob);
+    sci_problem_array_free(j->probs, j->k);
+}
+
+/* Read the input (and a colour folder's CFA and RGB truth), check what it allows, read the checkpoint to resume.
+ * 0, 1 or 2 after a message. */
+static int recon_job_load(recon_job *j, const recon_opts *o)
+{
+    sci_error err = {0};
+    char names[256];
+    *j = (recon_job){.o = o, .cfa = SCI_CFA_NONE, .ck = {.path = o->ckpt_path}};
+    int rc = sci_source_read_opts(o->input, &o->mo, &j->probs, &j->k, &j->minfo, &err);
+    if (rc < 0) {
+        fprintf(stderr, "scicap recon: %s\n", err.msg);
+        return rc == -EINVAL ? 2 : 1;
+    }
+    if (j->minfo.how[0])
+        fprintf(stderr, "scicap recon: scale: %s (override with --scale / --mask-scale)\n", j->minfo.how);
+    if (j->minfo.warning[0])
+        fprintf(stderr, "scicap recon: WARNING: %s\n", j->minfo.warning);
+    /* Colour: a folder from a colour scene names its CFA and keeps the RGB truth; --cfa overrides (none: grey). */
+    int cfa = SCI_CFA_NONE;
+    if (!sci_source_is_mat(o->input) && sci_problem_dir_read_color(o->input, &cfa, &j->truth_rgb, &j->kc, &err) < 0) {
+        fprintf(stderr, "scicap recon: %s\n", err.msg);
+        return 1;
+    }
+    j->cfa = (sci_cfa)cfa;
+    if (o->cfa_opt)
+        sci_cfa_parse(o->cfa_opt, &j->cfa);
+    if (j->cfa != SCI_CFA_NONE && (o->method->caps & SOLVER_NEEDS_CAMERA)) {
         fprintf(stderr, "scicap recon: %s is a Bayer mosaic; colour reconstruction runs %s per CFA plane (--cfa none "
-                        "reconstructs it as grey)\n", input,
-                methods_with(plain_methods, sizeof plain_methods, SOLVER_NEEDS_CAMERA, 0));
-        for (int j = 0; truth_rgb && j < kc; j++)
-            sci_cube_free(truth_rgb[j]);
-        free(truth_rgb);
-        sci_problem_array_free(probs, k);
+                        "reconstructs it as grey)\n", o->input,
+                methods_with(o->methods, names, sizeof names, SOLVER_NEEDS_CAMERA, 0));
         return 2;
     }
-    if (snapshot > k) {
-        fprintf(stderr, "scicap recon: %s has %d snapshot(s); --snapshot %d is out of range\n", input, k, snapshot);
-        sci_problem_array_free(probs, k);
+    if (o->snapshot > j->k) {
+        fprintf(stderr, "scicap recon: %s has %d snapshot(s); --snapshot %d is out of range\n", o->input, j->k,
+                o->snapshot);
         return 2;
     }
-    int first = snapshot ? snapshot - 1 : 0, last = snapshot ? snapshot - 1 : k - 1, status = 0;
-    if ((ckpt_path || resume_path) && first != last) {
-        fprintf(stderr, "scicap recon: %s has %d snapshots; a checkpoint belongs to one (add --snapshot J)\n", input,
-                k);
-        sci_problem_array_free(probs, k);
+    j->first = o->snapshot ? o->snapshot - 1 : 0, j->last = o->snapshot ? o->snapshot - 1 : j->k - 1;
+    if ((o->ckpt_path || o->resume_path) && j->first != j->last) {
+        fprintf(stderr, "scicap recon: %s has %d snapshots; a checkpoint belongs to one (add --snapshot J)\n",
+                o->input, j->k);
         return 2;
     }
-    ckpt_file ck = {.path = ckpt_path};
-    solver_io io = {.progress = cli_progress_update};
-    void *resume_blob = NULL;
-    size_t resume_bytes = 0;
-    if (resume_path) {
-        if (sci_file_read(resume_path, (size_t)16 << 30, &resume_blob, &resume_bytes, &err) < 0) {
+    j->io = (solver_io){.progress = cli_progress_update};
+    if (o->resume_path) {
+        if (sci_file_read(o->resume_path, (size_t)16 << 30, &j->resume_blob, &j->io.resume_bytes, &err) < 0) {
             fprintf(stderr, "scicap recon: --resume: %s\n", err.msg);
-            sci_problem_array_free(probs, k);
             return 1;
         }
-        io.resume = resume_blob;
-        io.resume_bytes = resume_bytes;
+        j->io.resume = j->resume_blob;
     }
-    if (ckpt_path) {
-        io.checkpoint_fn = write_checkpoint;
-        io.checkpoint_user = &ck;
-        io.checkpoint_every = ckpt_every;
+    if (o->ckpt_path)
+        j->io.checkpoint_fn = write_checkpoint, j->io.checkpoint_user = &j->ck, j->io.checkpoint_every = o->ckpt_every;
+    return 0;
+}
+
+/* A colour snapshot (cli/recon_color.h). 0, or 1 after a message. */
+static int recon_snapshot_color(recon_job *j, const sci_problem *p, int s, const char *dir, const char *shown)
+{
+    const recon_opts *o = j->o;
+    sci_error err = {0};
+    const cli_color_job job = {.cfa = j->cfa, .demosaic = o->demosaic, .method = o->method, .settings = o->settings,
+                               .params = j->params, .quiet = o->quiet, .preview_auto = o->preview_auto,
+                               .extra = j->input_info, .stop = &stop_requested};
+    int rc = cli_recon_color(&job, p, j->truth_rgb && s < j->kc ? j->truth_rgb[s] : NULL, dir, o->force, &err);
+    if (rc == SCI_ECANCELED || stop_requested) {
+        fprintf(stderr, "scicap recon: interrupted; %s not written\n", o->out);
+        return 1;
     }
-    struct sigaction sa = {.sa_handler = on_stop_signal, .sa_flags = SA_RESETHAND}, old_sig[STOP_SIGNALS];
-    sigemptyset(&sa.sa_mask);
-    for (int i = 0; i < STOP_SIGNALS; i++)
-        sigaction(stop_signals[i], &sa, &old_sig[i]);
-    clean_stale_stages(out);
-    json_t *params = params_json(&o, resume_blob != NULL), *input_info = input_json(&minfo);
-    /* Several snapshots: all of them go into OUTDIR.tmp-PID, renamed to OUTDIR once the last is written (one alone
-     * is staged by the store itself). Nothing is published on failure or on a signal. */
-    char stage[4096] = "";
-    if (first != last) {
-        if (sci_staging_name(stage, sizeof stage, out) < 0 || mkdir(stage, 0755) != 0) {
-            fprintf(stderr, "scicap recon: %s: %s\n", stage[0] ? stage : out, strerror(errno ? errno : ENAMETOOLONG));
-            status = 1;
-        }
+    if (rc < 0) {
+        fprintf(stderr, "scicap recon: %s\n", err.msg);
+        return 1;
     }
-    for (int j = first; j <= last && status == 0; j++) {
-        const sci_problem *p = probs[j];
-        printf("%s: %s, %dx%d, %d frames per snapshot%s\n", p->name, o.method->name,
-               p->mask->w, p->mask->h, p->mask->n, p->truth ? ", truth known" : "");
-        fflush(stdout);
-        cli_progress prog;
-        const int total = solver_settings_iters(o.method, o.settings);
-        cli_progress_init(&prog, o.quiet ? -1 : 2, total);
-        prog.stop = &stop_requested;
-        char dir[4096], shown[4096];
-        snprintf(shown, sizeof shown, first == last ? "%s" : "%s/snap_%03d", out, j + 1);
-        if (first == last)
-            snprintf(dir, sizeof dir, "%s", out);
-        else
-            snprintf(dir, sizeof dir, "%s/snap_%03d", stage, j + 1);
-        if (cfa != SCI_CFA_NONE) {
-            const cli_color_job job = {.cfa = cfa, .demosaic = demosaic, .method = o.method, .settings = o.settings,
-                                       .params = params, .quiet = o.quiet, .preview_auto = preview_auto,
-                                       .extra = input_info, .stop = &stop_requested};
-            int crc = cli_recon_color(&job, p, truth_rgb && j < kc ? truth_rgb[j] : NULL, dir, force, &err);
-            if (crc == SCI_ECANCELED || stop_requested) {
-                fprintf(stderr, "scicap recon: interrupted; %s not written\n", out);
-                status = 1;
-            } else if (crc < 0) {
-                fprintf(stderr, "scicap recon: %s\n", err.msg);
-                status = 1;
-            } else {
-                printf("  wrote %s/ (RGB: rgb_NNN.exr, preview_rgb_NNN.png)\n", shown);
-            }
-            continue;
-        }
-        sci_result r = {0};
-        int64_t t0 = sci_clock_mono_ns();
-        io.user = &prog;
-        int rc = solver_run(o.method, p, o.settings, &io, &r);
-        double secs = sci_clock_s(t0, sci_clock_mono_ns());
-        cli_progress_done(&prog);
-        if (rc == SCI_ECANCELED || (rc == 0 && stop_requested)) {
-            fprintf(stderr, "scicap recon: interrupted after %d iterations; %s not written", r.iters_done, out);
-            if (ck.written)
-                fprintf(stderr, "; checkpoint of step %d in %s (continue with --resume %s)", ck.iter, ck.path,
-                        ck.path);
-            fprintf(stderr, "\n");
-            sci_result_free_contents(&r);
-            status = 1;
-            break;
-        }
-        if (rc < 0) {
-            fprintf(stderr, "scicap recon: %s\n", r.error.msg);
-            sci_result_free_contents(&r);
-            status = 1;
-            break;
-        }
+    printf("  wrote %s/ (RGB: rgb_NNN.exr, preview_rgb_NNN.png)\n", shown);
+    return 0;
+}
+
+/* A grey snapshot: solve with a progress bar, print the levels and metrics, write the result folder. 0, or 1
+ * after a message. */
+static int recon_snapshot_grey(recon_job *j, const sci_problem *p, const char *dir, const char *shown)
+{
+    const recon_opts *o = j->o;
+    sci_error err = {0};
+    sci_result r = {0};
+    cli_progress prog;
+    cli_progress_init(&prog, o->quiet ? -1 : 2, solver_settings_iters(o->method, o->settings));
+    prog.stop = &stop_requested;
+    int64_t t0 = sci_clock_mono_ns();
+    j->io.user = &prog;
+    int rc = solver_run(o->method, p, o->settings, &j->io, &r);
+    double secs = sci_clock_s(t0, sci_clock_mono_ns());
+    cli_progress_done(&prog);
+    if (rc == SCI_ECANCELED || (rc == 0 && stop_requested)) {
+        fprintf(stderr, "scicap recon: interrupted after %d iterations; %s not written", r.iters_done, o->out);
+        if (j->ck.written)
+            fprintf(stderr, "; checkpoint of step %d in %s (continue with --resume %s)", j->ck.iter, j->ck.path,
+                    j->ck.path);
+        fprintf(stderr, "\n");
+    } else if (rc < 0) {
+        fprintf(stderr, "scicap recon: %s\n", r.error.msg);
+    } else {
         double solver_s = r.trace.len ? r.trace.e[r.trace.len - 1].wall_s : secs;
         printf("  %d iterations in %.3f s solver time (%.3f s with trace metrics), final residual %.3g\n",
                r.iters_done, solver_s, secs, r.trace.len ? r.trace.e[r.trace.len - 1].residual : NAN);
         print_levels(p, &r);
         if (p->truth)
             print_metrics(p, &r);
-        const sci_recon_store_opts so = {.extra = input_info, .stop = &stop_requested, .preview_auto = preview_auto,
-                                         .flags = first == last && force ? SCI_STAGING_OVERWRITE : 0};
-        int wrc = sci_recon_store_write_with(dir, p, &r, params, &so, &err);
-        if (wrc == SCI_ECANCELED) {
-            fprintf(stderr, "scicap recon: interrupted while writing; %s not written\n", out);
-            status = 1;
-        } else if (wrc < 0) {
+        const sci_recon_store_opts so = {.extra = j->input_info, .stop = &stop_requested,
+                                         .preview_auto = o->preview_auto,
+                                         .flags = j->first == j->last && o->force ? SCI_STAGING_OVERWRITE : 0};
+        rc = sci_recon_store_write_with(dir, p, &r, j->params, &so, &err);
+        if (rc == SCI_ECANCELED)
+            fprintf(stderr, "scicap recon: interrupted while writing; %s not written\n", o->out);
+        else if (rc < 0)
             fprintf(stderr, "scicap recon: %s\n", err.msg);
-            status = 1;
-        } else {
+        else
             printf("  wrote %s/\n", shown);
-        }
-        sci_result_free_contents(&r);
     }
-    if (stage[0] && status == 0) {
-        if (sci_staging_publish(stage, out, force ? SCI_STAGING_OVERWRITE : 0, &stop_requested, &err) < 0) {
+    sci_result_free_contents(&r);
+    return rc < 0 || stop_requested ? 1 : 0;
+}
+
+/* Snapshot s into OUTDIR, or into the staging folder's snap_NNN when there are several. 0, or 1 after a message. */
+static int recon_snapshot(recon_job *j, int s)
+{
+    const sci_problem *p = j->probs[s];
+    const char *out = j->o->out;
+    char dir[4200], shown[4200];
+    printf("%s: %s, %dx%d, %d frames per snapshot%s\n", p->name, j->o->method->name, p->mask->w, p->mask->h,
+           p->mask->n, p->truth ? ", truth known" : "");
+    fflush(stdout);
+    if (j->first == j->last) {
+        snprintf(shown, sizeof shown, "%s", out);
+        snprintf(dir, sizeof dir, "%s", out);
+    } else {
+        snprintf(shown, sizeof shown, "%s/snap_%03d", out, s + 1);
+        snprintf(dir, sizeof dir, "%s/snap_%03d", j->stage, s + 1);
+    }
+    if (j->cfa != SCI_CFA_NONE)
+        return recon_snapshot_color(j, p, s, dir, shown);
+    return recon_snapshot_grey(j, p, dir, shown);
+}
+
+/* Every selected snapshot, with the stop signals caught; several are staged in OUTDIR.tmp-PID and published
+ * together once the last is written (one alone is staged by the store itself); nothing is published on failure or
+ * on a signal. Returns the exit status. */
+static int recon_job_run(recon_job *j)
+{
+    const recon_opts *o = j->o;
+    sci_error err = {0};
+    int status = 0;
+    struct sigaction sa = {.sa_handler = on_stop_signal, .sa_flags = SA_RESETHAND}, old_sig[STOP_SIGNALS];
+    sigemptyset(&sa.sa_mask);
+    for (int i = 0; i < STOP_SIGNALS; i++)
+        sigaction(stop_signals[i], &sa, &old_sig[i]);
+    clean_stale_stages(o->out);
+    j->params = params_json(o, j->resume_blob != NULL);
+    j->input_info = input_json(&j->minfo);
+    if (j->first != j->last && (sci_staging_name(j->stage, sizeof j->stage, o->out) < 0 || mkdir(j->stage, 0755))) {
+        fprintf(stderr, "scicap recon: %s: %s\n", j->stage[0] ? j->stage : o->out,
+                strerror(errno ? errno : ENAMETOOLONG));
+        status = 1;
+    }
+    for (int s = j->first; s <= j->last && status == 0; s++)
+        status = recon_snapshot(j, s);
+    if (j->stage[0] && status == 0) {
+        if (sci_staging_publish(j->stage, o->out, o->force ? SCI_STAGING_OVERWRITE : 0, &stop_requested, &err) < 0) {
             if (err.code != SCI_ECANCELED)
                 fprintf(stderr, "scicap recon: %s\n", err.msg);
             status = 1;
         } else {
-            printf("wrote %s/\n", out);
+            printf("wrote %s/\n", o->out);
         }
-    } else if (stage[0]) {
-        sci_staging_remove(stage);
+    } else if (j->stage[0]) {
+        sci_staging_remove(j->stage);
     }
     for (int i = 0; i < STOP_SIGNALS; i++)
         sigaction(stop_signals[i], &old_sig[i], NULL);
+    if (o->ckpt_path && j->ck.written && status == 0)
+        printf("  checkpoint of step %d in %s\n", j->ck.iter, o->ckpt_path);
+    return status;
+}
+
+/* The options checked and the input read, then the run; the exit status. */
+static int recon_run(recon_opts *o)
+{
+    recon_job j;
+    int status = recon_opts_settings(o);
+    if (status == 0)
+        status = recon_check_output(o);
+    if (status)
+        return status;
+    status = recon_job_load(&j, o);
+    if (status == 0)
+        status = recon_job_run(&j);
+    recon_job_free(&j);
+    return status;
+}
+
+int cli_recon_main(int argc, char **argv)
+{
+    /* `scicap recon --capture ID` asks the daemon to reconstruct one of its captures. */
+    for (int i = 1; i < argc; i++)
+        if (strcmp(argv[i], "--capture") == 0 || strncmp(argv[i], "--capture=", 10) == 0)
+            return cli_client_recon(argc, argv);
+    recon_opts o;
+    int status = recon_opts_parse(&o, solver_list(NULL), argc, argv);
+    if (status == 0 && o.help) {
+        usage(stdout, &o);
+        printf("\nThrough the daemon (scicap recon --capture ID ...):\n\n");
+        cli_client_usage(stdout, "reconstruct");
+    } else if (status == 0 && o.out &&
+               (optind < argc - 1 || (optind == argc - 1 && cli_batch_is_many(argv[optind])))) {
+        /* Several inputs (or a folder of them, or a quoted glob): the batch of cli/batch.c, one scicap recon per
+         * input into OUTDIR/NAME, resumable. getopt has moved the options before the inputs. */
+        status = cli_batch_recon(optind - 1, argv + 1, argc - optind, argv + optind);
+    } else if (status == 0 && (optind != argc - 1 || !o.out)) {
+        fprintf(stderr, "scicap recon: %s\n", !o.out ? "-o OUTDIR is required" : "exactly one INPUT is required");
+        usage(stderr, &o);
+        status = 2;
+    } else if (status == 0) {
+        o.input = argv[optind];
+        status = recon_run(&o);
+    }
+    recon_opts_free(&o);
+    /* A stop signal ends the process with that signal, after the cleanup, so a calling shell loop stops too. */
     const int sig = stop_requested;
-    if (ckpt_path && ck.written && status == 0)
-        printf("  checkpoint of step %d in %s\n", ck.iter, ckpt_path);
-    json_decref(params);
-    json_decref(input_info);
-    for (int j = 0; truth_rgb && j < kc; j++)
-        sci_cube_free(truth_rgb[j]);
-    free(truth_rgb);
-    free(resume_blob);
-    solver_settings_free(o.settings);
-    sci_problem_array_free(probs, k);
     if (sig) {
         fflush(NULL);
         signal(sig, SIG_DFL);

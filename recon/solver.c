@@ -85,12 +85,22 @@ int solver_list_check(sci_error *err)
     return 0;
 }
 
+const solver_ops *solver_list_find(const solver_ops *const *list, const char *name, sci_error *err)
+{
+    for (size_t i = 0; name && list[i]; i++)
+        if (strcmp(list[i]->name, name) == 0)
+            return list[i];
+    char names[256] = "";
+    size_t off = 0;
+    for (size_t i = 0; err && list[i] && off < sizeof names; i++)
+        off += (size_t)snprintf(names + off, sizeof names - off, "%s%s", i ? ", " : "", list[i]->name);
+    sci_error_set(err, -EINVAL, "unknown method '%.64s' (%s)", name ? name : "", names);
+    return NULL;
+}
+
 const solver_ops *solver_find(const char *name)
 {
-    for (size_t i = 0; name && solvers[i]; i++)
-        if (strcmp(solvers[i]->name, name) == 0)
-            return solvers[i];
-    return NULL;
+    return solver_list_find(solvers, name, NULL);
 }
 
 char *solver_names_text(char *buf, size_t n, const char *sep)
@@ -105,13 +115,7 @@ char *solver_names_text(char *buf, size_t n, const char *sep)
 
 const solver_ops *solver_find_err(const char *name, sci_error *err)
 {
-    const solver_ops *m = solver_find(name);
-    if (!m) {
-        char names[256];
-        sci_error_set(err, -EINVAL, "unknown method '%.64s' (%s)", name ? name : "",
-                      solver_names_text(names, sizeof names, ", "));
-    }
-    return m;
+    return solver_list_find(solvers, name, err);
 }
 
 void *solver_settings_new(const solver_ops *m)

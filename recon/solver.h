@@ -149,6 +149,10 @@ const solver_ops *const *solver_list(size_t *count);
 /* 0, or -EINVAL naming the first row of the table that breaks a rule every interface relies on (settings_size
  * within SOLVER_SETTINGS_MAX, an "iters" field, names unique, presets and bench grids present). */
 int solver_list_check(sci_error *err);
+/* The method called `name` in `list` (a NULL-terminated table like solver_list's), or NULL; with err (nullable)
+ * set to -EINVAL "unknown method 'x' (the list's names)". Interfaces that take the table as a parameter (the
+ * command line, so a test can hand it a table with an extra method) find methods through this. */
+const solver_ops *solver_list_find(const solver_ops *const *list, const char *name, sci_error *err);
 /* The method called `name`, or NULL. */
 const solver_ops *solver_find(const char *name);
 /* The method called `name`, or NULL with -EINVAL in err: "unknown method 'x' (gap-tv, admm-tv, ...)". */

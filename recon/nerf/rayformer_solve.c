@@ -12,7 +12,10 @@
 
 #include "recon/nerf/rayformer.h"
 
-const char *const sci_rayformer_ablation_names[5] = {"baseline", "+patch", "+inter", "+intra", "+tv"};
+/* The ablation ladder's steps, written once: the labels ("+patch", as reports print them) and, without the '+', the
+ * names the "ablation" key takes (rf_fields below). */
+static const char step_patch[] = "+patch", step_inter[] = "+inter", step_intra[] = "+intra", step_tv[] = "+tv";
+const char *const sci_rayformer_ablation_names[5] = {"baseline", step_patch, step_inter, step_intra, step_tv};
 
 void sci_rayformer_params_default(sci_rayformer_params *p)
 {
@@ -277,7 +280,8 @@ int sci_rayformer_solve_ex(const sci_problem *problem, const sci_rayformer_param
 
 /* --- the method's row in the solver table (recon/solver.h) ------------------------------------------------ */
 
-static const char *const ablation_steps[] = {"baseline", "patch", "inter", "intra", "tv", NULL};
+static const char *const ablation_steps[] = {"baseline", step_patch + 1, step_inter + 1, step_intra + 1, step_tv + 1,
+                                             NULL};
 #define RF(k, t, f, lo, hi, help) {k, t, offsetof(sci_rayformer_params, f), lo, hi, NULL, 0, help}
 static const solver_field rf_fields[] = {
     RF("patch", SOLVER_FIELD_INT, patch, 2, 16, "patch side: 2, 4, 8 or 16"),
