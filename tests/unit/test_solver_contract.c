@@ -1,5 +1,6 @@
-/* Solver contract: cancel through the progress callback, divergence noticed and reported, bad input refused,
- * results independent of thread count, the trace filled every iteration. Small synthetic problems: fast. */
+/* tests/unit/test_solver_contract.c — the solver contract (recon/gaptv.h) on gap-tv and admm-tv: cancel through
+ * the progress callback, divergence noticed and reported, bad input refused, results independent of thread count,
+ * the trace filled every iteration. Small synthetic problems: fast. (The method table itself: test_solver.c.) */
 #include <errno.h>
 #include <math.h>
 #include <omp.h>
