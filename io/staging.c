@@ -106,6 +106,8 @@ int sci_staging_publish(const char *tmp, const char *dir, int flags, const volat
     sigemptyset(&block);
     sigaddset(&block, SIGINT);
     sigaddset(&block, SIGTERM);
+    sigaddset(&block, SIGHUP);  /* a closed terminal and Ctrl-\ stop the CLI as Ctrl-C does (cli/recon.c, */
+    sigaddset(&block, SIGQUIT); /* cli/batch.c): they must not fall between the check and the rename either */
     pthread_sigmask(SIG_BLOCK, &block, &old);
     int rc = 0;
     struct stat st;

@@ -8,8 +8,8 @@
  *     rc = sci_staging_publish(tmp, out, force ? SCI_STAGING_OVERWRITE : 0, &stop_flag, &err);
  *     // or sci_staging_remove(tmp) on failure
  *
- * `stop` is a signal handler's flag (e.g. SIGINT/SIGTERM): once nonzero nothing is published. The check and
- * the rename run with SIGINT and SIGTERM blocked in the calling thread, so a signal is seen either before the
+ * `stop` is a signal handler's flag (SIGINT, SIGTERM, SIGHUP, SIGQUIT): once nonzero nothing is published. The
+ * check and the rename run with those four blocked in the calling thread, so a signal is seen either before the
  * rename (nothing published, SCI_ECANCELED) or after it (the output was complete when it came).
  * Blocks on file-system calls; reentrant (no state beyond the folders named).
  */

@@ -2,6 +2,7 @@
 fails alone; the summary; resuming runs only what has no output; Ctrl-C stops the jobs and keeps the state.
 (Slurm: make check-slurm.)"""
 import json
+import os
 import signal
 import subprocess
 import time
@@ -74,3 +75,29 @@ def test_batch_ctrl_c_keeps_state(scicap_bin, tmp_path):
     assert proc.returncode == -signal.SIGINT, err  # it dies of the signal, as a shell loop expects
     assert "interrupted" in err and set(states(out).values()) == {"pending"}
     assert sorted(p.name for p in out.iterdir()) == [".batch"]  # nothing half-written left
+
+
+def test_batch_sighup_status_129_no_temporary_folders(scicap_bin, tmp_path):
+    """A closed terminal (SIGHUP) stops a batch as Ctrl-C does: the shell that ran it sees 128 + 1, the state is
+    kept, and neither OUTDIR nor the inputs hold a staging folder (NAME.tmp-PID) afterwards."""
+    for i in (1, 2):
+        scicap.write_problem_dir(tmp_path / "in" / f"p{i}", small(i), previews=False)
+    out = tmp_path / "out"
+    pidfile = tmp_path / "batch.pid"
+    script = '"$@" & echo $! > "$PIDFILE"; wait $!; echo "status=$?"'
+    proc = subprocess.Popen(["sh", "-c", script, "sh", str(scicap_bin), "batch", str(tmp_path / "in"), "-o",
+                             str(out), "--", "--iters", "10000000", "--metrics-every", "0", "--ssim-every", "0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PIDFILE": str(pidfile)})
+    deadline = time.monotonic() + 20
+    while not (pidfile.exists() and pidfile.read_text().strip() and (out / ".batch" / "state.json").exists()
+               and "running" in states(out).values()):
+        assert time.monotonic() < deadline and proc.poll() is None
+        time.sleep(0.05)
+    os.kill(int(pidfile.read_text()), signal.SIGHUP)
+    so, err = proc.communicate(timeout=20)
+    assert "status=129" in so, so + err
+    assert "interrupted" in err and set(states(out).values()) == {"pending"}
+    assert sorted(p.name for p in out.iterdir()) == [".batch"]
+    left = [str(p) for p in tmp_path.rglob("*") if ".tmp-" in p.name]
+    assert left == [], left
