@@ -635,7 +635,7 @@ static const char *default_socket(void)
 
 enum { O_SOCKET = 1000, O_JSON, O_FROM, O_MASK, O_MASK_VAR, O_MEAS_VAR, O_TRUTH_VAR, O_SCALE, O_MASK_SET, O_COUNT,
        O_EXPOSURE, O_PATTERN, O_DARK_US, O_SYNC_MODE, O_RECON, O_METHOD, O_PRESET, O_WAIT, O_DARK, O_MASKS, O_AVERAGE,
-       O_CAPTURE, O_ITERS, O_BUDGET, O_ALL, O_HELP };
+       O_CAPTURE, O_ITERS, O_BUDGET, O_ALL, O_ALLOW_LARGE, O_HELP };
 
 /* One getopt table per command, so each accepts exactly its own options and its --help lists exactly those
  * (tests/integration/test_cli_help.c reads these tables). */
@@ -654,7 +654,7 @@ static const struct option capture_opts[] = {
     {"wait", no_argument, 0, O_WAIT}, {"from", required_argument, 0, O_FROM}, {"mask", required_argument, 0, O_MASK},
     {"mask-var", required_argument, 0, O_MASK_VAR}, {"meas-var", required_argument, 0, O_MEAS_VAR},
     {"truth-var", required_argument, 0, O_TRUTH_VAR}, {"scale", required_argument, 0, O_SCALE},
-    {"help", no_argument, 0, O_HELP}, {0, 0, 0, 0}};
+    {"allow-large", no_argument, 0, O_ALLOW_LARGE}, {"help", no_argument, 0, O_HELP}, {0, 0, 0, 0}};
 static const struct option calibrate_opts[] = {
     {"socket", required_argument, 0, O_SOCKET}, {"dark", no_argument, 0, O_DARK}, {"masks", no_argument, 0, O_MASKS},
     {"mask-set", required_argument, 0, O_MASK_SET}, {"average", required_argument, 0, O_AVERAGE},
@@ -692,6 +692,9 @@ static const struct { const char *name, *arg, *text, *key; } opt_help[] = {
     {"meas-var", "V", "with --from: the measurements' variable (default meas)", "meas_var"},
     {"truth-var", "V", "with --from: the ground truth's variable (default orig, optional)", "truth_var"},
     {"scale", "auto|N", "with --from: the data's white level (default auto: inferred from the data and said)", "scale"},
+    {"allow-large", NULL, "with --from: lift the size limits scicap recon holds a file to (as its --allow-large);\n"
+                          "                     the daemon grants it to its admins only (control.admin_group)",
+     "allow_large"},
     {"dark", NULL, "measure the dark frame", "kind"},
     {"masks", NULL, "measure the masks as the camera sees them", NULL},
     {"average", "N", "frames averaged per measurement", "average"},
@@ -770,7 +773,7 @@ static const client_cmd client_cmds[] = {
      "scicap capture [--mask-set S] [--count N] [--exposure-us U] [--pattern-us U] [--dark-us U]\n"
      "                      [--sync host-master|dmd-master] [--recon [METHOD]] [--method M] [--preset P] [--wait]\n"
      "       scicap capture --from FILE.mat|DIR [--mask FILE.mat] [--mask-var V] [--meas-var V] [--truth-var V]\n"
-     "                      [--scale auto|N] [--recon [METHOD]] [--method M] [--preset P] [--wait]",
+     "                      [--scale auto|N] [--allow-large] [--recon [METHOD]] [--method M] [--preset P] [--wait]",
      "Capture coded snapshots on the bench (and reconstruct them with --recon); with --from, store the snapshots\n"
      "of a file or problem folder as captures instead (each snapshot one capture, as from the bench).",
      capture_opts, "capture", check_capture, show_queued},
@@ -1031,6 +1034,7 @@ static int take_option(client_req *q, int c, int argc, char **argv)
     case O_FROM: q->from = optarg; return 0;
     case O_MASK: q->mask_file = optarg; return 0;
     case O_WAIT: q->wait = 1; return 0;
+    case O_ALLOW_LARGE: json_object_set_new(q->args, "allow_large", json_true()); return 0;
     case O_DARK: q->kind = 0; return 0;
     case O_MASKS: q->kind = 1; return 0;
     case O_SCALE: return set_scale(q, optarg);
@@ -1119,12 +1123,13 @@ static int check_reconstruct(client_req *q, int argc, char **argv)
 
 static int check_capture(client_req *q, int argc, char **argv)
 {
-    static const char *const import_keys[] = {"mask_var", "meas_var", "truth_var", "scale", NULL};
+    static const char *const import_keys[] = {"mask_var", "meas_var", "truth_var", "scale", "allow_large", NULL};
     static const char *const bench_keys[] = {"mask_set", "pattern_us", "dark_us", "exposure_us", "sync_mode",
                                              "count", NULL};
     for (int i = 0; !q->from && import_keys[i]; i++)
         if (json_object_get(q->args, import_keys[i]) || q->mask_file) {
-            fprintf(stderr, "scicap capture: --mask, --mask-var, --meas-var, --truth-var and --scale go with --from\n");
+            fprintf(stderr, "scicap capture: --mask, --mask-var, --meas-var, --truth-var, --scale and --allow-large "
+                            "go with --from\n");
             return 2;
         }
     for (int i = 0; q->from && bench_keys[i]; i++)
