@@ -75,8 +75,10 @@ typedef struct solver_values {
     double v[SOLVER_LIST_MAX];
 } solver_values;
 
-/* The largest settings struct of any method. Interfaces that hold settings by value (scicapd's queues) size their
- * buffers by it; a row whose settings_size exceeds it is refused by solver_list_check (tests/unit/test_solver.c). */
+/* The largest settings struct of any method. Interfaces that hold settings by value (scicapd's spec, whose
+ * SCICAPD_SETTINGS_MAX is this) size their buffers by it. Generous on purpose, so a new method needs no edit here:
+ * the largest row today holds 712 bytes (two STRING paths of SOLVER_STRING_MAX); a row whose settings_size exceeds
+ * it is refused by solver_list_check (tests/unit/test_solver.c; test_cli_recon_opts prints every row's size). */
 #define SOLVER_SETTINGS_MAX 2048
 
 enum { SOLVER_FIELD_ALIAS = 1 }; /* solver_field.flags: another name of a field listed before it; not written out */
