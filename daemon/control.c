@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <grp.h>
+#include <malloc.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,6 +17,13 @@
 #include "daemon/protocol.h"
 
 #define OUT_MAX ((size_t)16 << 20)
+/* An output buffer larger than this is freed once drained, not kept for the connection's life: a watcher that
+ * once fell behind by megabytes would otherwise hold them until it disconnects. */
+#define OUT_KEEP ((size_t)64 << 10)
+/* Closed connections' buffers past this total are handed back to the kernel (malloc_trim): glibc keeps freed
+ * heap, and after one 16 MiB buffer is freed its dynamic mmap threshold puts the next ones on the heap too, so
+ * 29 backed-up connections left ~400 MiB resident after they closed. */
+#define TRIM_AFTER ((size_t)1 << 20)
 
 struct scicapd_control {
     int lfd;
@@ -237,6 +245,11 @@ static void flush(scicapd_control *ctl, scicapd_client *c)
         c->out_stall_ns = sci_clock_mono_ns(); /* the peer reads: its stall count starts again */
     }
     c->out_len = c->out_off = 0;
+    if (c->out_cap > OUT_KEEP) {
+        free(c->out);
+        c->out = NULL;
+        c->out_cap = 0;
+    }
 }
 
 void scicapd_control_send_to(scicapd_control *ctl, scicapd_client *c, const char *line)
@@ -436,17 +449,21 @@ static int read_client(scicapd_control *ctl, scicapd_client *c)
 static void reap(scicapd_control *ctl)
 {
     int w = 0;
+    size_t freed = 0;
     for (int i = 0; i < ctl->n; i++) {
         scicapd_client *c = ctl->c[i];
         if (c->closing == 2 || (c->closing && c->out_len <= c->out_off)) {
             sci_log_write(ctl->log, SCI_LOG_INFO, "client %llu (pid %d) disconnected", (unsigned long long)c->id,
                           (int)c->pid);
+            freed += c->out_cap + ctl->lim.max_line;
             client_free(c);
             continue;
         }
         ctl->c[w++] = c;
     }
     ctl->n = w;
+    if (freed >= TRIM_AFTER)
+        malloc_trim(0);
 }
 
 /* The CLOCK_MONOTONIC time at which c is due to be closed, or 0 when no deadline runs. idle_ok: count the idle
