@@ -1,6 +1,7 @@
 #include "io/matfile.h"
 
 #include "io/mat_verify.h"
+#include "io/matfile_sandbox.h"
 
 #include <errno.h>
 #include <hdf5.h>
@@ -478,7 +479,10 @@ int sci_mat_probe(const char *path, const sci_mat_options *opts, long long *w, l
 {
     h5_quiet q;
     h5_quiet_begin(&q);
-    int rc = mat_probe(path, opts, w, h, n, k, err);
+    /* v7.3 goes through libhdf5, which a malformed file can crash: in a child (io/matfile_sandbox.h) */
+    int rc = sci_mat_is_v73(path, opts ? opts->mask_path : NULL)
+                 ? sci_mat_probe_sandboxed(mat_probe, path, opts, w, h, n, k, err)
+                 : mat_probe(path, opts, w, h, n, k, err);
     h5_quiet_end(&q);
     return rc;
 }
@@ -634,7 +638,10 @@ static int mat_read(const char *path, const sci_mat_options *o, double legacy, s
 {
     h5_quiet q;
     h5_quiet_begin(&q);
-    int rc = mat_read_quiet(path, o, legacy, out, k, info, err);
+    /* v7.3 goes through libhdf5, which a malformed file can crash: in a child (io/matfile_sandbox.h) */
+    int rc = sci_mat_is_v73(path, o->mask_path) ? sci_mat_read_sandboxed(mat_read_quiet, path, o, legacy, out, k,
+                                                                          info, err)
+                                                : mat_read_quiet(path, o, legacy, out, k, info, err);
     h5_quiet_end(&q);
     return rc;
 }
