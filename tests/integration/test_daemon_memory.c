@@ -18,7 +18,7 @@
 
 #define CONNS 29
 #define ROUNDS 2
-#define LINES 6000        /* status requests per connection */
+#define LINES 3000        /* status requests per connection */
 #define PEAK_MIN_MB 64    /* the load must have cost at least this much, or the test tests nothing */
 #define AFTER_MAX_MB 48   /* resident growth allowed once every connection closed */
 
