@@ -91,15 +91,18 @@ static int on_checkpoint(const void *blob, size_t bytes, int iter, void *user)
 
 /* Write the result to the capture's next free recon/<method>[.N] (its name into folder, the path into out): the
  * name reserved so that workers finishing together never pick the same one, the folder published without
- * replacing anything. */
+ * replacing anything. *created is set when recon/ was made here, by this call or an earlier attempt of the same
+ * job (one that found no room), so that its name is made durable once. */
 static int publish(scicapd_workers *w, const scicapd_job *j, const char *dir, const sci_problem *p,
-                   const sci_result *r, char *folder, size_t nf, char *out, size_t no, sci_error *err)
+                   const sci_result *r, char *folder, size_t nf, char *out, size_t no, int *created,
+                   sci_error *err)
 {
     char rdir[1200];
     snprintf(rdir, sizeof rdir, "%s/recon", dir);
-    const int created = mkdir(rdir, 0750) == 0;
-    if (!created && errno != EEXIST)
+    const int made = mkdir(rdir, 0750) == 0;
+    if (!made && errno != EEXIST)
         return sci_error_set(err, -errno, "%s: cannot create: %s", rdir, strerror(errno));
+    *created |= made;
     int rc = scicapd_reconout_reserve(w->names, dir, j->recon.spec.method->name, folder, nf, err);
     if (rc < 0)
         return rc;
@@ -118,7 +121,7 @@ static int publish(scicapd_workers *w, const scicapd_job *j, const char *dir, co
     json_decref(job);
     json_decref(params);
     scicapd_reconout_release(w->names, dir, folder);
-    if (rc == 0 && durable && created && (rc = sci_staging_sync(rdir, SCI_SYNC_PARENT)) < 0)
+    if (rc == 0 && durable && *created && (rc = sci_staging_sync(rdir, SCI_SYNC_PARENT)) < 0)
         sci_error_set(err, rc, "%s: cannot make the reconstruction durable: %s", out, sci_strerror(rc));
     return rc;
 }
@@ -272,7 +275,9 @@ static void run(scicapd_workers *w, scicapd_job *j)
     char folder[96];
     /* no room: the result waits in memory and its entry in the queue until there is (a full disk is a person's
      * to fix, and the solve need not be run again); any other write error fails the job */
-    for (int attempt = 0; (rc = publish(w, j, dir, pp[0], &r, folder, sizeof folder, out, sizeof out, &err)) < 0;
+    int rdir_new = 0;
+    for (int attempt = 0;
+         (rc = publish(w, j, dir, pp[0], &r, folder, sizeof folder, out, sizeof out, &rdir_new, &err)) < 0;
          attempt++) {
         if (!no_room(w, &r, rc, &err))
             goto done;
