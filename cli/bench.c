@@ -59,7 +59,7 @@ static void usage(FILE *f)
 {
     fprintf(f,
             "usage: scicap bench [--quick | --full] [--out DIR] [--csv FILE] [--data DIR] [--scenes DIR]\n"
-            "                   [--methods LIST] [-j N]\n"
+            "                   [--methods LIST] [--scene NAME[,NAME]] [-j N]\n"
             "\n"
             "Runs every reconstruction method over a grid of its cost knobs on a fixed suite — the drop40 benchmark\n"
             "(.mat, snapshot 1) when present and the simulator's example scenes of each kind, with and without\n"
@@ -77,6 +77,9 @@ static void usage(FILE *f)
             "  --methods LIST    comma-separated subset of the methods (scicap recon --help lists them); the other\n"
             "                    methods' points are kept from the existing CSV (--full), so the report and plots\n"
             "                    still show every method\n"
+            "  --scene LIST      comma-separated subset of the suite's scenes (drop40, video2d, video2d_noise,\n"
+            "                    static3d, static3d_noise); the other scenes' points are kept from the existing\n"
+            "                    CSV (--full), so the report and plots still show every scene\n"
             "  -j, --threads N   OpenMP threads per point (default: all cores)\n"
             "  --point SPEC      internal: run one grid point in this process (the runner starts one per point)\n"
             "  -h, --help        this text\n");
@@ -406,10 +409,11 @@ static int prepare_scene(bench_scene *sc, const char *scene_path, const char *na
 
 static int method_enabled(const char *list, const char *m);
 
-/* The points of the methods not re-run (not in `methods`), from the previous CSV, for the scenes of this suite:
+/* The points not re-run (method not in `methods` or scene not in `scenes`), from the previous CSV, for the scenes
+ * of this suite:
  * appended as kept points. A missing CSV keeps nothing; returns how many were kept. */
-static int keep_previous(const char *csv, const char *methods, const bench_scene *sc, int ns, bench_point **pts,
-                         int *n, int *cap)
+static int keep_previous(const char *csv, const char *methods, const char *scenes, const bench_scene *sc, int ns,
+                         bench_point **pts, int *n, int *cap)
 {
     FILE *f = fopen(csv, "r");
     if (!f)
@@ -421,7 +425,9 @@ static int keep_previous(const char *csv, const char *methods, const bench_scene
         int nc = 0;
         for (char *t = strtok_r(line, ",\n", &save); t && nc < 14; t = strtok_r(NULL, ",\n", &save))
             col[nc++] = t;
-        if (nc < 12 || strcmp(col[0], "scene") == 0 || method_enabled(methods, col[1]))
+        /* A row is re-measured now (so not kept) when both its method and its scene are selected. */
+        if (nc < 12 || strcmp(col[0], "scene") == 0 ||
+            (method_enabled(methods, col[1]) && method_enabled(scenes, col[0])))
             continue;
         int s = 0;
         while (s < ns && strcmp(sc[s].name, col[0]) != 0)
@@ -455,7 +461,7 @@ int cli_bench_main(int argc, char **argv)
 {
     int quick = 0, threads = 0;
     const char *out = "bench/results", *csv = "bench/results.csv", *data = getenv("SCICAP_DATA"),
-               *scenes = NULL, *methods_arg = NULL, *point = NULL;
+               *scenes = NULL, *methods_arg = NULL, *point = NULL, *scene_arg = NULL;
     char scenes_buf[4096];
     static const struct option longopts[] = {
         {"quick", no_argument, 0, 'Q'},        {"full", no_argument, 0, 'F'},
@@ -463,6 +469,7 @@ int cli_bench_main(int argc, char **argv)
         {"data", required_argument, 0, 'd'},   {"scenes", required_argument, 0, 's'},
         {"methods", required_argument, 0, 'm'}, {"threads", required_argument, 0, 'j'},
         {"point", required_argument, 0, 'P'},  {"help", no_argument, 0, 'h'},
+        {"scene", required_argument, 0, 'S'},
         {0, 0, 0, 0},
     };
     optind = 1;
@@ -478,6 +485,7 @@ int cli_bench_main(int argc, char **argv)
         case 'm': methods_arg = optarg; break;
         case 'j': threads = atoi(optarg); break;
         case 'P': point = optarg; break;
+        case 'S': scene_arg = optarg; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
@@ -543,6 +551,25 @@ int cli_bench_main(int argc, char **argv)
         {"static3d_corridor.json", "static3d", "static3d corridor, moving camera, no noise", 1},
         {"static3d_noisy.json", "static3d_noise", "static3d, moving camera, shot and read noise", 0},
     };
+    if (scene_arg) {
+        /* Every name in --scene must be one of the suite's; drop40 also needs its .mat. */
+        char list[1024];
+        snprintf(list, sizeof list, "%s", scene_arg);
+        char *save = NULL;
+        for (char *t = strtok_r(list, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+            int known = ns > 0 && strcmp(t, "drop40") == 0;
+            for (size_t i = 0; i < sizeof suite / sizeof suite[0]; i++)
+                known |= strcmp(t, suite[i].name) == 0 && !(quick && !suite[i].quick);
+            if (!known) {
+                fprintf(stderr,
+                        "scicap bench: --scene: unknown scene '%s'%s; the suite's scenes are: %svideo2d, "
+                        "video2d_noise, static3d, static3d_noise%s\n",
+                        t, strcmp(t, "drop40") == 0 ? " (drop40_cacti.mat not found)" : "", ns ? "drop40, " : "",
+                        quick ? " (--quick: video2d, static3d)" : "");
+                return 2;
+            }
+        }
+    }
     for (size_t i = 0; i < sizeof suite / sizeof suite[0]; i++) {
         if (quick && !suite[i].quick)
             continue;
@@ -572,7 +599,8 @@ int cli_bench_main(int argc, char **argv)
     for (int s = 0; s < ns; s++)
         for (int m = 0; m < N_METHODS; m++) {
             const solver_ops *op = table[m];
-            if (!method_enabled(methods_arg, op->name) || ((op->caps & SOLVER_NEEDS_CAMERA) && !sc[s].has_camera))
+            if (!method_enabled(methods_arg, op->name) || !method_enabled(scene_arg, sc[s].name) ||
+                ((op->caps & SOLVER_NEEDS_CAMERA) && !sc[s].has_camera))
                 continue;
             for (const char *const *g = quick ? op->bench_quick : op->bench_full; g && *g; g++) {
                 json_t *params = json_loads(*g, 0, NULL);
@@ -585,7 +613,8 @@ int cli_bench_main(int argc, char **argv)
         }
 
     const int nrun = np;
-    const int nkept = methods_arg && !quick ? keep_previous(csv, methods_arg, sc, ns, &pts, &np, &cap) : 0;
+    const int nkept =
+        (methods_arg || scene_arg) && !quick ? keep_previous(csv, methods_arg, scene_arg, sc, ns, &pts, &np, &cap) : 0;
     fprintf(stderr, "scicap bench: %d points on %d scenes, %d threads each", nrun, ns, threads);
     if (nkept)
         fprintf(stderr, "; %d points of the other methods kept from %s", nkept, csv);
@@ -636,13 +665,14 @@ int cli_bench_main(int argc, char **argv)
     }
     double la[3] = {NAN, NAN, NAN};
     getloadavg(la, 3);
-    fprintf(md, "Produced by `scicap bench%s%s%s` (%d points, %.0f s, %d threads per point; load average %.2f %.2f "
+    fprintf(md, "Produced by `scicap bench%s%s%s%s%s` (%d points, %.0f s, %d threads per point; load average %.2f %.2f "
                 "%.2f at the end, %ld cores)%s. PSNR: mean over frames, peak = per-frame max of the truth; SSIM: "
                 "Gaussian 11×11, σ 1.5; wall and CPU time: the solver's own; memory: peak RSS of the point's "
                 "process. Every point is in `bench/results.csv`.\n\n",
-            quick ? " --quick" : "", methods_arg ? " --methods " : "", methods_arg ? methods_arg : "", nrun,
-            sci_clock_s(t0, sci_clock_mono_ns()), threads, la[0], la[1], la[2], sysconf(_SC_NPROCESSORS_ONLN),
-            nkept ? "; the other methods' points are kept from the previous full run" : "");
+            quick ? " --quick" : "", methods_arg ? " --methods " : "", methods_arg ? methods_arg : "",
+            scene_arg ? " --scene " : "", scene_arg ? scene_arg : "", nrun, sci_clock_s(t0, sci_clock_mono_ns()),
+            threads, la[0], la[1], la[2], sysconf(_SC_NPROCESSORS_ONLN),
+            nkept ? "; the other points are kept from the previous full run" : "");
     for (int s = 0; s < ns; s++) {
         fprintf(md, "#### %s\n\n![PSNR against wall time: %s](%s/psnr_time_%s.png)\n\n", sc[s].what, sc[s].name,
                 out, sc[s].name);
