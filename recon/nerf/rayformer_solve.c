@@ -31,11 +31,11 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
      * of slope 2 per sample (position-free, it cost 1.1 dB on the corridor's fast preset: samples of every depth
      * mixed; slope 1 reached as far in depth at 16 samples as 2 does at 32, and 2 gained 0.15 dB on the fast
      * preset's three-scene mean over 1), inter-ray attention with a city-block bias of slope 1 inside the window
-     * (+ inter-ray rung +0.02 / +0.02 / +0.015 dB on corridor / orbit / noisy; docs/nerf-methods.md ninth round),
+     * (+ inter-ray rung +0.02 / +0.02 / +0.015 dB on corridor / orbit / noisy; docs/nerf-methods.md, "The ablation ladder"),
      * behind a learned gate per head that starts closed (ungated, the + inter-ray step lost 0.03 dB on the three-seed
-     * mean, gated it is +0.003; docs/nerf-methods.md twelfth round).
+     * mean, gated it is +0.003; docs/nerf-methods.md, "The recipe").
      * Measured, not the default: four render tilings (+0.01 … +0.04 dB for 4× the render); a window's rays sharing
-     * their depth jitter (noisy +0.21 dB, corridor and orbit −0.14 … −0.31; docs/nerf-methods.md twelfth round) */
+     * their depth jitter (noisy +0.21 dB, corridor and orbit −0.14 … −0.31; docs/nerf-methods.md, "The recipe") */
     *p = (sci_rayformer_params){.iters = 1800,
                                 .patch = 2,
                                 .patches_per_step = 128,

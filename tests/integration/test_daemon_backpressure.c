@@ -1,4 +1,4 @@
-/* Under load, nothing refused (issue 17): a capture that asks for a reconstruction of every snapshot gets every one
+/* Under load, nothing refused: a capture that asks for a reconstruction of every snapshot gets every one
  * reconstructed, even when the snapshots come faster than the reconstructions and the reconstruction queue is
  * tiny — the capture waits for room (back-pressure through the storage writers to the acquisition) instead of
  * answering "recon.rejected" (before: 12 snapshots into a queue of 1 with one slow worker left most refused).

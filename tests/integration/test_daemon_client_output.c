@@ -1,6 +1,6 @@
-/* `scicap status` and `scicap devices` for people (issue 18), and --json for programs: against a real scicapd on
+/* `scicap status` and `scicap devices` for people, and --json for programs: against a real scicapd on
  * the simulated bench, the tables carry the values of the daemon's own JSON reply (pid, queues, job counts, each
- * device's backend, state and identity fields, the per-stage timing of issue 17), no JSON syntax; --json prints
+ * device's backend, state and identity fields, the per-stage timing), no JSON syntax; --json prints
  * the reply as it came (parsed and compared with the one read on the socket).
  * And the rest of the client's output for people: a reconstruction without truth reports the measurement residual
  * (never a PSNR of 0), a budget says what it chose, a capture is named by its number too, events are lines, jobs

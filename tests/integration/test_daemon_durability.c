@@ -1,4 +1,4 @@
-/* What scicapd promises to keep across its own death (issue 17), over the real socket and storage folder:
+/* What scicapd promises to keep across its own death, over the real socket and storage folder:
  *  - capture ids are never handed out twice: not after a kill -9 while a capture folder is half written, not
  *    after the newest capture is deleted and the daemon restarted (docs/capture-folder.md);
  *  - a second scicapd started on the same storage root is refused before its recovery could remove the first

@@ -1,4 +1,4 @@
-/* scicapd's own hardening (issue 17, item 10):
+/* scicapd's own hardening:
  *  - the systemd unit (systemd/scicapd.service) rated by `systemd-analyze security --offline=yes`: exposure at most
  *    1.5, and each directive the issue asks for counted as in force;
  *  - the daemon refuses uid 0 outside systemd unless --allow-root (systemd is told by $INVOCATION_ID);

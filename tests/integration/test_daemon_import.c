@@ -1,4 +1,4 @@
-/* The daemon's import of external data (issue 18): `scicap capture --from FILE` stores a .mat or a problem folder
+/* The daemon's import of external data: `scicap capture --from FILE` stores a .mat or a problem folder
  * as captures and reconstructs them, with the options `scicap recon` has for a .mat, and the daemon reads the
  * files through descriptors the client opened (SCM_RIGHTS), never by path:
  *   - drop40 rewritten as a lab ships it ([0, 1] values, y/X in one file, the masks as Phi in another) imports

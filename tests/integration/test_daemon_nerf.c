@@ -1,4 +1,4 @@
-/* scicapd reconstructs with the NeRF methods (issue 16), through its real socket, on a tiny static3d scene with a
+/* scicapd reconstructs with the NeRF methods, through its real socket, on a tiny static3d scene with a
  * camera imported as a capture (`scicap capture --from FOLDER`; the simulated bench's own captures are video2d,
  * without a camera):
  *   - rayformer and scinerf runs: progress events, periodic checkpoints (reconstruction.checkpoint_every), a

@@ -1,4 +1,4 @@
-/* scicapd against careless and hostile local users, over its real Unix socket (issue 17):
+/* scicapd against careless and hostile local users, over its real Unix socket:
  *  - slowloris: 32 connections that send one byte and stall must not lock anyone out — an admin gets in at
  *    once through the reserved slots, an ordinary client as soon as the request deadline drops the stalled ones;
  *    a client that trickles a byte at a time is dropped on the same deadline; idle connections with nothing in

@@ -1,4 +1,4 @@
-/* What scicapd writes per snapshot after the throughput work of issue 17, over the real socket and storage:
+/* What scicapd writes per snapshot, over the real socket and storage:
  *  - the reconstruction's masks (mask.json, mask_*.exr, preview_mask_*.png) are written once per mask stack to
  *    ROOT/mask_stacks/<hash>/ and hard-linked into each capture folder, which stays self-contained (read back as
  *    a problem folder, masks equal; deleting one capture leaves the others whole); a shared folder that no longer

@@ -1,4 +1,4 @@
-/* udev rules (issue 18): the packaged systemd/70-scicap.rules gives group scicap the DLPC900 and the uhid node
+/* udev rules: the packaged systemd/70-scicap.rules gives group scicap the DLPC900 and the uhid node
  * only — no rule for every video4linux node (webcams) or every GPIO chip — and `scicapd --udev-rules` prints
  * rules that match exactly the devices a configuration names: the V4L2 camera by its /dev/v4l/by-id name
  * (ID_SERIAL and index) or by-path name, a USB camera by devices.camera.usb, the GPIO chip by name, the DMD's
