@@ -242,7 +242,9 @@ static void run(scicapd_workers *w, scicapd_job *j)
         json_decref(every);
         memset(&err, 0, sizeof err); /* a method without these knobs keeps its own trace */
     }
-    solver_io io = {.progress = on_progress, .user = &ctx};
+    /* the job's cancel flag reaches the solver itself: a method whose iterations take seconds (desci's block
+     * matching) stops inside one instead of at the next progress call */
+    solver_io io = {.progress = on_progress, .user = &ctx, .cancel = &j->cancel};
     if (ckpt) {
         io.checkpoint_fn = on_checkpoint;
         io.checkpoint_user = &ctx;

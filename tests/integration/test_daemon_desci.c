@@ -1,7 +1,7 @@
 /* scicapd reconstructs a capture of the simulated bench with desci through its real socket: the job reports
  * recon.progress events with an ETA (eta_s, finite and positive while iterations remain, elapsed_s growing), and a
- * cancel mid-run ends it with recon.canceled within 10 s (iterations of about a second here), with no result
- * folder. About 4 s in all. */
+ * cancel mid-run ends it with recon.canceled within the next iteration (the solver sees the job's flag), with no
+ * result folder. About 4 s in all. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -97,7 +97,14 @@ static void progress_with_eta_then_cancel(void **state)
                   (long long)(h_now_ms() - t1), last_iter, eta,
                   daemon_child_recon_exists(&H, cap, "desci") ? "yes" : "no");
     assert_string_equal(end, "recon.canceled");
-    assert_true(h_now_ms() - t1 < 10000);
+    /* the cancel reaches the solver inside an iteration: the run ends within the iteration after the last one
+     * reported (a count, not a time: it holds on a loaded machine) */
+    int done = -1;
+    const char *why = json_string_value(json_object_get(json_object_get(m, "data"), "error"));
+    assert_non_null(why);
+    assert_int_equal(sscanf(why, "canceled after %d iterations", &done), 1);
+    print_message("  %s\n", why);
+    assert_true(done >= last_iter && done <= last_iter + 2);
     json_decref(m);
     assert_false(daemon_child_recon_exists(&H, cap, "desci"));
     hconn_close(&c);
