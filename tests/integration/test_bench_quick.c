@@ -13,6 +13,15 @@
 #include <cmocka.h>
 #include <errno.h>
 
+/* Under AddressSanitizer (make check-asan; about 16 minutes for the whole quick suite) the report is built from
+ * the 128 × 128 scenes only: the same methods, the same checks, drop40's 256 × 256 points left to the optimised
+ * build. */
+#if defined(__SANITIZE_ADDRESS__)
+#define QUICK_SCENES " --scene video2d,static3d"
+#else
+#define QUICK_SCENES ""
+#endif
+
 #include "io/curves.h"
 #include "recon/pnp_ffdnet.h"
 #include "recon/solver.h"
@@ -23,8 +32,10 @@ static void test_quick_report(void **state)
     char dir[] = "/tmp/scicap-test-bench-XXXXXX";
     assert_non_null(mkdtemp(dir));
     char cmd[2048];
-    snprintf(cmd, sizeof cmd, "%s/scicap bench --quick --out %s --csv %s/results.csv 2>%s/log", build ? build : "build",
-             dir, dir, dir);
+    snprintf(cmd, sizeof cmd, "%s/scicap bench --quick%s --out %s --csv %s/results.csv 2>%s/log",
+             build ? build : "build", QUICK_SCENES, dir, dir, dir);
+    if (*QUICK_SCENES)
+        printf("(AddressSanitizer build:%s)\n", QUICK_SCENES);
     int rc = system(cmd);
     if (rc != 0) {
         snprintf(cmd, sizeof cmd, "cat %s/log", dir);

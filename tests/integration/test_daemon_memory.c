@@ -16,6 +16,15 @@
 
 #include "tests/integration/daemon_harness.h"
 
+/* Under AddressSanitizer scicapd's memory comes from ASan's allocator (freed blocks held in its quarantine, no
+ * malloc_trim), so what goes back to the system after close is the glibc build's property: check-asan runs the load
+ * for memory errors and checks the peak and that the daemon still answers, and says so. */
+#if defined(__SANITIZE_ADDRESS__)
+#define SANITIZED 1
+#else
+#define SANITIZED 0
+#endif
+
 #define CONNS 29
 #define ROUNDS 2
 #define LINES 3000        /* status requests per connection */
@@ -136,7 +145,15 @@ static void test_rss_returns_after_close(void **state)
     print_message("  %d requests on %d connections (%d rounds); VmRSS %ld MB before, %ld MB with them open (peak %ld MB), "
                   "%ld MB after they closed\n", total, CONNS, ROUNDS, base / 1024, during / 1024, peak / 1024, after / 1024);
     assert_true(peak - base >= PEAK_MIN_MB * 1024L);
-    assert_true(after - base <= AFTER_MAX_MB * 1024L);
+    if (SANITIZED) {
+        print_message("  (AddressSanitizer build: its allocator keeps freed memory; the return is checked in the "
+                      "optimised build)\n");
+        json_t *st = hconn_request(&me, "status", NULL);
+        assert_non_null(st);
+        json_decref(st);
+    } else {
+        assert_true(after - base <= AFTER_MAX_MB * 1024L);
+    }
     for (int r = 0; r < ROUNDS; r++)
         hconn_close(&late[r]);
     hconn_close(&me);
