@@ -16,6 +16,12 @@
 #include "recon/nerf/rayformer_solve.h"
 #include "recon/nerf/scinerf_solve.h"
 
+/* A test build compiles this file with -DSCICAP_EXTRA_SOLVER=<its solver_ops> and links that method in: the row
+ * below is then all that tells every interface about it (tests/extra_method). */
+#ifdef SCICAP_EXTRA_SOLVER
+extern const solver_ops SCICAP_EXTRA_SOLVER;
+#endif
+
 /* The table: one row per method, in the order help texts and reports list them. */
 static const solver_ops *const solvers[] = {
     &sci_gaptv_solver,
@@ -24,6 +30,9 @@ static const solver_ops *const solvers[] = {
     &sci_desci_solver,
     &sci_rayformer_solver,
     &sci_scinerf_solver,
+#ifdef SCICAP_EXTRA_SOLVER
+    &SCICAP_EXTRA_SOLVER,
+#endif
     NULL,
 };
 
