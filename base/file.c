@@ -57,26 +57,36 @@ int sci_file_read(const char *path, size_t max_bytes, void **out, size_t *len, s
 
 /* ---- atomic replace ---- */
 
-/* Split `path` into a malloc'd folder ("." when there is none) and a pointer to its last component. */
-static char *file_dir_of(const char *path, const char **base)
+/* "<dir>/.<stem>.tmp-XXXXXX<ext>" for `path` (malloc'd; *dir malloc'd too, "." when path has no slash). The
+ * extension stays last because writers that open by name (OpenImageIO) pick the format by it; *suffix_len is
+ * its length, for mkostemps. */
+static char *file_tmp_template(const char *path, char **dir, int *suffix_len)
 {
     const char *slash = strrchr(path, '/');
-    *base = slash ? slash + 1 : path;
-    if (!slash)
-        return strdup(".");
-    size_t n = slash == path ? 1 : (size_t)(slash - path); /* "/x" lives in "/" */
-    char *dir = malloc(n + 1);
-    if (dir) {
-        memcpy(dir, path, n);
-        dir[n] = 0;
+    const char *base = slash ? slash + 1 : path;
+    size_t dn = !slash ? 1 : slash == path ? 1 : (size_t)(slash - path); /* "/x" lives in "/" */
+    *dir = malloc(dn + 1);
+    char *tmp = malloc(dn + strlen(base) + 16);
+    if (!*dir || !tmp) {
+        free(*dir);
+        free(tmp);
+        *dir = NULL;
+        return NULL;
     }
-    return dir;
+    memcpy(*dir, slash ? path : ".", dn);
+    (*dir)[dn] = 0;
+    const char *dot = strrchr(base, '.');
+    if (!dot || dot == base)
+        dot = base + strlen(base);
+    *suffix_len = (int)strlen(dot);
+    sprintf(tmp, "%s/.%.*s.tmp-XXXXXX%s", *dir, (int)(dot - base), base, dot);
+    return tmp;
 }
 
-/* fsync a folder so a rename inside it survives power loss. Returns 0 or -errno. */
-static int file_sync_dir(const char *dir)
+/* fsync a file or folder by name. Returns 0 or -errno. */
+static int file_sync_name(const char *name, int dir)
 {
-    int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    int fd = open(name, O_RDONLY | O_CLOEXEC | (dir ? O_DIRECTORY : 0));
     if (fd < 0)
         return -errno;
     int rc = fsync(fd) == 0 ? 0 : -errno;
@@ -84,17 +94,45 @@ static int file_sync_dir(const char *dir)
     return rc;
 }
 
-/* Run the writer on the open temporary file, then flush, fsync and close it (always closed on return).
- * Returns 0 or a negative code with err set. */
-static int file_fill(FILE *f, const char *path, unsigned flags, sci_file_writer write, void *user, sci_error *err)
+/* A writer's failure as the caller's error: its own message when it set one. */
+static int file_writer_failed(int rc, const sci_error *werr, const char *path, sci_error *err)
+{
+    if (werr->msg[0])
+        return sci_error_set(err, rc, "%s", werr->msg);
+    return sci_error_set(err, rc, "%s: %s", path, sci_strerror(rc));
+}
+
+/* How the temporary file gets its content: through a FILE on its descriptor, or by its name. */
+typedef struct file_source {
+    sci_file_writer stream;
+    sci_file_name_writer named;
+    void *user;
+} file_source;
+
+/* Fill the temporary file (fd, named tmp) from src, then flush and fsync it; fd is closed on return. Returns 0
+ * or a negative code with err set. */
+static int file_fill(int fd, const char *tmp, const char *path, unsigned flags, const file_source *src,
+                     sci_error *err)
 {
     sci_error werr = {0};
-    int rc = write(f, user, &werr);
-    if (rc < 0) {
+    int rc;
+    if (src->named) {
+        close(fd);
+        if ((rc = src->named(tmp, src->user, &werr)) < 0)
+            return file_writer_failed(rc, &werr, path, err);
+        if (!(flags & SCI_FILE_NO_SYNC) && (rc = file_sync_name(tmp, 0)) < 0)
+            return sci_error_set(err, rc, "%s: fsync failed: %s", path, strerror(-rc));
+        return 0;
+    }
+    FILE *f = fdopen(fd, "wb");
+    if (!f) {
+        rc = -errno;
+        close(fd);
+        return sci_error_set(err, rc, "%s: %s", tmp, strerror(-rc));
+    }
+    if ((rc = src->stream(f, src->user, &werr)) < 0) {
         fclose(f);
-        if (werr.msg[0])
-            return sci_error_set(err, rc, "%s", werr.msg);
-        return sci_error_set(err, rc, "%s: %s", path, sci_strerror(rc));
+        return file_writer_failed(rc, &werr, path, err);
     }
     errno = 0;
     int bad = ferror(f) || fflush(f) != 0;
@@ -112,36 +150,31 @@ static int file_fill(FILE *f, const char *path, unsigned flags, sci_file_writer 
     return 0;
 }
 
-int sci_file_write_atomic_with(const char *path, mode_t mode, unsigned flags, sci_file_writer write, void *user,
-                               sci_error *err)
+static int file_replace(const char *path, mode_t mode, unsigned flags, const file_source *src, sci_error *err)
 {
-    const char *base;
-    char *dir = file_dir_of(path, &base);
-    char *tmp = dir ? malloc(strlen(dir) + strlen(base) + 10) : NULL;
-    if (!tmp) {
-        free(dir);
+    char *dir;
+    int suffix_len;
+    char *tmp = file_tmp_template(path, &dir, &suffix_len);
+    if (!tmp)
         return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
-    }
-    sprintf(tmp, "%s/.%s.XXXXXX", dir, base);
     int rc = 0;
-    int fd = mkostemp(tmp, O_CLOEXEC);
+    int fd = mkostemps(tmp, suffix_len, O_CLOEXEC);
     if (fd < 0) {
         rc = sci_error_set(err, -errno, "%s: cannot create a temporary file: %s", path, strerror(errno));
         goto out_free;
     }
-    FILE *f = fchmod(fd, mode) == 0 ? fdopen(fd, "wb") : NULL;
-    if (!f) {
+    if (fchmod(fd, mode) != 0) {
         rc = sci_error_set(err, -errno, "%s: %s", tmp, strerror(errno));
         close(fd);
         goto out_unlink;
     }
-    if ((rc = file_fill(f, path, flags, write, user, err)) < 0)
+    if ((rc = file_fill(fd, tmp, path, flags, src, err)) < 0)
         goto out_unlink;
     if (rename(tmp, path) != 0) {
         rc = sci_error_set(err, -errno, "%s: cannot replace: %s", path, strerror(errno));
         goto out_unlink;
     }
-    if (!(flags & SCI_FILE_NO_SYNC) && (rc = file_sync_dir(dir)) < 0)
+    if (!(flags & SCI_FILE_NO_SYNC) && (rc = file_sync_name(dir, 1)) < 0)
         sci_error_set(err, rc, "%s: fsync of the folder failed: %s", dir, strerror(-rc));
     goto out_free;
 out_unlink:
@@ -150,6 +183,20 @@ out_free:
     free(tmp);
     free(dir);
     return rc;
+}
+
+int sci_file_write_atomic_with(const char *path, mode_t mode, unsigned flags, sci_file_writer write, void *user,
+                               sci_error *err)
+{
+    const file_source src = {.stream = write, .user = user};
+    return file_replace(path, mode, flags, &src, err);
+}
+
+int sci_file_write_atomic_named(const char *path, mode_t mode, unsigned flags, sci_file_name_writer write,
+                                void *user, sci_error *err)
+{
+    const file_source src = {.named = write, .user = user};
+    return file_replace(path, mode, flags, &src, err);
 }
 
 typedef struct file_bytes {

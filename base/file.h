@@ -3,9 +3,10 @@
  * sci_file_read is for the small-to-medium files the project loads whole (JSON documents, NeRF checkpoints).
  *
  * sci_file_write_atomic* replace `path` so that a reader (or a crash, or a power cut) sees either the old
- * content or the new, never a mix: the data goes to a fresh temporary file in the same folder (".<name>.XXXXXX",
- * so rename stays inside one file system), is flushed and fsync'd, renamed over `path`, and the folder is
- * fsync'd so the rename itself is durable. On any failure before the rename the temporary file is removed and
+ * content or the new, never a mix: the data goes to a fresh temporary file in the same folder,
+ * ".<stem>.tmp-XXXXXX<.ext>" (the rename stays inside one file system; the extension stays last for writers that
+ * pick a format by it; the folder scanners that skip or sweep dot and ".tmp" names already ignore it), is
+ * flushed and fsync'd, renamed over `path`, and the folder is fsync'd so the rename itself is durable. On any failure before the rename the temporary file is removed and
  * `path` is untouched (old content intact, or still absent).
  *
  *     sci_error err = {0};
@@ -40,6 +41,10 @@ enum {
  * write; stdio errors on `f` are noticed by the caller, so a writer may ignore fprintf's return value. */
 typedef int (*sci_file_writer)(FILE *f, void *user, sci_error *err);
 
+/* Writes the new content into the file named `tmp_path` (already created, empty, with the final mode), for
+ * libraries that open files by name (OpenImageIO, matio, the GIF encoder). Returns 0 or a negative code. */
+typedef int (*sci_file_name_writer)(const char *tmp_path, void *user, sci_error *err);
+
 /* Replace `path` with `len` bytes of `data`. `mode` is the new file's permission bits, set exactly (the umask
  * is not applied). `flags`: 0 or SCI_FILE_NO_SYNC. Returns 0 or a negative code (see above). A failing folder
  * fsync after the rename returns -errno although the new file is already in place. */
@@ -50,5 +55,9 @@ int sci_file_write_atomic(const char *path, const void *data, size_t len, mode_t
  * images, MAT files, reports). The FILE is opened "wb" by this function and closed by it. */
 int sci_file_write_atomic_with(const char *path, mode_t mode, unsigned flags, sci_file_writer write, void *user,
                                sci_error *err);
+
+/* Like sci_file_write_atomic_with, by a writer that opens the temporary file by name. */
+int sci_file_write_atomic_named(const char *path, mode_t mode, unsigned flags, sci_file_name_writer write,
+                                void *user, sci_error *err);
 
 #endif

@@ -180,6 +180,42 @@ static void test_relative_name(void **state)
     assert_int_equal(count_entries(fx->dir), 1);
 }
 
+/* A writer by name gets an empty file in the same folder whose name keeps the extension last. */
+static int write_by_name(const char *tmp, void *user, sci_error *err)
+{
+    const fixture *fx = user;
+    size_t n = strlen(tmp), dn = strlen(fx->dir);
+    if (strncmp(tmp, fx->dir, dn) != 0 || tmp[dn] != '/' || tmp[dn + 1] != '.' || n < 5 ||
+        strcmp(tmp + n - 5, ".json") != 0)
+        return sci_error_set(err, -EINVAL, "%s: not a sibling ending in .json", tmp);
+    FILE *f = fopen(tmp, "w");
+    if (!f)
+        return -errno;
+    fputs("by name", f);
+    return fclose(f) == 0 ? 0 : -EIO;
+}
+
+static int fail_by_name(const char *tmp, void *user, sci_error *err)
+{
+    (void)user, (void)err;
+    FILE *f = fopen(tmp, "w");
+    fputs("partial", f);
+    fclose(f);
+    return -ENOSPC;
+}
+
+static void test_named_writer(void **state)
+{
+    fixture *fx = *state;
+    sci_error err = {0};
+    assert_int_equal(sci_file_write_atomic_named(fx->path, 0644, 0, write_by_name, fx, &err), 0);
+    assert_content(fx->path, "by name");
+    assert_int_equal(sci_file_write_atomic_named(fx->path, 0644, 0, fail_by_name, fx, &err), -ENOSPC);
+    assert_non_null(strstr(err.msg, fx->path)); /* no message from the writer: the path and the code's text */
+    assert_content(fx->path, "by name");
+    assert_int_equal(count_entries(fx->dir), 1);
+}
+
 /* The JSON form writes exactly what json_dumpf would. */
 static void test_json_document(void **state)
 {
@@ -202,6 +238,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_rename_failure_cleans_up, setup, teardown),
         cmocka_unit_test_setup_teardown(test_relative_name, setup, teardown),
         cmocka_unit_test_setup_teardown(test_json_document, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_named_writer, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
