@@ -2,7 +2,7 @@
  * cost of a mask set: bytes on the wire and estimated upload time, measured by programming the in-process
  * emulator through the real driver (dlpc900_ctl) and counting reports.
  *
- * Upload time model (shared/reference/dlpc900.md §11, §13: UNCONFIRMED on hardware): a full-speed USB HID
+ * Upload time model (TI DLPU018's limits, not confirmed on hardware): a full-speed USB HID
  * interrupt OUT endpoint moves one 64-byte report per 1 ms frame, i.e. 8 ms per 512-byte message. The in-process
  * time is the host-side cost (packing, encoding, framing, emulator decode) and is a lower bound.
  * Writes bench/results/dlpc900.md. Timings are wall-clock on a shared machine: noisy.

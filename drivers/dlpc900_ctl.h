@@ -8,7 +8,7 @@
  *     dlpc900_ctl_stop(c, &err);
  *     dlpc900_ctl_free(c);
  *
- * Command order (shared/reference/dlpc900.md §8, from DLPU018 and mcSIM's sniff of the TI GUI):
+ * Command order (TI DLPU018 and mcSIM's sniff of the TI GUI; docs/dlpc900.md, "Command order"):
  *   stop → display mode 3 (on-the-fly) → stop → hardware status check → TRIG_IN_1 (external trigger only) →
  *   one LUT definition per mask → LUT configuration → per image, highest index first: image load init + 504-byte
  *   chunks (no reply), then error-code read → LUT configuration again → error-code read.

@@ -1,5 +1,5 @@
 /* drivers/dlpc900_erle.h — the DLPC900 image codecs: enhanced RLE (ERLE, compression 2), plain RLE
- * (compression 1) and uncompressed rows (compression 0). Grammar: shared/reference/dlpc900.md §10.
+ * (compression 1) and uncompressed rows (compression 0). Grammar: TI DLPU018, the ERLE compression pages.
  *
  * Pixels are packed 24-bit values (see dlpc900_image.h), w*h of them, top row first.
  *

@@ -2,7 +2,7 @@
  * image header, and whole image files (header + ERLE or uncompressed data) as sent by 0x1A2A/0x1A2B.
  *
  * Packed image: w*h uint32 values, row-major, top row first; bit k (0 … 23) of a pixel is mask k of that image.
- * On the wire each pixel is three bytes, bits 23–16, 15–8, 7–0 (shared/reference/dlpc900.md §9). Mask j of a
+ * On the wire each pixel is three bytes, bits 23–16, 15–8, 7–0 (TI DLPU018, image memory format). Mask j of a
  * 1-bit sequence lives in image j / 24 at bit j % 24.
  *
  *     uint32_t *px = malloc(w*h*4);

@@ -3,7 +3,7 @@
  * A *message* is what the DLPC900 calls one command: a 4-byte header (flags, sequence, u16 length), a u16
  * command number and a payload, at most DLPC900_MSG_MAX = 512 bytes in all (the controller's shared command
  * buffer, DLPU018 §1.2.1). On the wire a message travels as 1…8 HID reports of 64 bytes: the first carries the
- * header, later ones are the next 64 raw message bytes, the last zero-padded (shared/reference/dlpc900.md §2).
+ * header, later ones are the next 64 raw message bytes, the last zero-padded (TI DLPU018, USB message framing).
  * Multi-byte fields are little-endian.
  *
  *     dlpc900_msg m;

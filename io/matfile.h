@@ -3,7 +3,7 @@
  * Variables: `mask` H×W×N, `meas` H×W×k, optional `orig` H×W×(k·N) (any numeric class, MATLAB v5 or v7.3).
  * MATLAB stores column-major: element (r, c, f) at r + H·c + H·W·f; this is the one place that converts it to the
  * project's frame-major cube (base/cube.h). sci_mat_read divides meas and truth by `scale` (255 for the benchmark:
- * truth on [0, 1], sci-reconstruction.md §1; 0 means 255) and keeps the masks as stored; sci_mat_read_opts infers
+ * truth on [0, 1], docs/conventions.md §1; 0 means 255) and keeps the masks as stored; sci_mat_read_opts infers
  * the scales (below).
  *
  * A file with k measurements gives k problems; problem j's truth is orig(:, :, N·j + 1 ... N·j + N) when orig

@@ -1,5 +1,5 @@
 /* recon/admmtv.h — ADMM-TV as the MATLAB reference (liuyang12/PnP-SCI algorithms/admmdenoise.m;
- * sci-reconstruction.md §4):
+ * docs/conventions.md §4):
  *
  *   θ = Aᵀ(y), b = 0; each iteration:
  *     ŷ = A(θ + b);  v = (θ + b) + λ Aᵀ((y − ŷ) ⊘ (Φ_sum + γ));  θ = TV(v − b);  b ← b − (v − θ)

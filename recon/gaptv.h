@@ -1,5 +1,5 @@
 /* recon/gaptv.h — GAP-TV: generalized alternating projection with the anisotropic TV denoiser, exactly as the
- * MATLAB reference (liuyang12/PnP-SCI algorithms/gapdenoise.m; sci-reconstruction.md §2–§3).
+ * MATLAB reference (liuyang12/PnP-SCI algorithms/gapdenoise.m; docs/conventions.md §2–§3).
  *
  *   x⁰ = Aᵀ(y), ȳ = 0; each iteration: ŷ = A(x);
  *     accelerated: ȳ ← ȳ + (y − ŷ);  x ← x + λ Aᵀ((ȳ − ŷ) ⊘ Φ_sum)

@@ -1,4 +1,4 @@
-/* recon/metrics.h — image quality against a known truth (sci-reconstruction.md §6).
+/* recon/metrics.h — image quality against a known truth (docs/conventions.md §6).
  *
  * PSNR is computed per frame and averaged over frames, in one of two peak conventions, which every printout
  * names:

@@ -6,7 +6,7 @@
  * folder, so every method runs on every source.
  *
  * Scale: solvers work on whatever scale the problem is in; io/ divides 8-bit benchmark data by 255 so that truth
- * lies in [0, 1] (sci-reconstruction.md §1). `peak` says what "white" is on this scale (1 for /255 data).
+ * lies in [0, 1] (docs/conventions.md §1). `peak` says what "white" is on this scale (1 for /255 data).
  *
  * A sci_result is the reconstructed frames plus the trace: one entry per iteration with wall time, relative
  * residual ‖y − Ax‖/‖y‖ and, when truth is present, PSNR and SSIM. This is how the project shows what accuracy

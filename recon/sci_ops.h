@@ -1,4 +1,4 @@
-/* recon/sci_ops.h — the SCI forward operator and its friends (sci-reconstruction.md §1).
+/* recon/sci_ops.h — the SCI forward operator and its friends (docs/conventions.md §1).
  *
  *   A(x)    = Σ_f M_f ⊙ x_f            (w×h×N → w×h×1)
  *   Aᵀ(y)_f = M_f ⊙ y                  (no normalisation)

@@ -1,5 +1,5 @@
 /* recon/tv.h — the anisotropic TV denoiser of the MATLAB reference (PnP-SCI / DeSCI TV_denoising.m;
- * sci-reconstruction.md §3).
+ * docs/conventions.md §3).
  *
  * Per frame, a Chambolle-type dual projection with α = 5 and duals that start at zero on every call:
  *     repeat n times:  u = f − ½(D_hᵀ z_h + D_vᵀ z_v)

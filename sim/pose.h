@@ -2,7 +2,7 @@
  *
  * A pose is a row-major 3×4 matrix [R | t] (12 doubles), camera-to-world in the NeRF convention of
  * recon/problem.h. A twist ξ = (ρ, ω) has ρ the translational part (scene units) and ω the rotation vector
- * (axis × angle, radians); exp(ξ) = [exp([ω]×) | V ρ] (sci-reconstruction.md §11).
+ * (axis × angle, radians); exp(ξ) = [exp([ω]×) | V ρ] (docs/conventions.md §11).
  *
  * The arithmetic is base/se3.h's (the one SE(3) implementation, shared with the NeRF solvers' pose optimisation:
  * Taylor branches near 0, a quaternion log exact near π); these are the simulator's names for it, with the twist in
@@ -20,7 +20,7 @@ void sim_pose_mul(const double A[12], const double B[12], double C[12]);
 /* Ti = T⁻¹ = [Rᵀ | −Rᵀt]. */
 void sim_pose_inv(const double T[12], double Ti[12]);
 /* The SE(3) geodesic T(τ) = T0·exp(τ·log(T0⁻¹·T1)). τ = 0 and τ = 1 return copies of T0 and T1 bit for bit (the
- * path must hit its end poses exactly, sci-reconstruction.md §12); other τ (also outside [0, 1]) interpolate or
+ * path must hit its end poses exactly, docs/conventions.md §12); other τ (also outside [0, 1]) interpolate or
  * extrapolate along the geodesic. */
 void sim_pose_interp(const double T0[12], const double T1[12], double tau, double T[12]);
 /* Rotation matrix (row-major 3×3) of rotation vector w (radians). */

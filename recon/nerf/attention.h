@@ -11,7 +11,7 @@
  *   the backward recomputes the probabilities from it (flash-attention style: O(n) memory, not O(n·L + n·R)),
  *   using D_i = dO_i·O_i for the softmax Jacobian, so logits of ±1e4 stay finite and exact.
  * The output o (rows × C, stride ldo) holds path A in channels [0, C/2) and path B in [C/2, C).
- * Ablation (rayformer.tex, Table 2): a path switched off (intra_off / inter_off) passes its V channels through,
+ * Ablation (the RayFormer paper, Table 2): a path switched off (intra_off / inter_off) passes its V channels through,
  * o_i = v_i, as if each point attended only to itself; its lse entries are 0, and the backward gives dv = do and
  * dq = dk = 0 there. The parameters stay the same, so a switched-off path is a per-point linear map.
  *

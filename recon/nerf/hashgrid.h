@@ -1,5 +1,5 @@
-/* recon/nerf/hashgrid.h — 3-D multiresolution hash encoding (Instant-NGP; tiny-cuda-nn grid.h, §8 of
- * sci-reconstruction.md).
+/* recon/nerf/hashgrid.h — 3-D multiresolution hash encoding (Instant-NGP; tiny-cuda-nn grid.h, docs/conventions.md
+ * §8).
  *
  * Level l (0 … L−1) has scale s_l = N_min·b^l − 1 with b = exp((ln N_max − ln N_min)/(L − 1)), so the finest
  * level reaches N_max; a point x ∈ [0, 1]³ sits at p = s_l·x + 0.5 (the 0.5 staggers levels), corner cell

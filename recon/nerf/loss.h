@@ -1,9 +1,9 @@
 /* recon/nerf/loss.h — training losses with gradients, sums in double.
  *
- * Measurement loss (SCI forward model, eq. "loss" of rayformer.tex): for P pixels, N frames, ch channels,
+ * Measurement loss (SCI forward model, the loss of the RayFormer paper): for P pixels, N frames, ch channels,
  *   L = Σ_p Σ_ch (Y[p][ch] − Σ_i M[i][p]·C[i][p][ch])²,   ∂L/∂C[i][p][ch] = −2·M[i][p]·r[p][ch].
  * Layouts: Y P×ch, M N×P, C N×P×ch. A non-finite C makes the loss non-finite (it is not masked away: masks multiply
- * only values the caller has checked, §13 of sci-reconstruction.md).
+ * only values the caller has checked, docs/conventions.md §13).
  *
  * Anisotropic TV over rendered patches: patches of W×H pixels (pixel (x, y) of patch q at (q·H + y)·W + x, ch
  * channels), TV = Σ over horizontal and vertical neighbour differences d of ρ(d), ρ(d) = sqrt(d² + ε²) − ε

@@ -1,4 +1,4 @@
-/* recon/nerf/poses.h — the N camera poses of one snapshot as trainable parameters (SCINeRF, sci-reconstruction.md §7).
+/* recon/nerf/poses.h — the N camera poses of one snapshot as trainable parameters (SCINeRF, docs/conventions.md §7).
  *
  * Modes:
  *   NERF_POSES_KNOWN      the poses are given (problem->camera) and fixed: no parameters.

@@ -1,4 +1,4 @@
-/* recon/nerf/rayformer.h — the RayFormer network (rayformer.tex): hash grid + SH directions + I²R transformer
+/* recon/nerf/rayformer.h — the RayFormer network (the RayFormer paper): hash grid + SH directions + I²R transformer
  * blocks → density and geometry features → colour head on [geometry, SH(dir)].
  *
  *   u   = (x − aabb_min)/(aabb_max − aabb_min)           x: sample position (world units), clamped to [0, 1]³
@@ -101,7 +101,7 @@ int nerf_rayformer_ws_new(nerf_rayformer_ws **out, const nerf_rayformer *net, in
 void nerf_rayformer_ws_free(nerf_rayformer_ws *ws);
 size_t nerf_rayformer_ws_bytes(const nerf_rayformer_ws *ws);
 
-/* Coarse-to-fine (BARF's ramp over hash levels, sci-reconstruction.md §14): level l's features are multiplied by
+/* Coarse-to-fine (BARF's ramp over hash levels, docs/conventions.md §14): level l's features are multiplied by
  * (1 − cos(π·clamp(alpha − l, 0, 1)))/2 in this workspace's forward and backward; alpha >= n_levels (the default
  * after _ws_new) uses every level fully. Values below 1 are taken as 1 (level 0 always on). */
 void nerf_rayformer_ws_set_levels(nerf_rayformer_ws *ws, double alpha);

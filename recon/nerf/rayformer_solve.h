@@ -1,5 +1,5 @@
 /* recon/nerf/rayformer_solve.h — `scicap recon --method rayformer`: train a RayFormer radiance field (rayformer.h)
- * on one SCI snapshot of a static scene seen by a moving camera, then render the N frames (rayformer.tex).
+ * on one SCI snapshot of a static scene seen by a moving camera, then render the N frames (the RayFormer paper).
  *
  * The training loop is the shared NeRF trainer (trainer.h): B patch locations per step (overlapping windows: any
  * top-left pixel), each rendered from all N poses (N·B network patches), loss

@@ -7,7 +7,7 @@
  *   C = Σ w_i c_i,  D = Σ w_i t_i,  O = Σ w_i = 1 − T_end.
  * Early termination: the march stops after the first sample with T_{i+1} < t_stop (1e-4 as in instant-ngp;
  * 0 disables), and the stopped samples get zero gradient — the backward differentiates the same truncated sum.
- * No "δ_last = 1e10" and no cumprod(1 − α + 1e-10) (sci-reconstruction.md §10).
+ * No "δ_last = 1e10" and no cumprod(1 − α + 1e-10) (docs/conventions.md §10).
  *
  * Backward (instant-ngp): ∂C/∂τ_i = T_{i+1} c_i − (C − C_{≤i}), likewise for D, and ∂O/∂τ_i = T_end; then
  * ∂/∂σ_i = δ_i ∂/∂τ_i, ∂/∂δ_i = σ_i ∂/∂τ_i, ∂C/∂c_i = w_i. It stores nothing per sample: it replays the march

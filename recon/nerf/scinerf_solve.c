@@ -69,7 +69,7 @@ int sci_scinerf_params_preset(sci_scinerf_params *p, const char *name)
     return -EINVAL;
 }
 
-/* SCINeRF's network (sci-reconstruction.md §7): frequency encoding 10/4, 8 × 256 with the skip at 4, ReLU density,
+/* SCINeRF's network (docs/conventions.md §7): frequency encoding 10/4, 8 × 256 with the skip at 4, ReLU density,
  * 256 features, colour 128, coarse 64 + fine 64 samples, Adam 5e-4. */
 void sci_scinerf_params_paper(sci_scinerf_params *p)
 {

@@ -1,7 +1,7 @@
 /* recon/nerf/scinerf_solve.h — `scicap recon --method scinerf`: a SCINeRF-style reconstruction (an MLP radiance field,
  * mlp.h) of the N frames of a static scene seen by a camera moving during the exposure, from one SCI snapshot.
  *
- * As SCINeRF (sci-reconstruction.md §7): random ray sampling (each step: `rays_per_step` pixels drawn anywhere in
+ * As SCINeRF (docs/conventions.md §7): random ray sampling (each step: `rays_per_step` pixels drawn anywhere in
  * the image, the same pixels rendered from all N poses), stratified samples, optional coarse + fine importance
  * sampling with two networks and the loss summed over both, loss ‖Y − Σᵢ Mᵢ ⊙ Cᵢ‖² on the sampled pixels, Adam
  * with an exponentially decayed learning rate, poses known or optimised jointly (start/end on SE(3), or per frame),

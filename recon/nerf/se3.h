@@ -2,7 +2,7 @@
  * Jacobian, and pose gradients from per-point gradients. Poses, twists ([ω, u], rotation first), exp and log are
  * base/se3.h's.
  *
- * Interpolation (sci-reconstruction.md §12): pose j = 0 … N−1 of N is T₁·exp(τ_j·log(T₁⁻¹·T_N)) with
+ * Interpolation (docs/conventions.md §12): pose j = 0 … N−1 of N is T₁·exp(τ_j·log(T₁⁻¹·T_N)) with
  * τ_j = j/(N − 1) (0 for N = 1), so j = 0 gives T₁ and j = N − 1 gives T_N exactly — not the paper's i/N.
  * This is the SE(3) geodesic (sci_se3_geodesic); SCINeRF's SO(3)×R³ variant differs when the rotation is not 0.
  *

@@ -1,6 +1,6 @@
 /* recon/nerf/shenc.h — real spherical-harmonics direction encoding up to degree 4 (16 outputs).
  *
- * Constants and sign convention of tiny-cuda-nn (`common_device.h`, sci-reconstruction.md §9), evaluated on the
+ * Constants and sign convention of tiny-cuda-nn (`common_device.h`, docs/conventions.md §9), evaluated on the
  * unit direction (x, y, z) itself: this API takes the direction, not tiny-cuda-nn's (d + 1)/2, so there is no
  * factor 2 in the backward. degree 1…4 gives degree² outputs. The backward is the gradient of the polynomials
  * with respect to (x, y, z) as given (no projection onto the sphere: the caller normalised and owns that step).
