@@ -747,6 +747,7 @@ typedef struct client_cmd {
     const char *request;       /* the protocol's command */
     client_check_fn check;     /* NULL: no positional argument */
     client_show_fn show;
+    int own_json;              /* 1: show prints --json itself (watch: each event; cancel: and exits 1 if done) */
 } client_cmd;
 
 static int check_cancel(client_req *q, int argc, char **argv);
@@ -766,9 +767,9 @@ static int show_shutdown(conn *c, const json_t *r, const client_req *q);
 
 static const client_cmd client_cmds[] = {
     {"status", "scicap status [--socket PATH] [--json]", "The daemon's state, queues and counters.", plain_opts,
-     "status", NULL, show_status},
+     "status", NULL, show_status, 0},
     {"devices", "scicap devices [--socket PATH] [--json]", "The devices the daemon drives, their identities and state.",
-     plain_opts, "devices", NULL, show_devices},
+     plain_opts, "devices", NULL, show_devices, 0},
     {"capture",
      "scicap capture [--mask-set S] [--count N] [--exposure-us U] [--pattern-us U] [--dark-us U]\n"
      "                      [--sync host-master|dmd-master] [--recon [METHOD]] [--method M] [--preset P] [--wait]\n"
@@ -776,31 +777,32 @@ static const client_cmd client_cmds[] = {
      "                      [--scale auto|N] [--allow-large] [--recon [METHOD]] [--method M] [--preset P] [--wait]",
      "Capture coded snapshots on the bench (and reconstruct them with --recon); with --from, store the snapshots\n"
      "of a file or problem folder as captures instead (each snapshot one capture, as from the bench).",
-     capture_opts, "capture", check_capture, show_queued},
+     capture_opts, "capture", check_capture, show_queued, 0},
     {"calibrate", "scicap calibrate --dark|--masks [--mask-set S] [--average N]",
      "Measure the dark frame or the masks as the camera sees them; waits for the result.", calibrate_opts,
-     "calibrate", check_calibrate, show_queued},
+     "calibrate", check_calibrate, show_queued, 0},
     {"jobs", "scicap jobs [--socket PATH] [--json] [--all]",
      "Queued and running jobs and the last " CLI_STR(CLI_RECENT_JOBS) " finished ones (--all: every job the daemon keeps).", list_opts,
-     "jobs", check_list, show_jobs},
+     "jobs", check_list, show_jobs, 0},
     {"captures", "scicap captures [--socket PATH] [--json] [--all]",
      "The stored captures, the newest " CLI_STR(CLI_RECENT_CAPTURES) " (--all: every one), each with its reconstructions: method, PSNR\n"
-     "(or the measurement residual without truth), time.", list_opts, "captures", check_list, show_captures},
+     "(or the measurement residual without truth), time.", list_opts, "captures", check_list, show_captures, 0},
     {"cancel", "scicap cancel [--socket PATH] [--json] JOB",
      "Cancel a queued or running job (exit status 1 when it had already finished).", plain_opts, "cancel",
-     check_cancel, show_cancel},
+     check_cancel, show_cancel, 1},
     {"watch", "scicap watch [--socket PATH] [--json]",
-     "Follow the daemon's event stream with a progress bar (Ctrl-C ends).", plain_opts, "watch", NULL, show_watch},
+     "Follow the daemon's event stream with a progress bar (Ctrl-C ends).", plain_opts, "watch", NULL, show_watch,
+     1},
     {"reload", "scicap reload [--socket PATH] [--json]", "Reload the daemon's configuration (admin).", plain_opts,
-     "reload", NULL, show_reload},
+     "reload", NULL, show_reload, 0},
     {"shutdown", "scicap shutdown [--socket PATH] [--json]", "Stop the daemon (admin).", plain_opts, "shutdown", NULL,
-     show_shutdown},
+     show_shutdown, 0},
     {"reconstruct",
      "scicap recon --capture ID [--method M] [--preset fast|balanced|best] [--iters N] [--wait]\n"
      "       scicap recon --capture ID --budget SECONDS [--method M] [--wait]",
      "Ask the daemon to reconstruct one of its captures (files: scicap recon --help). A capture's second\n"
      "reconstruction by a method goes to recon/METHOD.2 (then .3, ...): nothing is replaced.", reconstruct_opts,
-     "reconstruct", check_reconstruct, show_queued},
+     "reconstruct", check_reconstruct, show_queued, 0},
 };
 
 static const client_cmd *find_cmd(const char *name)
@@ -1352,48 +1354,54 @@ static int send_request(conn *c, client_req *q, const char *request)
     return rc;
 }
 
-static int run(const client_cmd *cc, int argc, char **argv)
+/* Options into q, and with --from the files opened: 0, or the exit status to return (said why). */
+static int prepare(client_req *q, int argc, char **argv, const char *who)
 {
-    client_req q = {.cmd = cc, .sock = default_socket(), .args = json_object(), .kind = -1};
-    int rc = parse_options(&q, argc, argv);
-    const char *who = strcmp(cc->name, "reconstruct") ? cc->name : "recon";
+    int rc = parse_options(q, argc, argv);
     if (rc != 0) {
-        json_decref(q.args);
-        json_decref(q.params);
+        json_decref(q->params);
         if (rc == 2)
             fprintf(stderr, "(scicap %s --help lists its options)\n", who);
         return rc == 1 ? 0 : rc;
     }
-    const char *request = cc->request;
-    if (q.from) {
-        if ((q.nfds = open_import(q.from, q.mask_file, q.args, q.fds)) < 0) {
-            json_decref(q.args);
-            return q.nfds == -2 ? 2 : 1;
-        }
-        request = "import";
-    }
-    conn cn = {.fd = -1, .who = who, .raw = q.raw};
-    if (conn_open(&cn, q.sock) < 0) {
-        json_decref(q.args);
-        close_all(q.fds, q.nfds);
+    if (q->from && (q->nfds = open_import(q->from, q->mask_file, q->args, q->fds)) < 0)
+        return q->nfds == -2 ? 2 : 1;
+    return -1;
+}
+
+/* The request to the daemon, its reply shown by the command's hook: the exit status. */
+static int exchange(client_req *q, const char *who)
+{
+    conn cn = {.fd = -1, .who = who, .raw = q->raw};
+    if (conn_open(&cn, q->sock) < 0) {
+        json_decref(q->args);
+        close_all(q->fds, q->nfds);
         return 1;
     }
-    if (send_request(&cn, &q, request) < 0) {
-        conn_close(&cn);
-        return 1;
+    int rc = 1;
+    json_t *r = NULL;
+    if (send_request(&cn, q, q->from ? "import" : q->cmd->request) == 0 && (r = conn_reply(&cn))) {
+        rc = 0;
+        if (q->raw && !q->cmd->own_json)
+            print_json(r);
+        else
+            rc = q->cmd->show(&cn, r, q);
     }
-    json_t *r = conn_reply(&cn);
-    if (!r) {
-        conn_close(&cn);
-        return 1;
-    }
-    if (q.raw && cc->show != show_watch && cc->show != show_cancel)
-        print_json(r);
-    else
-        rc = cc->show(&cn, r, &q);
     json_decref(r);
     conn_close(&cn);
     return rc;
+}
+
+static int run(const client_cmd *cc, int argc, char **argv)
+{
+    client_req q = {.cmd = cc, .sock = default_socket(), .args = json_object(), .kind = -1};
+    const char *who = strcmp(cc->name, "reconstruct") ? cc->name : "recon";
+    int rc = prepare(&q, argc, argv, who);
+    if (rc >= 0) {
+        json_decref(q.args);
+        return rc;
+    }
+    return exchange(&q, who);
 }
 
 int cli_client_main(int argc, char **argv)
