@@ -1,4 +1,4 @@
-/* daemon/calibrate.c — calibrate jobs and the calibrations in use (see the header). */
+/* daemon/calibrate.c — calibrate jobs (see the header). */
 #include "daemon/calibrate.h"
 
 #include <errno.h>
@@ -8,98 +8,19 @@
 #include <string.h>
 
 #include "base/clock.h"
-#include "daemon/package.h"
-
-#define MAX_CALIB 64
-
-typedef struct calib_entry {
-    char key[96];            /* "dark" or "masks-<set>" */
-    scicapd_calib c;
-    int missing;             /* looked up in the store and not found */
-} calib_entry;
-
-struct scicapd_calibs {
-    scicapd_store *store;
-    const sci_log *log;
-    calib_entry e[MAX_CALIB];
-    int n;
-};
-
-int scicapd_calibs_new(scicapd_calibs **out, scicapd_store *store, const sci_log *log, sci_error *err)
-{
-    scicapd_calibs *c = calloc(1, sizeof *c);
-    if (!c)
-        return sci_error_set(err, -ENOMEM, "calibrations: out of memory");
-    c->store = store;
-    c->log = log;
-    *out = c;
-    return 0;
-}
-
-void scicapd_calibs_free(scicapd_calibs *c)
-{
-    if (!c)
-        return;
-    for (int i = 0; i < c->n; i++) {
-        sci_cube_free(c->e[i].c.data);
-        json_decref(c->e[i].c.record);
-    }
-    free(c);
-}
-
-const scicapd_calib *scicapd_calibs_get(scicapd_calibs *cs, const char *key)
-{
-    for (int i = 0; i < cs->n; i++)
-        if (strcmp(cs->e[i].key, key) == 0)
-            return cs->e[i].missing ? NULL : &cs->e[i].c;
-    if (cs->n == MAX_CALIB)
-        return NULL;
-    calib_entry *c = &cs->e[cs->n++];
-    memset(c, 0, sizeof *c);
-    snprintf(c->key, sizeof c->key, "%s", key);
-    sci_error err = {0};
-    if (scicapd_store_load_calibration(cs->store, key, &c->c.data, &c->c.record, &err) < 0) {
-        if (err.code != -ENOENT)
-            sci_log_write(cs->log, SCI_LOG_WARNING, "calibration %s: %s", key, err.msg);
-        c->missing = 1;
-        return NULL;
-    }
-    c->c.counts_per_unit = json_number_value(json_object_get(c->c.record, "counts_per_unit"));
-    return &c->c;
-}
-
-/* Make (data, record) current for key; takes both. */
-static void calibs_set(scicapd_calibs *cs, const char *key, sci_cube *data, json_t *record, double cpu)
-{
-    calib_entry *c = NULL;
-    for (int i = 0; i < cs->n; i++)
-        if (strcmp(cs->e[i].key, key) == 0)
-            c = &cs->e[i];
-    if (!c && cs->n < MAX_CALIB)
-        c = &cs->e[cs->n++];
-    if (!c) {
-        sci_cube_free(data);
-        json_decref(record);
-        return;
-    }
-    sci_cube_free(c->c.data);
-    json_decref(c->c.record);
-    snprintf(c->key, sizeof c->key, "%s", key);
-    c->c = (scicapd_calib){.data = data, .record = record, .counts_per_unit = cpu};
-    c->missing = 0;
-}
+#include "daemon/timestamp.h"
 
 /* ---- the job ---- */
 
-static int average(scicapd_acquire *a, int n, int frames, uint32_t exposure, int dark, sci_cube *acc,
+static int average(scicapd_rig *a, int n, int frames, uint32_t exposure, int dark, sci_cube *acc,
                    sci_error *err)
 {
     memset(acc->data, 0, sci_cube_count(acc) * sizeof(float));
     for (int f = 0; f < frames; f++) {
-        int rc = scicapd_acquire_take(a, n, exposure, SYNC_MODE_HOST_MASTER, dark, err);
+        int rc = scicapd_rig_take(a, n, exposure, SYNC_MODE_HOST_MASTER, dark, err);
         if (rc < 0)
             return rc;
-        const camera_frame *fr = &scicapd_acquire_shot(a)->frame;
+        const camera_frame *fr = &scicapd_rig_shot(a)->frame;
         if ((int)fr->width != acc->w || (int)fr->height != acc->h)
             return sci_error_set(err, SCI_ESHAPE, "calibration: frame %ux%u, expected %dx%d", fr->width, fr->height,
                                  acc->w, acc->h);
@@ -109,12 +30,12 @@ static int average(scicapd_acquire *a, int n, int frames, uint32_t exposure, int
     return 0;
 }
 
-void scicapd_calibrate_run(scicapd_acquire *a, scicapd_job *j)
+void scicapd_calibrate_run(scicapd_rig *a, scicapd_job *j)
 {
     const scicapd_calib_args *c = &j->calib;
-    const scicapd_acquire_env *env = scicapd_acquire_env_get(a);
-    scicapd_devices *dev = scicapd_acquire_devices(a);
-    scicapd_calibs *calibs = scicapd_acquire_calibs(a);
+    const scicapd_rig_env *env = scicapd_rig_env_get(a);
+    scicapd_devices *dev = scicapd_rig_devices(a);
+    scicapd_calibs *calibs = scicapd_rig_calibs(a);
     sci_error err = {0};
     scicapd_job_set_state(env->jobs, j, SCICAPD_JOB_RUNNING, NULL);
     int rc = 0;
@@ -123,10 +44,10 @@ void scicapd_calibrate_run(scicapd_acquire *a, scicapd_job *j)
     camera_format cf;
     uint32_t lat = (uint32_t)(scicapd_devices_dmd_latency_ns(dev) / 1000);
     const sci_cube *masks = NULL;
-    if ((rc = scicapd_acquire_bind(a, SYNC_MODE_HOST_MASTER, &err)) < 0)
+    if ((rc = scicapd_rig_bind(a, SYNC_MODE_HOST_MASTER, &err)) < 0)
         goto done;
-    camera_format_get(scicapd_acquire_camera(a), &cf);
-    if (!(masks = scicapd_acquire_mask_set(a, &c->mask_set, &err))) {
+    camera_format_get(scicapd_rig_camera(a), &cf);
+    if (!(masks = scicapd_rig_mask_set(a, &c->mask_set, &err))) {
         rc = err.code;
         goto done;
     }
@@ -136,9 +57,9 @@ void scicapd_calibrate_run(scicapd_acquire *a, scicapd_job *j)
         /* The DMD is not started: no light reaches the sensor through the masks. */
         uint32_t e = c->exposure_us ? c->exposure_us
                                     : scicapd_auto_exposure_us(masks->n, c->pattern_us, c->dark_us, lat);
-        scicapd_acquire_post(a, j, "calibrate.started",
+        scicapd_rig_post(a, j, "calibrate.started",
                              json_pack("{s:s, s:i}", "kind", "dark", "frames", c->average));
-        if ((rc = scicapd_acquire_program(a, c->mask_set.name, masks, c->pattern_us, c->dark_us,
+        if ((rc = scicapd_rig_program(a, c->mask_set.name, masks, c->pattern_us, c->dark_us,
                                           SYNC_MODE_HOST_MASTER, &err)) < 0 ||
             (rc = average(a, masks->n, c->average, e, 1, acc, &err)) < 0)
             goto done;
@@ -151,7 +72,7 @@ void scicapd_calibrate_run(scicapd_acquire *a, scicapd_job *j)
         json_t *final = NULL;
         if ((rc = scicapd_store_write_calibration(env->store, "dark", acc, rec, &final, &err)) < 0)
             goto done;
-        calibs_set(calibs, "dark", acc, json_incref(final), 0);
+        scicapd_calibs_set(calibs, "dark", acc, json_incref(final), 0);
         acc = NULL;
         json_decref(rec);
         rec = final;
@@ -159,13 +80,13 @@ void scicapd_calibrate_run(scicapd_acquire *a, scicapd_job *j)
         /* Each mask alone on a white target; white level from the pixels the mask opens. */
         const scicapd_calib *dark = scicapd_calibs_get(calibs, "dark");
         double unit, dark_level; /* without a dark frame: the configured level */
-        scicapd_acquire_scale(a, &unit, &dark_level);
+        scicapd_rig_scale(a, &unit, &dark_level);
         if (dark && !sci_cube_same_shape(dark->data, acc))
             dark = NULL;
         if ((rc = sci_cube_new(&result, acc->w, acc->h, masks->n, &err)) < 0)
             goto done;
         uint32_t e = c->exposure_us ? c->exposure_us : scicapd_auto_exposure_us(1, c->pattern_us, c->dark_us, lat);
-        scicapd_acquire_post(a, j, "calibrate.started", json_pack("{s:s, s:s, s:i}", "kind", "masks", "mask_set",
+        scicapd_rig_post(a, j, "calibrate.started", json_pack("{s:s, s:s, s:i}", "kind", "masks", "mask_set",
                                                                   c->mask_set.name, "masks", masks->n));
         sci_cube *one;
         if ((rc = sci_cube_new(&one, masks->w, masks->h, 1, &err)) < 0)
@@ -173,16 +94,16 @@ void scicapd_calibrate_run(scicapd_acquire *a, scicapd_job *j)
         scicapd_devices_white_target(dev, 1);
         double white_sum = 0, white_n = 0;
         for (int k = 0; k < masks->n && rc == 0; k++) {
-            if (scicapd_acquire_canceled(a, j)) {
+            if (scicapd_rig_canceled(a, j)) {
                 rc = SCI_ECANCELED;
                 sci_error_set(&err, rc, "canceled");
                 break;
             }
             memcpy(one->data, sci_cube_frame(masks, k), sci_cube_frame_size(one) * sizeof(float));
-            scicapd_acquire_forget_upload(a);
+            scicapd_rig_forget_upload(a);
             char tag[80];
             snprintf(tag, sizeof tag, ".calib-%d", k);
-            if ((rc = scicapd_acquire_program(a, tag, one, c->pattern_us, c->dark_us, SYNC_MODE_HOST_MASTER,
+            if ((rc = scicapd_rig_program(a, tag, one, c->pattern_us, c->dark_us, SYNC_MODE_HOST_MASTER,
                                               &err)) < 0 ||
                 (rc = average(a, 1, c->average, e, 0, acc, &err)) < 0)
                 break;
@@ -201,10 +122,10 @@ void scicapd_calibrate_run(scicapd_acquire *a, scicapd_job *j)
                     white_n++;
                 }
             scicapd_job_set_progress(env->jobs, j, k + 1, masks->n, NAN);
-            scicapd_acquire_post(a, j, "calibrate.progress", json_pack("{s:i, s:i}", "mask", k + 1, "of", masks->n));
+            scicapd_rig_post(a, j, "calibrate.progress", json_pack("{s:i, s:i}", "mask", k + 1, "of", masks->n));
         }
         scicapd_devices_white_target(dev, 0);
-        scicapd_acquire_forget_upload(a);
+        scicapd_rig_forget_upload(a);
         sci_cube_free(one);
         if (rc < 0)
             goto done;
@@ -224,7 +145,7 @@ void scicapd_calibrate_run(scicapd_acquire *a, scicapd_job *j)
         json_t *final = NULL;
         if ((rc = scicapd_store_write_calibration(env->store, key, result, rec, &final, &err)) < 0)
             goto done;
-        calibs_set(calibs, key, result, json_incref(final), white);
+        scicapd_calibs_set(calibs, key, result, json_incref(final), white);
         result = NULL;
         json_decref(rec);
         rec = final;
@@ -232,12 +153,12 @@ void scicapd_calibrate_run(scicapd_acquire *a, scicapd_job *j)
 done:
     if (rc < 0) {
         scicapd_job_set_state(env->jobs, j, rc == SCI_ECANCELED ? SCICAPD_JOB_CANCELED : SCICAPD_JOB_FAILED, err.msg);
-        scicapd_acquire_post(a, j, rc == SCI_ECANCELED ? "calibrate.canceled" : "calibrate.failed",
+        scicapd_rig_post(a, j, rc == SCI_ECANCELED ? "calibrate.canceled" : "calibrate.failed",
                              json_pack("{s:s}", "error", err.msg));
     } else {
         scicapd_job_add_output(env->jobs, j, json_string_value(json_object_get(rec, "id")));
         scicapd_job_set_state(env->jobs, j, SCICAPD_JOB_DONE, NULL);
-        scicapd_acquire_post(a, j, "calibrate.done", json_incref(rec));
+        scicapd_rig_post(a, j, "calibrate.done", json_incref(rec));
     }
     json_decref(rec);
     sci_cube_free(acc);

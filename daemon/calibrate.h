@@ -1,6 +1,7 @@
-/* daemon/calibrate.h — calibrate jobs, and the calibrations in use.
+/* daemon/calibrate.h — calibrate jobs.
  *
- * A calibrate job (scicapd_calibrate_run, on the acquisition thread, daemon/acquire.h) is one of two kinds:
+ * A calibrate job (scicapd_calibrate_run, on the acquisition thread, daemon/acquire.h, using the rig,
+ * daemon/rig.h) is one of two kinds:
  *   dark   the camera's frame averaged over `average` exposures with the DMD not started (no light reaches the
  *          sensor through the masks), in counts; current as "dark";
  *   masks  each mask of a set shown alone on a uniform white target (the devices provide one on the simulated
@@ -12,36 +13,15 @@
  * Both are written to the store (ROOT/calibrations, daemon/store.h) before they count, then reported by the
  * events calibrate.started, calibrate.progress (masks), calibrate.done / .failed / .canceled.
  *
- * scicapd_calibs: the calibrations in use by key, loaded from the store on first use (a key found missing is not
- * looked up again until a job writes it) and replaced when a job writes a new one; at most 64 keys. Owns what it
- * holds. Acquisition thread only.
+ * The calibrations in use live in daemon/calibs.h (read by daemon/package.h); this job replaces them.
  */
 #ifndef SCICAP_DAEMON_CALIBRATE_H
 #define SCICAP_DAEMON_CALIBRATE_H
 
-#include <jansson.h>
-
-#include "base/cube.h"
-#include "base/log.h"
-#include "daemon/acquire.h"
 #include "daemon/jobs.h"
-#include "daemon/store.h"
-
-typedef struct scicapd_calib {
-    sci_cube *data;          /* dark: counts (w×h×1); masks: the measured masks (w×h×N, white = 1) */
-    json_t *record;          /* calibration.json as stored (with "id" and "folder") */
-    double counts_per_unit;  /* masks: the white level; 0 for dark */
-} scicapd_calib;
-
-typedef struct scicapd_calibs scicapd_calibs;
-
-/* store and log borrowed (outlive the cache). -ENOMEM. */
-int scicapd_calibs_new(scicapd_calibs **out, scicapd_store *store, const sci_log *log, sci_error *err);
-void scicapd_calibs_free(scicapd_calibs *c); /* NULL is harmless */
-/* The current calibration for `key` ("dark", "masks-<set>"), borrowed until the next set; NULL when none. */
-const scicapd_calib *scicapd_calibs_get(scicapd_calibs *c, const char *key);
+#include "daemon/rig.h"
 
 /* Run calibrate job j to its end (state, events, output id). */
-void scicapd_calibrate_run(scicapd_acquire *a, scicapd_job *j);
+void scicapd_calibrate_run(scicapd_rig *r, scicapd_job *j);
 
 #endif

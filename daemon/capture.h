@@ -1,4 +1,4 @@
-/* daemon/capture.h — capture jobs, run by the acquisition thread (daemon/acquire.h).
+/* daemon/capture.h — capture jobs, run by the acquisition thread (daemon/acquire.h) on the rig (daemon/rig.h).
  *
  * A capture job takes `count` snapshots of one mask set: bind the devices for its sync mode, make the set at the
  * DMD's size, then per snapshot apply pending faults, program the DMD (uploaded once; timing when it changed),
@@ -13,10 +13,10 @@
 #ifndef SCICAP_DAEMON_CAPTURE_H
 #define SCICAP_DAEMON_CAPTURE_H
 
-#include "daemon/acquire.h"
 #include "daemon/jobs.h"
+#include "daemon/rig.h"
 
 /* Run capture job j to its end (or cancel, or the thread's stop). */
-void scicapd_capture_run(scicapd_acquire *a, scicapd_job *j);
+void scicapd_capture_run(scicapd_rig *r, scicapd_job *j);
 
 #endif

@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "base/clock.h"
-#include "daemon/import.h"
+#include "daemon/import_args.h"
 
 struct scicapd_jobs {
     pthread_mutex_t mu;

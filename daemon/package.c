@@ -4,9 +4,8 @@
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <time.h>
 
-#include "base/clock.h"
+#include "daemon/timestamp.h"
 
 static int frame_cube(const camera_frame *f, sci_cube **out, sci_error *err)
 {
@@ -17,17 +16,6 @@ static int frame_cube(const camera_frame *f, sci_cube **out, sci_error *err)
     for (size_t i = 0; i < np; i++)
         (*out)->data[i] = (float)f->data[i];
     return 0;
-}
-
-json_t *scicapd_time_json(int64_t mono_ns)
-{
-    int64_t real = sci_clock_real_ns();
-    time_t s = (time_t)(real / 1000000000);
-    struct tm tm;
-    char iso[64];
-    gmtime_r(&s, &tm);
-    strftime(iso, sizeof iso, "%Y-%m-%dT%H:%M:%SZ", &tm);
-    return json_pack("{s:I, s:I, s:s}", "mono_ns", (json_int_t)mono_ns, "realtime_ns", (json_int_t)real, "utc", iso);
 }
 
 int scicapd_package_snapshot(const scicapd_package_in *in, scicapd_snapshot **out, sci_error *err)

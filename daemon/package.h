@@ -19,7 +19,7 @@
 #include <stdint.h>
 
 #include "base/cube.h"
-#include "daemon/calibrate.h"
+#include "daemon/calibs.h"
 #include "daemon/devices.h"
 #include "daemon/jobs.h"
 #include "daemon/store.h"
@@ -33,14 +33,11 @@ typedef struct scicapd_package_in {
     const capture_snapshot *shot;    /* the frame and its sync report */
     scicapd_calibs *calibs;          /* the calibrations in use */
     scicapd_devices *dev;            /* geometry, truth, identities, metadata */
-    double counts_per_unit, dark_level; /* the scale without calibrations (scicapd_acquire_scale) */
+    double counts_per_unit, dark_level; /* the scale without calibrations (scicapd_rig_scale) */
     uint32_t exposure_us;            /* the camera's exposure as set */
 } scicapd_package_in;
 
 /* A new snapshot (free with scicapd_snapshot_free); its job reference is not taken here. */
 int scicapd_package_snapshot(const scicapd_package_in *in, scicapd_snapshot **out, sci_error *err);
-
-/* {"mono_ns": mono_ns, "realtime_ns": now, "utc": now in ISO 8601} for meta and calibration records. New ref. */
-json_t *scicapd_time_json(int64_t mono_ns);
 
 #endif
