@@ -12,6 +12,12 @@
  *     int bad = layering_check(".", layering_tree, layering_tree_count, report, sizeof report);
  *     // bad < 0: -errno (the root could not be read); bad > 0: report lists "file:line: why", one a line
  *
+ * Inside one folder, includes must also form no cycle between its modules (a module is a file's name without
+ * .c/.h: daemon/acquire.c and daemon/acquire.h are the module daemon/acquire), so that its flow stays one-way:
+ *
+ *     int cycles = layering_cycles(".", "daemon", report, sizeof report, NULL);
+ *     // cycles > 0: report lists each as "cycle: a.c includes b.h (line 3); b.h includes a.h (line 9)"
+ *
  * Reads files only; allocates nothing that outlives the call; reentrant.
  */
 #ifndef SCICAP_TESTS_HELPERS_LAYERING_H
@@ -33,5 +39,12 @@ extern const int layering_tree_count;
  * `files` (nullable) receives how many files were read. */
 int layering_check(const char *root, const layering_layer *layers, int n_layers, char *report, size_t report_size,
                    int *files);
+
+/* Check the includes between the modules of folder `dir` under root ("dir/x.h" included by dir/y.c or dir/y.h;
+ * a module including its own header does not count). Returns the number of cycles found (0: one-way; each
+ * found once, from its edge back to a module still open in a depth-first walk) and writes each to report, one a
+ * line, naming the including file, the included header and the line of each include along it; or -errno when the
+ * folder cannot be read, -E2BIG above 512 modules. `modules` (nullable) receives how many modules were seen. */
+int layering_cycles(const char *root, const char *dir, char *report, size_t report_size, int *modules);
 
 #endif

@@ -1,5 +1,7 @@
 /* tests/unit/test_layering.c — the include direction of docs/architecture.md: the tree passes, and the checker
- * (tests/helpers/layering.c) fails on a synthetic tree with a deliberately upward include, naming file and line. */
+ * (tests/helpers/layering.c) fails on a synthetic tree with a deliberately upward include, naming file and line;
+ * the modules of daemon/ include each other without a cycle, and the cycle check fails on a synthetic folder
+ * with two cycles, naming the files. */
 #include <errno.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -93,11 +95,81 @@ static void test_upward_include_fails(void **state)
     assert_int_equal(system(cmd), 0);
 }
 
+static void test_daemon_has_no_cycle(void **state)
+{
+    (void)state;
+    char root[4096], report[16384];
+    tree_root(root, sizeof root);
+    int modules = 0;
+    int cycles = layering_cycles(root, "daemon", report, sizeof report, &modules);
+    printf("daemon/: %d modules, %d include cycles\n%s", modules, cycles, report);
+    assert_true(modules > 20);
+    assert_int_equal(cycles, 0);
+}
+
+/* The two shapes the daemon had: a job module and the thread module that calls it calling each other through
+ * their headers (acq.c -> cal.h -> acq.h), and a three-module loop through .c files (pkg -> cal -> job -> pkg). */
+static void test_cycle_is_named(void **state)
+{
+    (void)state;
+    char dir[] = "/tmp/scicap-cycles-XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char path[4096];
+    snprintf(path, sizeof path, "%s/d", dir);
+    assert_int_equal(mkdir(path, 0755), 0);
+    const char *files[][2] = {
+        {"acq.h", "#include \"base/log.h\"\n"},
+        {"acq.c", "#include \"d/acq.h\"\n#include \"d/cal.h\"\n"},
+        {"cal.h", "#include <stdio.h>\n#include \"d/acq.h\"\n"},
+        {"cal.c", "#include \"d/cal.h\"\n#include \"d/job.h\"\n"},
+        {"job.h", "\n"},
+        {"job.c", "#include \"d/job.h\"\n#include \"d/pkg.h\"\n"},
+        {"pkg.h", "#include \"d/leaf.h\"\n"},
+        {"pkg.c", "#include \"d/pkg.h\"\n\n\n#include \"d/cal.h\"\n"},
+        {"leaf.h", "#include \"d/leaf.h\"\n"}, /* itself: not a cycle */
+    };
+    for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {
+        snprintf(path, sizeof path, "%s/d/%s", dir, files[i][0]);
+        FILE *f = fopen(path, "w");
+        assert_non_null(f);
+        fputs(files[i][1], f);
+        fclose(f);
+    }
+    char report[4096];
+    int modules = 0;
+    int cycles = layering_cycles(dir, "d", report, sizeof report, &modules);
+    printf("synthetic folder: %d modules, %d cycles:\n%s", modules, cycles, report);
+    assert_int_equal(modules, 5);
+    assert_int_equal(cycles, 2);
+    assert_non_null(strstr(report, "d/acq.c includes d/cal.h (line 2)"));
+    assert_non_null(strstr(report, "d/cal.h includes d/acq.h (line 2)"));
+    assert_non_null(strstr(report, "d/cal.c includes d/job.h (line 2)"));
+    assert_non_null(strstr(report, "d/job.c includes d/pkg.h (line 2)"));
+    assert_non_null(strstr(report, "d/pkg.c includes d/cal.h (line 4)"));
+    assert_null(strstr(report, "leaf"));
+    /* the same folder without the two back edges is one-way */
+    snprintf(path, sizeof path, "%s/d/cal.h", dir);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fclose(f);
+    snprintf(path, sizeof path, "%s/d/pkg.c", dir);
+    assert_non_null(f = fopen(path, "w"));
+    fputs("#include \"d/pkg.h\"\n", f);
+    fclose(f);
+    assert_int_equal(layering_cycles(dir, "d", report, sizeof report, NULL), 0);
+    assert_true(layering_cycles(dir, "missing", report, sizeof report, NULL) < 0);
+    char cmd[256];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_tree_is_layered),
         cmocka_unit_test(test_upward_include_fails),
+        cmocka_unit_test(test_daemon_has_no_cycle),
+        cmocka_unit_test(test_cycle_is_named),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
