@@ -26,11 +26,7 @@
 /* Under AddressSanitizer (make check-asan, whose point is memory errors) every reconstruction without its own
  * --iters stops at 50 iterations (33 dB on drop40): the scale checks compare runs with one another, which holds at
  * any count; the golden 34.63 dB of the full default run is checked in the optimised build. */
-#if defined(__SANITIZE_ADDRESS__)
-#define SANITIZED 1
-#else
-#define SANITIZED 0
-#endif
+#include "tests/helpers/sanitized.h"
 
 static char dir[] = "/tmp/scicap-test-cli-mat-XXXXXX";
 static char scicap[1024];

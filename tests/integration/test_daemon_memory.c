@@ -19,11 +19,7 @@
 /* Under AddressSanitizer scicapd's memory comes from ASan's allocator (freed blocks held in its quarantine, no
  * malloc_trim), so what goes back to the system after close is the glibc build's property: check-asan runs the load
  * for memory errors and checks the peak and that the daemon still answers, and says so. */
-#if defined(__SANITIZE_ADDRESS__)
-#define SANITIZED 1
-#else
-#define SANITIZED 0
-#endif
+#include "tests/helpers/sanitized.h"
 
 #define CONNS 29
 #define ROUNDS 2

@@ -21,11 +21,7 @@
 #include "recon/solver.h"
 #include "tests/helpers/testdata.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-#define SANITIZED 1
-#else
-#define SANITIZED 0
-#endif
+#include "tests/helpers/sanitized.h"
 
 /* A cw × ch crop of snapshot 1 of drop40 from (x0, y0): the forward model is per pixel, so the cropped measurement
  * is exactly the cropped masks applied to the cropped truth. */

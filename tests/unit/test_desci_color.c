@@ -18,11 +18,7 @@
 #include "sim/scene.h"
 #include "sim/simulate.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-#define SANITIZED 1
-#else
-#define SANITIZED 0
-#endif
+#include "tests/helpers/sanitized.h"
 
 static int tv_plane(const sci_problem *plane, sci_result *r, void *user)
 {

@@ -13,11 +13,7 @@
 
 /* Under AddressSanitizer (make check-asan: memory errors, not accuracy) the learning test trains 40 steps instead
  * of 150 and checks that the loss falls; the optimised build checks how far. */
-#if defined(__SANITIZE_ADDRESS__)
-#define SANITIZED 1
-#else
-#define SANITIZED 0
-#endif
+#include "tests/helpers/sanitized.h"
 #include <omp.h>
 
 #include "recon/metrics.h"

@@ -22,11 +22,7 @@
 #include "sim/simulate.h"
 #include "tests/helpers/testdata.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-#define SANITIZED 1
-#else
-#define SANITIZED 0
-#endif
+#include "tests/helpers/sanitized.h"
 
 static sci_problem **load_drop(int *k)
 {

@@ -23,11 +23,7 @@
 
 #define SEED 20190101u
 
-#if defined(__SANITIZE_ADDRESS__)
-#define SANITIZED 1
-#else
-#define SANITIZED 0
-#endif
+#include "tests/helpers/sanitized.h"
 
 /* xorshift64*, and Gaussians by Box–Muller: the same numbers on every machine. */
 static uint64_t rng_state;
