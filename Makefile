@@ -43,6 +43,9 @@ LIB_OBJ  := $(LIB_C:%.c=$(BUILD)/%.o) $(LIB_CXX:%.cpp=$(BUILD)/%.o)
 LIB      := $(BUILD)/libscicap.a
 
 CLI_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(wildcard cli/*.c))
+# The command line but its main() (cli/main.c holds main and the command table only): the tests link it, so they
+# call its functions (cli/recon_opts.h) as scicap does. Every other cli/*.c is in it: no edit for a new one.
+CLI_LIB  := $(BUILD)/libscicap-cli.a
 BINS     := $(BUILD)/scicap $(if $(wildcard daemon/main.c),$(BUILD)/scicapd)
 
 TEST_SRC := $(wildcard tests/unit/test_*.c tests/stability/test_*.c tests/integration/test_*.c)
@@ -100,15 +103,19 @@ $(BUILD)/%.o: %.cpp
 	@mkdir -p $(dir $@)
 	$(CXX) $(ALL_CXXFLAGS) -MMD -MP -c $< -o $@
 
+$(CLI_LIB): $(filter-out $(BUILD)/cli/main.o,$(CLI_OBJ))
+	@rm -f $@
+	ar rcs $@ $^
+
 $(BUILD)/scicap: $(CLI_OBJ) $(LIB)
 	$(CC) $(ALL_CFLAGS) -o $@ $(CLI_OBJ) $(LIB) $(LDLIBS_ALL)
 
 $(BUILD)/scicapd: $(BUILD)/daemon/main.o $(LIB)
 	$(CC) $(ALL_CFLAGS) -o $@ $< $(LIB) $(LDLIBS_ALL)
 
-$(BUILD)/tests/%: tests/%.c $(TEST_HELPERS) $(LIB)
+$(BUILD)/tests/%: tests/%.c $(TEST_HELPERS) $(CLI_LIB) $(LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(ALL_CFLAGS) -MMD -MP -o $@ $< $(TEST_HELPERS) $(LIB) $(LDLIBS_ALL) -lcmocka
+	$(CC) $(ALL_CFLAGS) -MMD -MP -o $@ $< $(TEST_HELPERS) $(CLI_LIB) $(LIB) $(LDLIBS_ALL) -lcmocka
 
 $(BUILD)/bench/%: bench/%.c $(LIB)
 	@mkdir -p $(dir $@)
@@ -159,13 +166,63 @@ $(BUILD)/python/scicap/%.py: python/scicap/%.py
 
 python: $(PY_EXT) $(PY_PURE)
 
+# A test build with one method more (tests/extra_method/, docs: recon/solver.h): the normal build's objects but
+# recon/solver.o, which is compiled again with -DSCICAP_EXTRA_SOLVER naming the extra method's row, plus that
+# method's object; scicap, scicapd and the Python module linked against it in $(BUILD)/extra-method/. That one row
+# is the only edit a new method makes: tests/integration/test_extra_method.c and tests/python/test_extra_method.py
+# look for it in every interface. Costs two compiles and the links.
+XM        := $(BUILD)/extra-method
+XM_SOLVER := sci_toy_mean_solver
+XM_C      := $(wildcard tests/extra_method/*.c)
+XM_LIB    := $(XM)/libscicap.a
+XM_PIC_LIB := $(XM)/pic/libscicap.a
+XM_PY_EXT := $(XM)/python/scicap/_scicap$(word 3,$(PY_INFO))
+XM_PY_PURE := $(patsubst python/%,$(XM)/python/%,$(wildcard python/scicap/*.py))
+XM_BINS   := $(XM)/scicap $(XM)/scicapd
+
+$(XM)/recon/solver.o: recon/solver.c
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CFLAGS) -DSCICAP_EXTRA_SOLVER=$(XM_SOLVER) -MMD -MP -c $< -o $@
+
+$(XM)/pic/recon/solver.o: recon/solver.c
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CFLAGS) -fPIC -DSCICAP_EXTRA_SOLVER=$(XM_SOLVER) -MMD -MP -c $< -o $@
+
+$(XM_LIB): $(filter-out $(BUILD)/recon/solver.o,$(LIB_OBJ)) $(XM)/recon/solver.o $(XM_C:%.c=$(BUILD)/%.o)
+	@rm -f $@
+	ar rcs $@ $^
+
+$(XM_PIC_LIB): $(filter-out $(BUILD)/pic/recon/solver.o,$(PIC_OBJ)) $(XM)/pic/recon/solver.o \
+               $(XM_C:%.c=$(BUILD)/pic/%.o)
+	@rm -f $@
+	ar rcs $@ $^
+
+$(XM)/scicap: $(CLI_OBJ) $(XM_LIB)
+	$(CC) $(ALL_CFLAGS) -o $@ $(CLI_OBJ) $(XM_LIB) $(LDLIBS_ALL)
+
+$(XM)/scicapd: $(BUILD)/daemon/main.o $(XM_LIB)
+	$(CC) $(ALL_CFLAGS) -o $@ $< $(XM_LIB) $(LDLIBS_ALL)
+
+$(XM_PY_EXT): $(PY_OBJ) $(XM_PIC_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CFLAGS) -shared -Wl,--exclude-libs,ALL -o $@ $(PY_OBJ) $(XM_PIC_LIB) $(LDLIBS_ALL)
+
+$(XM)/python/scicap/%.py: python/scicap/%.py
+	@mkdir -p $(dir $@)
+	cp $< $@
+
+# The C test runs the extra build's programs; the pytest one its module (check-python).
+$(BUILD)/tests/integration/test_extra_method: $(XM_BINS)
+python-extra-method: $(XM_PY_EXT) $(XM_PY_PURE)
+.PHONY: python-extra-method
+
 # The C tests, then the Python module's (tests/python, pytest): both always run; either failing fails the check.
 check: deps
 	@$(MAKE) --no-print-directory $(JOBS) tests python
 	@rc=0; BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" tests/run $(TEST_BIN) tests/vm/test_resolve || rc=1; \
 	  $(MAKE) --no-print-directory check-python || rc=1; exit $$rc
 
-check-python: python $(BINS)
+check-python: python python-extra-method $(BINS)
 	@echo "tests/python (pytest, module from $(BUILD)/python):"
 	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" PYTHONPATH=$(abspath $(BUILD)/python) \
 	  $(PYTHON) -m pytest -q -p no:cacheprovider --durations=5 tests/python
@@ -287,4 +344,5 @@ clean:
 	rm -rf $(BUILD)
 
 -include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d) $(GV_TEST_BIN:=.d) $(FUZZ_OBJ:.o=.d)
--include $(PIC_OBJ:.o=.d) $(PY_OBJ:.o=.d)
+-include $(PIC_OBJ:.o=.d) $(PY_OBJ:.o=.d) $(XM)/recon/solver.d $(XM)/pic/recon/solver.d
+-include $(XM_C:%.c=$(BUILD)/%.d) $(XM_C:%.c=$(BUILD)/pic/%.d)

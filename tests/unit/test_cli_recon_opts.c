@@ -3,8 +3,8 @@
  * command line's functions (cli/recon_opts.h take the table as a parameter), which must accept --toy-knob, refuse
  * a value out of the toy's range naming it, reach toy keys by --set, and list the toy and its settings in the help.
  *
- * The CLI objects are not in libscicap.a (the Makefile links tests against the library only), so the module under
- * test is compiled into this test by including its source. */
+ * The module under test is the one scicap links: cli/recon_opts.o from the command line's archive
+ * (libscicap-cli.a), which every test links. */
 #include <errno.h>
 #include <getopt.h>
 #include <setjmp.h>
@@ -15,7 +15,7 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "cli/recon_opts.c"
+#include "cli/recon_opts.h"
 #include "recon/gaptv.h"
 
 /* The toy method: a knob, a mode and the "iters" every row must have; it never runs here. */
