@@ -26,35 +26,10 @@
 #include "io/image.h"
 #include "io/problem_dir.h"
 #include "tests/helpers/cli_child.h"
+#include "tests/helpers/testfiles.h"
 
 static char dir[] = "/tmp/scicap-test-cli-large-XXXXXX";
 static char scicap[1024];
-
-/* A small problem folder; optionally its mask sidecar rewritten to claim w×h. */
-static void write_problem(const char *path, int w, int h, int n, int k)
-{
-    sci_problem **p = calloc((size_t)k, sizeof *p);
-    assert_non_null(p);
-    sci_cube *mask;
-    assert_int_equal(sci_cube_new(&mask, w, h, n, NULL), 0);
-    for (size_t i = 0; i < sci_cube_count(mask); i++)
-        mask->data[i] = (float)((i * 2654435761u >> 7) & 1);
-    for (int j = 0; j < k; j++) {
-        p[j] = calloc(1, sizeof *p[j]);
-        assert_non_null(p[j]);
-        p[j]->peak = 1;
-        snprintf(p[j]->name, sizeof p[j]->name, "limits#%d", j + 1);
-        assert_int_equal(sci_cube_clone(&p[j]->mask, mask, NULL), 0);
-        assert_int_equal(sci_cube_new(&p[j]->meas, w, h, 1, NULL), 0);
-        for (size_t i = 0; i < sci_cube_frame_size(p[j]->meas); i++)
-            p[j]->meas->data[i] = (float)(i % 7) * 0.5f;
-    }
-    sci_error err = {0};
-    if (sci_problem_dir_write_opt(path, p, k, NULL, 1, 0, &err) < 0)
-        fail_msg("%s", err.msg);
-    sci_cube_free(mask);
-    sci_problem_array_free(p, k);
-}
 
 static void test_4200_square_reconstructs_with_small_gif(void **state)
 {
@@ -62,7 +37,7 @@ static void test_4200_square_reconstructs_with_small_gif(void **state)
     snprintf(in, sizeof in, "%s/huge", dir);
     snprintf(out, sizeof out, "%s/out_huge", dir);
     snprintf(gif, sizeof gif, "%s/preview.gif", out);
-    write_problem(in, 4200, 4200, 2, 1);
+    testfiles_write_problem(in, 4200, 4200, 2, 1);
     cli_child c;
     cli_child_run(&c, scicap,
                   (const char *const[]){"recon", "-q", "--iters", "1", "--tv-iters", "1", in, "-o", out, NULL}, dir);

@@ -29,6 +29,7 @@
 #include "io/image.h"
 #include "io/problem_dir.h"
 #include "tests/helpers/cli_child.h"
+#include "tests/helpers/testfiles.h"
 
 static char dir[] = "/tmp/scicap-test-cli-limits-XXXXXX";
 static char scicap[1024];
@@ -120,39 +121,13 @@ static void test_allow_large_lifts_the_limits(void **state)
         fail_msg("exit %d, stderr: %s", cli_child_exit_code(&c), c.err);
 }
 
-/* A small problem folder; optionally its mask sidecar rewritten to claim w×h. */
-static void write_problem(const char *path, int w, int h, int n, int k)
-{
-    sci_problem **p = calloc((size_t)k, sizeof *p);
-    assert_non_null(p);
-    sci_cube *mask;
-    assert_int_equal(sci_cube_new(&mask, w, h, n, NULL), 0);
-    for (size_t i = 0; i < sci_cube_count(mask); i++)
-        mask->data[i] = (float)((i * 2654435761u >> 7) & 1);
-    for (int j = 0; j < k; j++) {
-        p[j] = calloc(1, sizeof *p[j]);
-        assert_non_null(p[j]);
-        p[j]->peak = 1;
-        snprintf(p[j]->name, sizeof p[j]->name, "limits#%d", j + 1);
-        assert_int_equal(sci_cube_clone(&p[j]->mask, mask, NULL), 0);
-        assert_int_equal(sci_cube_new(&p[j]->meas, w, h, 1, NULL), 0);
-        for (size_t i = 0; i < sci_cube_frame_size(p[j]->meas); i++)
-            p[j]->meas->data[i] = (float)(i % 7) * 0.5f;
-    }
-    sci_error err = {0};
-    if (sci_problem_dir_write_opt(path, p, k, NULL, 1, 0, &err) < 0)
-        fail_msg("%s", err.msg);
-    sci_cube_free(mask);
-    sci_problem_array_free(p, k);
-}
-
 static void test_sidecar_claim_refused_before_allocating(void **state)
 {
     char in[512], side[600], out[512];
     snprintf(in, sizeof in, "%s/claim", dir);
     snprintf(side, sizeof side, "%s/mask.json", in);
     snprintf(out, sizeof out, "%s/out_claim", dir);
-    write_problem(in, 16, 16, 1, 1);
+    testfiles_write_problem(in, 16, 16, 1, 1);
     json_error_t je;
     json_t *j = json_load_file(side, 0, &je);
     assert_non_null(j);

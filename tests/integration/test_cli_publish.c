@@ -26,6 +26,7 @@
 #include "io/image.h"
 #include "io/problem_dir.h"
 #include "tests/helpers/cli_child.h"
+#include "tests/helpers/testfiles.h"
 
 static char dir[] = "/tmp/scicap-test-cli-publish-XXXXXX";
 static char scicap[1024];
@@ -46,32 +47,6 @@ static void assert_nothing_at(const char *out)
         }
         globfree(&g);
     }
-}
-
-/* A small problem folder; optionally its mask sidecar rewritten to claim w×h. */
-static void write_problem(const char *path, int w, int h, int n, int k)
-{
-    sci_problem **p = calloc((size_t)k, sizeof *p);
-    assert_non_null(p);
-    sci_cube *mask;
-    assert_int_equal(sci_cube_new(&mask, w, h, n, NULL), 0);
-    for (size_t i = 0; i < sci_cube_count(mask); i++)
-        mask->data[i] = (float)((i * 2654435761u >> 7) & 1);
-    for (int j = 0; j < k; j++) {
-        p[j] = calloc(1, sizeof *p[j]);
-        assert_non_null(p[j]);
-        p[j]->peak = 1;
-        snprintf(p[j]->name, sizeof p[j]->name, "limits#%d", j + 1);
-        assert_int_equal(sci_cube_clone(&p[j]->mask, mask, NULL), 0);
-        assert_int_equal(sci_cube_new(&p[j]->meas, w, h, 1, NULL), 0);
-        for (size_t i = 0; i < sci_cube_frame_size(p[j]->meas); i++)
-            p[j]->meas->data[i] = (float)(i % 7) * 0.5f;
-    }
-    sci_error err = {0};
-    if (sci_problem_dir_write_opt(path, p, k, NULL, 1, 0, &err) < 0)
-        fail_msg("%s", err.msg);
-    sci_cube_free(mask);
-    sci_problem_array_free(p, k);
 }
 
 static int exists(const char *path)
@@ -116,7 +91,7 @@ static void test_sigterm_while_writing_publishes_nothing(void **state)
     char in[512], out[512];
     snprintf(in, sizeof in, "%s/large", dir);
     snprintf(out, sizeof out, "%s/out_large", dir);
-    write_problem(in, 1024, 1024, 16, 1);
+    testfiles_write_problem(in, 1024, 1024, 16, 1);
     /* the staging folder OUT.tmp-PID exists from the first file written to the rename that publishes it; the
      * 16 1024² frames take about a second to write (EXR, PNG, GIF) */
     int mid = 0;
@@ -134,7 +109,7 @@ static void test_sigterm_between_snapshots_publishes_nothing(void **state)
     char in[512], out[512];
     snprintf(in, sizeof in, "%s/three", dir);
     snprintf(out, sizeof out, "%s/out_three", dir);
-    write_problem(in, 256, 256, 8, 3);
+    testfiles_write_problem(in, 256, 256, 8, 3);
     /* snapshot 1 finished: OUT.tmp-PID/snap_001 now (OUT/snap_001 before publish-on-success) */
     int mid = 0;
     cli_child c;

@@ -1,0 +1,20 @@
+/* tests/helpers/testfiles.h — small inputs that tests write for scicap and scicapd: a problem folder of a chosen
+ * size, and a compressed .mat that declares many snapshots in a few KB (to provoke the size limits of
+ * io/limits.h without a large file).
+ *
+ * For use inside cmocka tests: a write that fails fails the test (fail_msg / assert), nothing is returned. The
+ * caller owns the paths and removes them (with its temporary folder). */
+#ifndef SCICAP_TESTS_TESTFILES_H
+#define SCICAP_TESTS_TESTFILES_H
+
+#include <stddef.h>
+
+/* A problem folder at `path` (io/problem_dir.h): k problems named limits#1..k, each with the same w×h×n binary
+ * mask (a fixed hash of the index, no RNG) and a one-frame measurement of (i % 7) * 0.5, peak 1. */
+void testfiles_write_problem(const char *path, int w, int h, int n, int k);
+
+/* A MAT 5 file (zlib) with mask 8×8×8 (0/1) and meas 8×8×snapshots, every value 4 (a plausible measurement:
+ * without the limits it imports); mode 0644, so another uid can read it. A few KB for 5,000 snapshots. */
+void testfiles_write_declared_mat(const char *path, size_t snapshots);
+
+#endif
