@@ -13,6 +13,7 @@
 #ifndef SCICAP_TESTS_DAEMON_HARNESS_H
 #define SCICAP_TESTS_DAEMON_HARNESS_H
 
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <jansson.h>
@@ -23,6 +24,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mount.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -40,6 +42,7 @@ typedef struct harness {
     pid_t pid;
     int have_config;
     int fsync; /* storage.fsync as configured (set between harness_init and harness_spawn); else --no-fsync */
+    int store_mounted; /* harness_mount_store's tmpfs is on store: harness_cleanup unmounts it */
 } harness;
 
 typedef struct hconn {
@@ -211,7 +214,46 @@ static inline void harness_cleanup(harness *h)
         waitpid(h->pid, NULL, 0);
         h->pid = 0;
     }
+    if (h->store_mounted)
+        umount2(h->store, MNT_DETACH); /* lazily: a descriptor still open in the test must not keep it */
+    h->store_mounted = 0;
     sci_staging_remove(h->dir);
+}
+
+/* Skips the test, saying so, unless it runs as root (mount, setpriv). */
+static inline void harness_require_root(const char *why)
+{
+    if (geteuid() != 0) {
+        print_message("  needs root to %s; running as uid %d\n", why, (int)geteuid());
+        skip();
+    }
+}
+
+/* Between harness_init and harness_spawn: the store on a fresh tmpfs of `size` (mount's size=, "1m"), for a full
+ * disk on demand. Needs root; a failed mount fails the test. harness_cleanup unmounts it. */
+static inline void harness_mount_store(harness *h, const char *size)
+{
+    char opts[64];
+    snprintf(opts, sizeof opts, "size=%s", size);
+    assert_int_equal(mkdir(h->store, 0755), 0);
+    if (mount("tmpfs", h->store, "tmpfs", 0, opts) != 0)
+        fail_msg("mount tmpfs on %s: %s", h->store, strerror(errno));
+    h->store_mounted = 1;
+}
+
+/* The captures stored under the store's captures/ (0 when the folder is not there yet). */
+static inline int harness_count_captures(const harness *h)
+{
+    char p[400];
+    snprintf(p, sizeof p, "%s/captures", h->store);
+    DIR *d = opendir(p);
+    if (!d)
+        return 0;
+    int n = 0;
+    for (struct dirent *e; (e = readdir(d));)
+        n += e->d_name[0] != '.';
+    closedir(d);
+    return n;
 }
 
 static inline void hconn_open(hconn *c, const harness *h)

@@ -14,6 +14,7 @@
 #include <cmocka.h>
 
 #include "tests/helpers/cli_child.h"
+#include "tests/helpers/testfiles.h"
 #include "tests/integration/daemon_harness.h"
 
 #define SNAPSHOTS 5000
@@ -29,51 +30,12 @@ static int cleanup(void **state)
     return 0;
 }
 
-/* mask 8×8×8, meas 8×8×SNAPSHOTS of one value, compressed: a few KB that declare SNAPSHOTS snapshots */
-static void write_many(const char *path)
-{
-    mat_t *m = Mat_CreateVer(path, NULL, MAT_FT_MAT5);
-    assert_non_null(m);
-    size_t dm[3] = {8, 8, 8}, dy[3] = {8, 8, SNAPSHOTS};
-    double *mask = calloc(8 * 8 * 8, sizeof *mask), *meas = calloc((size_t)8 * 8 * SNAPSHOTS, sizeof *meas);
-    assert_non_null(mask);
-    assert_non_null(meas);
-    for (int i = 0; i < 8 * 8 * 8; i++)
-        mask[i] = i % 2;
-    for (size_t i = 0; i < (size_t)8 * 8 * SNAPSHOTS; i++)
-        meas[i] = 4;
-    matvar_t *v = Mat_VarCreate("mask", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dm, mask, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_ZLIB), 0);
-    Mat_VarFree(v);
-    v = Mat_VarCreate("meas", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dy, meas, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_ZLIB), 0);
-    Mat_VarFree(v);
-    Mat_Close(m);
-    free(mask);
-    free(meas);
-    assert_int_equal(chmod(path, 0644), 0);
-}
-
-static int count_captures(void)
-{
-    char p[400];
-    snprintf(p, sizeof p, "%s/captures", H.store);
-    DIR *d = opendir(p);
-    if (!d)
-        return 0;
-    int n = 0;
-    for (struct dirent *e; (e = readdir(d));)
-        n += e->d_name[0] != '.';
-    closedir(d);
-    return n;
-}
-
 static void start(void)
 {
     harness_start(&H, "{\"control\": {\"mode\": \"0666\"}}\n", NULL);
     assert_int_equal(chmod(H.dir, 0755), 0);
     snprintf(file, sizeof file, "%s/many.mat", H.dir);
-    write_many(file);
+    testfiles_write_declared_mat(file, SNAPSHOTS);
     assert_int_equal(cli_child_program(scicap, sizeof scicap, "scicap"), 0);
 }
 
@@ -86,16 +48,13 @@ static void test_without_allow_large_refused(void **state)
     print_message("  root, no --allow-large: exit %d; %s%s", cli_child_exit_code(&c), c.out, c.err);
     assert_int_not_equal(cli_child_exit_code(&c), 0);
     assert_true(strstr(c.err, "would create ") || strstr(c.out, "would create "));
-    assert_int_equal(count_captures(), 0);
+    assert_int_equal(harness_count_captures(&H), 0);
     harness_stop(&H);
 }
 
 static void test_allow_large_refused_to_a_user(void **state)
 {
-    if (geteuid() != 0) {
-        print_message("  needs root to run scicap as uid 65534; running as uid %d\n", (int)geteuid());
-        skip();
-    }
+    harness_require_root("run scicap as uid 65534");
     start();
     cli_child c;
     cli_child_run(&c, "/usr/bin/setpriv",
@@ -105,16 +64,13 @@ static void test_allow_large_refused_to_a_user(void **state)
     print_message("  uid 65534 with --allow-large: exit %d; %s", cli_child_exit_code(&c), c.err);
     assert_int_equal(cli_child_exit_code(&c), 1);
     assert_non_null(strstr(c.err, "allow_large needs root"));
-    assert_int_equal(count_captures(), 0);
+    assert_int_equal(harness_count_captures(&H), 0);
     harness_stop(&H);
 }
 
 static void test_allow_large_lifts_the_limits_for_root(void **state)
 {
-    if (geteuid() != 0) {
-        print_message("  root is the admin here; running as uid %d\n", (int)geteuid());
-        skip();
-    }
+    harness_require_root("be the daemon's admin");
     start();
     hconn w;
     hconn_open(&w, &H);
@@ -130,7 +86,7 @@ static void test_allow_large_lifts_the_limits_for_root(void **state)
     json_decref(hconn_request(&w, "cancel", json_pack("{s:I}", "job", job)));
     e = hconn_wait_event_ex(&w, "import.canceled", 60000, 1);
     json_decref(e);
-    int n = count_captures();
+    int n = harness_count_captures(&H);
     print_message("  %d captures stored before the cancel\n", n);
     assert_true(n >= 1);
     hconn_close(&w);

@@ -7,7 +7,6 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
-#include <sys/mount.h>
 
 #include <cmocka.h>
 
@@ -16,35 +15,20 @@
 #define COUNT 200
 
 static harness H;
-static int mounted;
 
 static int cleanup(void **state)
 {
     (void)state;
-    if (H.pid > 0) {
-        kill(H.pid, SIGKILL);
-        waitpid(H.pid, NULL, 0);
-        H.pid = 0;
-    }
-    if (mounted)
-        umount2(H.store, MNT_DETACH);
-    mounted = 0;
-    harness_cleanup(&H);
+    harness_cleanup(&H); /* unmounts the store's tmpfs */
     memset(&H, 0, sizeof H);
     return 0;
 }
 
 static void test_capture_stops_at_enospc(void **state)
 {
-    if (geteuid() != 0) {
-        print_message("  needs root to mount a small tmpfs; running as uid %d\n", (int)geteuid());
-        skip();
-    }
+    harness_require_root("mount a small tmpfs");
     harness_init(&H, NULL);
-    assert_int_equal(mkdir(H.store, 0755), 0);
-    if (mount("tmpfs", H.store, "tmpfs", 0, "size=1m") != 0)
-        fail_msg("mount tmpfs on %s: %s", H.store, strerror(errno));
-    mounted = 1;
+    harness_mount_store(&H, "1m");
     harness_spawn(&H, NULL);
     hconn c;
     hconn_open(&c, &H);

@@ -14,6 +14,7 @@
 #include <cmocka.h>
 
 #include "tests/helpers/cli_child.h"
+#include "tests/helpers/testfiles.h"
 #include "tests/integration/daemon_harness.h"
 
 #define NOBODY 65534
@@ -28,30 +29,6 @@ static int cleanup(void **state)
     harness_cleanup(&H);
     memset(&H, 0, sizeof H);
     return 0;
-}
-
-/* mask 8×8×8, meas 8×8×SNAPSHOTS of one value, compressed: a few KB that declare SNAPSHOTS snapshots */
-static void write_many(const char *path)
-{
-    mat_t *m = Mat_CreateVer(path, NULL, MAT_FT_MAT5);
-    assert_non_null(m);
-    size_t dm[3] = {8, 8, 8}, dy[3] = {8, 8, SNAPSHOTS};
-    double *mask = calloc(8 * 8 * 8, sizeof *mask), *meas = calloc((size_t)8 * 8 * SNAPSHOTS, sizeof *meas);
-    assert_non_null(mask);
-    assert_non_null(meas);
-    for (int i = 0; i < 8 * 8 * 8; i++)
-        mask[i] = i % 2;
-    for (size_t i = 0; i < (size_t)8 * 8 * SNAPSHOTS; i++)
-        meas[i] = 4; /* a plausible measurement: without the limits it imports */
-    matvar_t *v = Mat_VarCreate("mask", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dm, mask, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_ZLIB), 0);
-    Mat_VarFree(v);
-    v = Mat_VarCreate("meas", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dy, meas, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_ZLIB), 0);
-    Mat_VarFree(v);
-    Mat_Close(m);
-    free(mask);
-    free(meas);
 }
 
 /* One import request with the file's descriptor attached (SCM_RIGHTS); the reply message. */
@@ -86,25 +63,11 @@ static json_t *import_fd(hconn *c, json_t *args, int fd)
     }
 }
 
-static int count_captures(void)
-{
-    char p[400];
-    snprintf(p, sizeof p, "%s/captures", H.store);
-    DIR *d = opendir(p);
-    if (!d)
-        return 0;
-    int n = 0;
-    for (struct dirent *e; (e = readdir(d));)
-        n += e->d_name[0] != '.';
-    closedir(d);
-    return n;
-}
-
 static void test_refused_as_the_cli_refuses_it(void **state)
 {
     harness_start(&H, "{\"control\": {\"mode\": \"0666\"}}\n", NULL);
     snprintf(file, sizeof file, "%s/many.mat", H.dir);
-    write_many(file);
+    testfiles_write_declared_mat(file, SNAPSHOTS);
     struct stat st;
     assert_int_equal(stat(file, &st), 0);
     /* the offline CLI */
@@ -135,7 +98,7 @@ static void test_refused_as_the_cli_refuses_it(void **state)
     assert_int_equal(strtol(fig + 13, NULL, 10), cli_files);
     assert_non_null(strstr(msg, "many.mat"));
     json_decref(e);
-    assert_int_equal(count_captures(), 0);
+    assert_int_equal(harness_count_captures(&H), 0);
     hconn_close(&hc);
     harness_stop(&H);
 }
@@ -149,7 +112,7 @@ static void test_allow_large_is_for_admins(void **state)
     harness_start(&H, "{\"control\": {\"mode\": \"0666\"}}\n", NULL);
     assert_int_equal(chmod(H.dir, 0755), 0);
     snprintf(file, sizeof file, "%s/many.mat", H.dir);
-    write_many(file);
+    testfiles_write_declared_mat(file, SNAPSHOTS);
     hconn hc;
     memset(&hc, 0, sizeof hc);
     if (setegid(NOBODY) != 0 || seteuid(NOBODY) != 0)
@@ -169,7 +132,7 @@ static void test_allow_large_is_for_admins(void **state)
     assert_string_equal(code, "permission");
     json_decref(r);
     hconn_close(&hc);
-    assert_int_equal(count_captures(), 0);
+    assert_int_equal(harness_count_captures(&H), 0);
     harness_stop(&H);
 }
 

@@ -9,28 +9,18 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
-#include <sys/mount.h>
 
 #include <cmocka.h>
 
 #include "tests/integration/daemon_harness.h"
 
 static harness H;
-static int mounted;
 static char filler[400];
 
 static int cleanup(void **state)
 {
     (void)state;
-    if (H.pid > 0) {
-        kill(H.pid, SIGKILL);
-        waitpid(H.pid, NULL, 0);
-        H.pid = 0;
-    }
-    if (mounted)
-        umount2(H.store, MNT_DETACH);
-    mounted = 0;
-    harness_cleanup(&H);
+    harness_cleanup(&H); /* unmounts the store's tmpfs */
     memset(&H, 0, sizeof H);
     return 0;
 }
@@ -74,10 +64,7 @@ static int queue_entries(void)
 static json_int_t start_waiting(hconn *c, char *cap, size_t ncap, char *why, size_t nwhy)
 {
     harness_init(&H, NULL);
-    assert_int_equal(mkdir(H.store, 0755), 0);
-    if (mount("tmpfs", H.store, "tmpfs", 0, "size=16m") != 0)
-        fail_msg("mount tmpfs on %s: %s", H.store, strerror(errno));
-    mounted = 1;
+    harness_mount_store(&H, "16m");
     harness_spawn(&H, NULL);
     hconn_open(c, &H);
     json_decref(hconn_request(c, "capture", json_pack("{s:i, s:b}", "count", 1, "reconstruct", 0)));
@@ -99,10 +86,7 @@ static json_int_t start_waiting(hconn *c, char *cap, size_t ncap, char *why, siz
 
 static void test_written_when_room_returns(void **state)
 {
-    if (geteuid() != 0) {
-        print_message("  needs root to mount a small tmpfs; running as uid %d\n", (int)geteuid());
-        skip();
-    }
+    harness_require_root("mount a small tmpfs");
     hconn c;
     char cap[64], why[512];
     json_int_t job = start_waiting(&c, cap, sizeof cap, why, sizeof why);
@@ -127,10 +111,7 @@ static void test_written_when_room_returns(void **state)
 
 static void test_cancel_while_waiting(void **state)
 {
-    if (geteuid() != 0) {
-        print_message("  needs root to mount a small tmpfs; running as uid %d\n", (int)geteuid());
-        skip();
-    }
+    harness_require_root("mount a small tmpfs");
     hconn c;
     char cap[64], why[512];
     json_int_t job = start_waiting(&c, cap, sizeof cap, why, sizeof why);
