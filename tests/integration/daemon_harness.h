@@ -241,6 +241,39 @@ static inline void harness_mount_store(harness *h, const char *size)
     h->store_mounted = 1;
 }
 
+/* harness_start, then the temporary folder made traversable (0755) so that other uids reach the socket (with a
+ * config whose control.mode lets them: "0666"). */
+static inline void harness_start_open(harness *h, const char *config_text)
+{
+    harness_start(h, config_text, NULL);
+    assert_int_equal(chmod(h->dir, 0755), 0);
+}
+
+/* connect() to h's socket as uid with primary gid: setegid/seteuid around it (SO_PEERCRED records the effective
+ * ids at connect), root's identity restored before returning. The descriptor, or -1 with connect's errno. Needs
+ * root; failing to change identity fails the test. */
+static inline int h_connect_as(const harness *h, uid_t uid, gid_t gid)
+{
+    if (setegid(gid) != 0 || seteuid(uid) != 0)
+        fail_msg("seteuid(%d)/setegid(%d): %s", (int)uid, (int)gid, strerror(errno));
+    int fd = h_connect_raw(h->sock);
+    int e = errno;
+    if (seteuid(0) != 0 || setegid(0) != 0)
+        fail_msg("back to root: %s", strerror(errno));
+    errno = e;
+    return fd;
+}
+
+/* hconn_open as uid/gid (h_connect_as); a refused connect fails the test. */
+static inline void hconn_open_as(hconn *c, const harness *h, uid_t uid, gid_t gid)
+{
+    memset(c, 0, sizeof *c);
+    c->fd = h_connect_as(h, uid, gid);
+    if (c->fd < 0)
+        fail_msg("connect as uid %d: %s", (int)uid, strerror(errno));
+    c->next_id = 1;
+}
+
 /* The captures stored under the store's captures/ (0 when the folder is not there yet). */
 static inline int harness_count_captures(const harness *h)
 {

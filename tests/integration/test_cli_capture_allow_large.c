@@ -32,8 +32,7 @@ static int cleanup(void **state)
 
 static void start(void)
 {
-    harness_start(&H, "{\"control\": {\"mode\": \"0666\"}}\n", NULL);
-    assert_int_equal(chmod(H.dir, 0755), 0);
+    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\"}}\n");
     snprintf(file, sizeof file, "%s/many.mat", H.dir);
     testfiles_write_declared_mat(file, SNAPSHOTS);
     assert_int_equal(cli_child_program(scicap, sizeof scicap, "scicap"), 0);

@@ -29,41 +29,18 @@ static int cleanup(void **state)
     return 0;
 }
 
-static void need_root(void)
-{
-    if (geteuid() != 0) {
-        print_message("  needs root to connect as other uids (seteuid); running as uid %d\n", (int)geteuid());
-        skip();
-    }
-}
-
-static void open_as(hconn *c, uid_t uid)
-{
-    memset(c, 0, sizeof *c);
-    if (setegid((gid_t)uid) != 0 || seteuid(uid) != 0)
-        fail_msg("seteuid(%d): %s", (int)uid, strerror(errno));
-    c->fd = h_connect_raw(H.sock);
-    int e = errno;
-    if (seteuid(0) != 0 || setegid(0) != 0)
-        fail_msg("back to root: %s", strerror(errno));
-    if (c->fd < 0)
-        fail_msg("connect as uid %d: %s", (int)uid, strerror(e));
-    c->next_id = 1;
-}
-
 static void test_per_uid_cap(void **state)
 {
-    need_root();
-    harness_start(&H, "{\"control\": {\"mode\": \"0666\", \"max_per_uid\": 4}}\n", NULL);
-    assert_int_equal(chmod(H.dir, 0755), 0);
+    harness_require_root("connect as other uids (seteuid)");
+    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\", \"max_per_uid\": 4}}\n");
     hconn w[4];
     for (int i = 0; i < 4; i++) {
-        open_as(&w[i], UID_A);
+        hconn_open_as(&w[i], &H, UID_A, UID_A);
         json_decref(hconn_request(&w[i], "watch", NULL));
     }
     /* the fifth of uid A: busy, naming the cap */
     hconn x;
-    open_as(&x, UID_A);
+    hconn_open_as(&x, &H, UID_A, UID_A);
     json_t *m = hconn_read(&x, 5000);
     assert_non_null(m);
     const char *code = json_string_value(json_object_get(json_object_get(m, "error"), "code"));
@@ -93,7 +70,7 @@ static void test_per_uid_cap(void **state)
     assert_non_null(strstr(err, "max_per_uid"));
     /* another uid and root get in */
     hconn b;
-    open_as(&b, UID_B);
+    hconn_open_as(&b, &H, UID_B, UID_B);
     json_decref(hconn_request(&b, "status", NULL));
     hconn_close(&b);
     hconn r;
@@ -103,7 +80,7 @@ static void test_per_uid_cap(void **state)
     /* one of A's closes: A may connect again */
     hconn_close(&w[0]);
     h_sleep_ms(200);
-    open_as(&w[0], UID_A);
+    hconn_open_as(&w[0], &H, UID_A, UID_A);
     json_decref(hconn_request(&w[0], "status", NULL));
     for (int i = 0; i < 4; i++)
         hconn_close(&w[i]);

@@ -105,23 +105,12 @@ static void test_refused_as_the_cli_refuses_it(void **state)
 
 static void test_allow_large_is_for_admins(void **state)
 {
-    if (geteuid() != 0) {
-        print_message("  needs root to connect as uid %d; running as uid %d\n", NOBODY, (int)geteuid());
-        skip();
-    }
-    harness_start(&H, "{\"control\": {\"mode\": \"0666\"}}\n", NULL);
-    assert_int_equal(chmod(H.dir, 0755), 0);
+    harness_require_root("connect as uid 65534 (seteuid)");
+    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\"}}\n");
     snprintf(file, sizeof file, "%s/many.mat", H.dir);
     testfiles_write_declared_mat(file, SNAPSHOTS);
     hconn hc;
-    memset(&hc, 0, sizeof hc);
-    if (setegid(NOBODY) != 0 || seteuid(NOBODY) != 0)
-        fail_msg("seteuid: %s", strerror(errno));
-    hc.fd = h_connect_raw(H.sock);
-    if (seteuid(0) != 0 || setegid(0) != 0)
-        fail_msg("back to root: %s", strerror(errno));
-    assert_true(hc.fd >= 0);
-    hc.next_id = 1;
+    hconn_open_as(&hc, &H, NOBODY, NOBODY);
     int fd = open(file, O_RDONLY | O_CLOEXEC);
     assert_true(fd >= 0);
     json_t *r = import_fd(&hc, json_pack("{s:[s], s:b}", "files", "many.mat", "allow_large", 1), fd);

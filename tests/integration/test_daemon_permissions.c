@@ -30,14 +30,6 @@ static int cleanup(void **state)
     return 0;
 }
 
-static void need_root(void)
-{
-    if (geteuid() != 0) {
-        print_message("  needs root to connect as other uids (seteuid); running as uid %d\n", (int)geteuid());
-        skip();
-    }
-}
-
 /* gid of an existing group (the tests need two that every Debian system has) */
 static gid_t group_gid(const char *name)
 {
@@ -45,27 +37,6 @@ static gid_t group_gid(const char *name)
     if (!g)
         fail_msg("group %s does not exist on this system", name);
     return g->gr_gid;
-}
-
-static void start_open(const char *config)
-{
-    harness_start(&H, config, NULL);
-    assert_int_equal(chmod(H.dir, 0755), 0);
-}
-
-/* connect() as uid with primary gid; root's identity is restored before returning */
-static void open_as(hconn *c, uid_t uid, gid_t gid)
-{
-    memset(c, 0, sizeof *c);
-    if (setegid(gid) != 0 || seteuid(uid) != 0)
-        fail_msg("seteuid(%d)/setegid(%d): %s", (int)uid, (int)gid, strerror(errno));
-    c->fd = h_connect_raw(H.sock);
-    int e = errno;
-    if (seteuid(0) != 0 || setegid(0) != 0)
-        fail_msg("back to root: %s", strerror(errno));
-    if (c->fd < 0)
-        fail_msg("connect as uid %d: %s", (int)uid, strerror(e));
-    c->next_id = 1;
 }
 
 /* the error message of a refused call, which must carry `code` (copied into msg) */
@@ -95,12 +66,12 @@ static json_int_t root_job(void)
 
 static void test_socket_group_is_not_admin_by_default(void **state)
 {
-    need_root();
+    harness_require_root("connect as other uids (seteuid)");
     gid_t users = group_gid("users");
-    start_open("{\"control\": {\"mode\": \"0666\", \"group\": \"users\"}}\n");
+    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\", \"group\": \"users\"}}\n");
     json_int_t job = root_job();
     hconn c;
-    open_as(&c, NOBODY, users);
+    hconn_open_as(&c, &H, NOBODY, users);
     char msg[512];
     expect_refusal(&c, "reload", NULL, "permission", msg, sizeof msg);
     print_message("  reload by uid %d (group users, the socket's): %s\n", NOBODY, msg);
@@ -117,12 +88,12 @@ static void test_socket_group_is_not_admin_by_default(void **state)
 
 static void test_admin_group_member_is_admin(void **state)
 {
-    need_root();
+    harness_require_root("connect as other uids (seteuid)");
     gid_t adm = group_gid("adm");
-    start_open("{\"control\": {\"mode\": \"0666\", \"group\": \"users\", \"admin_group\": \"adm\"}}\n");
+    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\", \"group\": \"users\", \"admin_group\": \"adm\"}}\n");
     json_int_t job = root_job();
     hconn c;
-    open_as(&c, NOBODY, adm);
+    hconn_open_as(&c, &H, NOBODY, adm);
     json_decref(hconn_request(&c, "reload", NULL));
     json_t *r = hconn_request(&c, "cancel", json_pack("{s:I}", "job", job));
     print_message("  uid %d in group adm: reload ok, cancel of root's job %lld -> state %s\n", NOBODY,
@@ -130,7 +101,7 @@ static void test_admin_group_member_is_admin(void **state)
     json_decref(r);
     hconn_close(&c);
     /* the same uid through the socket's group only: refused */
-    open_as(&c, NOBODY, group_gid("users"));
+    hconn_open_as(&c, &H, NOBODY, group_gid("users"));
     char msg[512];
     expect_refusal(&c, "reload", NULL, "permission", msg, sizeof msg);
     hconn_close(&c);
@@ -139,8 +110,8 @@ static void test_admin_group_member_is_admin(void **state)
 
 static void test_root_is_always_admin(void **state)
 {
-    need_root();
-    start_open("{\"control\": {\"mode\": \"0666\", \"admin_group\": \"\"}}\n");
+    harness_require_root("connect as other uids (seteuid)");
+    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\", \"admin_group\": \"\"}}\n");
     hconn c;
     hconn_open(&c, &H);
     json_decref(hconn_request(&c, "reload", NULL));
@@ -150,7 +121,7 @@ static void test_root_is_always_admin(void **state)
 
 static void test_warns_when_admin_group_is_socket_group(void **state)
 {
-    start_open("{\"control\": {\"mode\": \"0666\", \"group\": \"users\", \"admin_group\": \"users\"}}\n");
+    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\", \"group\": \"users\", \"admin_group\": \"users\"}}\n");
     harness_stop(&H);
     FILE *f = fopen(H.log, "r");
     assert_non_null(f);
@@ -162,7 +133,7 @@ static void test_warns_when_admin_group_is_socket_group(void **state)
     assert_true(warned);
     /* and the default is silent */
     harness_cleanup(&H);
-    start_open("{\"control\": {\"mode\": \"0666\", \"group\": \"users\"}}\n");
+    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\", \"group\": \"users\"}}\n");
     harness_stop(&H);
     f = fopen(H.log, "r");
     assert_non_null(f);

@@ -25,20 +25,6 @@ static int cleanup(void **state)
     return 0;
 }
 
-static void open_as(hconn *c, uid_t uid)
-{
-    memset(c, 0, sizeof *c);
-    if (setegid((gid_t)uid) != 0 || seteuid(uid) != 0)
-        fail_msg("seteuid(%d): %s", (int)uid, strerror(errno));
-    c->fd = h_connect_raw(H.sock);
-    int e = errno;
-    if (seteuid(0) != 0 || setegid(0) != 0)
-        fail_msg("back to root: %s", strerror(errno));
-    if (c->fd < 0)
-        fail_msg("connect as uid %d: %s", (int)uid, strerror(e));
-    c->next_id = 1;
-}
-
 /* reconstruct cap with gap-tv as this connection's user; recon.done's data (new ref) */
 static json_t *reconstruct(hconn *c, const char *cap)
 {
@@ -70,22 +56,18 @@ static json_t *result_of(const char *cap, const char *folder)
 
 static void test_second_user_never_replaces_first(void **state)
 {
-    if (geteuid() != 0) {
-        print_message("  needs root to connect as other uids; running as uid %d\n", (int)geteuid());
-        skip();
-    }
-    harness_start(&H, "{\"control\": {\"mode\": \"0666\"}}\n", NULL);
-    assert_int_equal(chmod(H.dir, 0755), 0);
+    harness_require_root("connect as other uids (seteuid)");
+    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\"}}\n");
     hconn root;
     hconn_open(&root, &H);
     char cap[32];
     daemon_child_capture(&root, cap, sizeof cap, 30000);
     hconn a, b;
-    open_as(&a, UID_A);
+    hconn_open_as(&a, &H, UID_A, UID_A);
     json_t *da = reconstruct(&a, cap);
     json_t *ra = result_of(cap, "gap-tv");
     char *ra_text = json_dumps(ra, JSON_SORT_KEYS);
-    open_as(&b, UID_B);
+    hconn_open_as(&b, &H, UID_B, UID_B);
     json_t *db = reconstruct(&b, cap);
     print_message("  uid %d: %s (owner %lld); uid %d: %s (owner %lld)\n", UID_A,
                   json_string_value(json_object_get(da, "dir")),

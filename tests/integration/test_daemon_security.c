@@ -37,45 +37,8 @@ static int cleanup(void **state)
 static const char *const CONFIG = "{\"control\": {\"mode\": \"0666\", \"max_clients\": 32, \"admin_slots\": 2,"
                                   " \"request_timeout_ms\": 1000, \"idle_timeout_ms\": 2000, \"max_per_uid\": 0}}\n";
 
-static void need_root(void)
-{
-    if (geteuid() != 0) {
-        print_message("  needs root to connect as other uids (seteuid); running as uid %d\n", (int)geteuid());
-        skip();
-    }
-}
-
 /* default deadlines: a test that pauses between requests must not be cut off */
 static const char *const CONFIG_SLOW = "{\"control\": {\"mode\": \"0666\"}}\n";
-
-/* A daemon whose socket other uids can reach: the temporary folder is made traversable. */
-static void start_open(harness *h, const char *config)
-{
-    harness_start(h, config, NULL);
-    assert_int_equal(chmod(h->dir, 0755), 0);
-}
-
-/* connect() as uid/gid; the process's identity is restored before returning. -1 on failure. */
-static int connect_as(const harness *h, uid_t uid)
-{
-    if (setegid((gid_t)uid) != 0 || seteuid(uid) != 0)
-        fail_msg("seteuid(%d): %s", (int)uid, strerror(errno));
-    int fd = h_connect_raw(h->sock);
-    int e = errno;
-    if (seteuid(0) != 0 || setegid(0) != 0)
-        fail_msg("back to root: %s", strerror(errno));
-    errno = e;
-    return fd;
-}
-
-static void hconn_open_as(hconn *c, const harness *h, uid_t uid)
-{
-    memset(c, 0, sizeof *c);
-    c->fd = connect_as(h, uid);
-    if (c->fd < 0)
-        fail_msg("connect as uid %d: %s", (int)uid, strerror(errno));
-    c->next_id = 1;
-}
 
 /* One line from fd within timeout_ms (NULL on EOF or timeout); *eof set when the peer closed. */
 static json_t *read_line_fd(int fd, int timeout_ms, int *eof)
@@ -114,7 +77,7 @@ static const char *error_code(const json_t *m)
 /* status over a new connection as uid; returns 1 when answered, 0 when refused busy (connection closed). */
 static int try_status_as(const harness *h, uid_t uid)
 {
-    int fd = connect_as(h, uid);
+    int fd = h_connect_as(h, uid, uid);
     if (fd < 0)
         return 0;
     const char *req = "{\"v\":1,\"id\":1,\"cmd\":\"status\"}\n";
@@ -137,12 +100,12 @@ static int try_status_as(const harness *h, uid_t uid)
 static void slowloris_does_not_lock_out(void **state)
 {
     (void)state;
-    need_root();
-    start_open(&H, CONFIG);
+    harness_require_root("connect as other uids (seteuid)");
+    harness_start_open(&H, CONFIG);
     int fd[STALLED];
     int64_t t0 = h_now_ms();
     for (int i = 0; i < STALLED; i++) {
-        fd[i] = connect_as(&H, UID_A);
+        fd[i] = h_connect_as(&H, UID_A, UID_A);
         assert_true(fd[i] >= 0);
         ssize_t w = send(fd[i], "{", 1, MSG_NOSIGNAL); /* one byte, then nothing */
         (void)w;
@@ -211,10 +174,10 @@ static void slowloris_does_not_lock_out(void **state)
 static void trickle_and_idle_deadlines(void **state)
 {
     (void)state;
-    need_root();
-    start_open(&H, CONFIG);
+    harness_require_root("connect as other uids (seteuid)");
+    harness_start_open(&H, CONFIG);
     /* a byte every 200 ms never completes a line: dropped 1 s after its first byte, not after its last */
-    int t = connect_as(&H, UID_A);
+    int t = h_connect_as(&H, UID_A, UID_A);
     assert_true(t >= 0);
     int64_t t0 = h_now_ms(), closed_ms = -1;
     while (h_now_ms() - t0 < 4000) {
@@ -236,8 +199,8 @@ static void trickle_and_idle_deadlines(void **state)
     assert_true(closed_ms >= 900 && closed_ms < 2500);
     /* after a request, an ordinary idle connection is closed at 2 s; a watcher stays */
     hconn idle, watcher;
-    hconn_open_as(&idle, &H, UID_A);
-    hconn_open_as(&watcher, &H, UID_A);
+    hconn_open_as(&idle, &H, UID_A, UID_A);
+    hconn_open_as(&watcher, &H, UID_A, UID_A);
     json_decref(hconn_request(&idle, "status", NULL));
     json_decref(hconn_request(&watcher, "watch", NULL));
     int64_t t1 = h_now_ms();
@@ -291,12 +254,12 @@ static json_int_t capture_done(hconn *c)
 static void jobs_belong_to_their_uid(void **state)
 {
     (void)state;
-    need_root();
-    start_open(&H, CONFIG_SLOW);
+    harness_require_root("connect as other uids (seteuid)");
+    harness_start_open(&H, CONFIG_SLOW);
     hconn a, b, bw, root, rw;
-    hconn_open_as(&a, &H, UID_A);
-    hconn_open_as(&b, &H, UID_B);
-    hconn_open_as(&bw, &H, UID_B);
+    hconn_open_as(&a, &H, UID_A, UID_A);
+    hconn_open_as(&b, &H, UID_B, UID_B);
+    hconn_open_as(&bw, &H, UID_B, UID_B);
     hconn_open(&root, &H);
     hconn_open(&rw, &H);
     json_decref(hconn_request(&bw, "watch", NULL));
