@@ -6,13 +6,15 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Settings options spelled otherwise than their key since before the table: scripts and the man page use them. */
+/* Settings options spelled otherwise than their key since before the table: scripts and the man page use them.
+ * "pose" was the usual abbreviation of --pose-mode before the NeRF methods' other pose_* keys became options. */
 static const struct {
     const char *option, *key;
     const char *value; /* a flag's fixed value; NULL: the option takes one */
 } aliases[] = {
     {"plain", "accelerate", "false"},
     {"distortion", "distortion_weight", NULL},
+    {"pose", "pose_mode", NULL},
 };
 #define N_ALIASES (sizeof aliases / sizeof aliases[0])
 
@@ -42,6 +44,26 @@ static const struct option *option_find(const struct option *all, const char *na
     return NULL;
 }
 
+/* The kept spellings (aliases[]) that `all` (n entries) lacks and some method of the table has the key of, appended;
+ * returns the new count. all has room for N_ALIASES more. */
+static size_t aliases_append(struct option *all, size_t n, const solver_ops *const *methods)
+{
+    for (size_t i = 0; i < N_ALIASES; i++)
+        if (!option_find(all, aliases[i].option) && field_of(methods, NULL, aliases[i].key))
+            all[n++] = (struct option){aliases[i].option, aliases[i].value ? no_argument : required_argument, NULL,
+                                       CLI_RECON_OPT_SETTING};
+    return n;
+}
+
+/* Every plain settings option a val of its own: getopt_long then refuses an abbreviation that fits several (it
+ * takes the first of options that share has_arg, flag and val). The number sits above the low 16 bits. */
+static void settings_vals_distinct(struct option *all)
+{
+    for (int i = 0; all[i].name; i++)
+        if (all[i].val == CLI_RECON_OPT_SETTING)
+            all[i].val = CLI_RECON_OPT_SETTING | ((i + 1) << 16);
+}
+
 struct option *cli_recon_opts_longopts(const solver_ops *const *methods, const struct option *own)
 {
     enum { NAME_MAX_BYTES = 64 };
@@ -50,7 +72,7 @@ struct option *cli_recon_opts_longopts(const solver_ops *const *methods, const s
         n_own++;
     for (int i = 0; methods[i]; i++)
         n_keys += (size_t)methods[i]->fields[0].n + (size_t)methods[i]->fields[1].n;
-    const size_t table_bytes = (n_own + n_keys + 1) * sizeof(struct option);
+    const size_t table_bytes = (n_own + n_keys + N_ALIASES + 1) * sizeof(struct option);
     struct option *all = calloc(1, table_bytes + n_keys * NAME_MAX_BYTES);
     if (!all)
         return NULL;
@@ -67,6 +89,8 @@ struct option *cli_recon_opts_longopts(const solver_ops *const *methods, const s
                     continue; /* a JSON-only spelling, a key two methods share, or a name the command keeps */
                 all[n++] = (struct option){name, required_argument, NULL, CLI_RECON_OPT_SETTING};
             }
+    aliases_append(all, n, methods);
+    settings_vals_distinct(all);
     return all;
 }
 
@@ -74,7 +98,7 @@ struct option *cli_recon_opts_longopts(const solver_ops *const *methods, const s
 static const struct option *setting_option(const struct option *all, int c, int idx)
 {
     if (idx >= 0)
-        return (all[idx].val & ~0xff) == CLI_RECON_OPT_SETTING ? &all[idx] : NULL;
+        return CLI_RECON_OPT_IS_SETTING(all[idx].val) ? &all[idx] : NULL;
     for (int i = 0; c > 0 && c < 256 && all[i].name; i++)
         if (all[i].val == CLI_RECON_OPT_SETTING_SHORT(c))
             return &all[i];
@@ -324,9 +348,9 @@ static void usage_field(FILE *out, const solver_field *f, const struct option *a
         snprintf(value, sizeof value, "%s", f->type == SOLVER_FIELD_DOUBLE ? "X" : f->type == SOLVER_FIELD_BOOL ? "0|1"
                                              : f->type == SOLVER_FIELD_STRING ? "TEXT"
                                              : f->type == SOLVER_FIELD_LIST   ? "X,Y,..." : "N");
-    if (o && (o->val & ~0xff) == CLI_RECON_OPT_SETTING && (o->val & 0xff))
+    if (o && CLI_RECON_OPT_IS_SETTING(o->val) && (o->val & 0xff))
         snprintf(spelled, sizeof spelled, "-%c, --%s %s", o->val & 0xff, opt, value);
-    else if (o && o->val == CLI_RECON_OPT_SETTING)
+    else if (o && CLI_RECON_OPT_IS_SETTING(o->val))
         snprintf(spelled, sizeof spelled, "    --%s %s", opt, value);
     else /* the command's own option of that name wins (e.g. --threads): the setting is reached by --set */
         snprintf(spelled, sizeof spelled, "    --set %s=%s", f->key, value);

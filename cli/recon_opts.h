@@ -29,6 +29,12 @@ enum {
     CLI_RECON_OPT_SET = 0x2000,     /* --set KEY=VALUE */
     CLI_RECON_OPT_PRESET,           /* --preset fast|balanced|best */
 };
+/* Is v (a getopt `val`) a settings option's? cli_recon_opts_longopts gives every settings option without a short
+ * letter a val of its own (CLI_RECON_OPT_SETTING with a number above bit 16), so that getopt_long calls an
+ * abbreviation that fits several options ambiguous and lists them ("--pose-l": --pose-lr, --pose-lr-final) instead
+ * of silently taking the first; the abbreviations users rely on are kept as options of their own (--pose for
+ * --pose-mode, in the .c). */
+#define CLI_RECON_OPT_IS_SETTING(v) (((v) & 0xff00) == CLI_RECON_OPT_SETTING)
 /* The val of a setting that also has the short option -c (c a letter of the command's getopt string): getopt_long
  * returns it for the long option and c for the short one; both are settings options here. A command's own option
  * of a key's name (val without CLI_RECON_OPT_SETTING, e.g. recon's -j, --threads) is not: --set reaches that key. */
@@ -58,7 +64,9 @@ typedef struct cli_recon_given {
 
 /* The getopt table: `own` (the command's options, {0}-terminated; a name there wins over a setting of the same
  * name, which --set still reaches), then --KEY for every other key of every method in the table (aliases left
- * out). One malloc'd block holding the names too: free() it. NULL on ENOMEM. */
+ * out), then the kept spellings (--plain, --distortion, --pose) the command does not list itself. Settings options
+ * given val CLI_RECON_OPT_SETTING get one of their own (CLI_RECON_OPT_IS_SETTING above). One malloc'd block
+ * holding the names too: free() it. NULL on ENOMEM. */
 struct option *cli_recon_opts_longopts(const solver_ops *const *methods, const struct option *own);
 
 /* The option getopt_long returned (c, and idx = its longindex, -1 for a short option) if it is a settings option:
