@@ -141,13 +141,18 @@ int scicapd_recon_spec_resolve(const char *method, const char *preset, const sci
     out->method->defaults(out->settings);
     solver_settings_preset(out->method, out->settings, pr);
     /* the classical methods' trace: PSNR at every iteration (the progress events carry it), SSIM at the end; the
-     * NeRF methods keep their own intervals (a PSNR there is a full render) */
+     * NeRF methods keep their own intervals (a PSNR there is a full render). Only "iters" is a key every method
+     * has (solver_list_check): a method without these keys keeps its own trace. */
     if (!(out->method->caps & SOLVER_NEEDS_CAMERA)) {
-        json_t *tr = json_pack("{s:i, s:i}", "metrics_every", 1, "ssim_every", 0);
-        int rc = solver_settings_from_json(out->method, out->settings, tr, NULL, "trace", err);
-        json_decref(tr);
-        if (rc < 0)
-            return rc;
+        static const struct { const char *key; int value; } trace[] = {{"metrics_every", 1}, {"ssim_every", 0}};
+        for (size_t i = 0; i < sizeof trace / sizeof trace[0]; i++) {
+            json_t *v = json_integer(trace[i].value);
+            int rc = v ? solver_settings_set(out->method, out->settings, trace[i].key, v, NULL, trace[i].key, err)
+                       : sci_error_set(err, -ENOMEM, "out of memory");
+            json_decref(v);
+            if (rc < 0)
+                return rc;
+        }
     }
     if (params && solver_settings_from_json(out->method, out->settings, params, doc, path, err) < 0)
         return SCI_ECONFIG;

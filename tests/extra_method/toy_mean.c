@@ -16,26 +16,22 @@
 #include "recon/solver.h"
 #include "recon/tracer.h"
 
+/* Only the keys every row must have (iters) and one of its own: the keys other methods share (metrics_every, ...)
+ * are optional, and this row shows that every interface copes without them. */
 typedef struct toy_mean_params {
-    int iters;         /* projections after the mean start, >= 1 */
-    double gain;       /* step of each projection, (0, 2) keeps it stable */
-    int metrics_every; /* PSNR in the trace every k iterations (0: the last only) */
-    int ssim_every;
+    int iters;   /* projections after the mean start, >= 1 */
+    double gain; /* step of each projection, (0, 2) keeps it stable */
 } toy_mean_params;
 
 static const solver_field toy_mean_fields[] = {
     {"iters", SOLVER_FIELD_INT, offsetof(toy_mean_params, iters), 1, 100, NULL, 0, "projections after the mean start"},
     {"gain", SOLVER_FIELD_DOUBLE, offsetof(toy_mean_params, gain), 0.1, 1.9, NULL, 0,
      "step of each projection onto the snapshot"},
-    {"metrics_every", SOLVER_FIELD_INT, offsetof(toy_mean_params, metrics_every), 0, 1e9, NULL, 0,
-     "PSNR in the trace every k iterations"},
-    {"ssim_every", SOLVER_FIELD_INT, offsetof(toy_mean_params, ssim_every), 0, 1e9, NULL, 0,
-     "SSIM in the trace every k iterations"},
 };
 
 static void toy_mean_defaults(void *s)
 {
-    *(toy_mean_params *)s = (toy_mean_params){.iters = 3, .gain = 1, .metrics_every = 1, .ssim_every = 0};
+    *(toy_mean_params *)s = (toy_mean_params){.iters = 3, .gain = 1};
 }
 
 static void toy_mean_preset(void *s, solver_preset p)
@@ -80,7 +76,7 @@ static int toy_mean_run(const sci_problem *p, const void *settings, const solver
     sci_op_phi_sum(mask, phi);
     toy_mean_start(mask, y, x);
     sci_tracer tr;
-    sci_tracer_start(&tr, p, result, io->progress, io->user, q->iters, q->metrics_every, q->ssim_every);
+    sci_tracer_start(&tr, p, result, io->progress, io->user, q->iters, 1, 0); /* PSNR every row, SSIM at the end */
     sci_op_forward_residual(mask, x, y, yhat, rowbuf);
     for (int it = 1; it <= q->iters; it++) {
         for (size_t i = 0; i < fs; i++) {
