@@ -30,6 +30,15 @@ static camera *open_sim(camera_config *cfg, camera_sim_options *opt)
     return cam;
 }
 
+/* The defaults at w×h pixels: most tests want a small frame. */
+static camera_config sized_config(int w, int h)
+{
+    camera_config cfg = camera_config_default();
+    cfg.width = w;
+    cfg.height = h;
+    return cfg;
+}
+
 static void negotiation(void **state)
 {
     (void)state;
@@ -82,9 +91,7 @@ static void free_run_timing_and_drops(void **state)
 {
     (void)state;
     camera_sim_options opt = {.readout_ns = 100000};
-    camera_config cfg = camera_config_default();
-    cfg.width = 64;
-    cfg.height = 48;
+    camera_config cfg = sized_config(64, 48);
     cfg.interval_num = 1;
     cfg.interval_den = 500; /* 2 ms period */
     cfg.exposure_us = 1000;
@@ -125,9 +132,7 @@ static void drops_across_sequence_wrap(void **state)
 {
     (void)state;
     camera_sim_options opt = {.first_sequence = 0xFFFFFFFDu, .unpaced = 1};
-    camera_config cfg = camera_config_default();
-    cfg.width = 32;
-    cfg.height = 8;
+    camera_config cfg = sized_config(32, 8);
     camera *cam = open_sim(&cfg, &opt);
     camera_sim *cs = camera_sim_from(cam);
     sci_error err = {0};
@@ -151,9 +156,7 @@ static void ring_overflow_counts_losses(void **state)
 {
     (void)state;
     camera_sim_options opt = {0};
-    camera_config cfg = camera_config_default();
-    cfg.width = 32;
-    cfg.height = 8;
+    camera_config cfg = sized_config(32, 8);
     cfg.interval_num = 1;
     cfg.interval_den = 1000;
     cfg.exposure_us = 100;
@@ -180,9 +183,7 @@ static void timeouts_stalls_and_corrupt_frames(void **state)
 {
     (void)state;
     camera_sim_options opt = {.trigger_latency_ns = 5000};
-    camera_config cfg = camera_config_default();
-    cfg.width = 32;
-    cfg.height = 8;
+    camera_config cfg = sized_config(32, 8);
     cfg.exposure_us = 500;
     cfg.trigger_profile[0] = (camera_control){.name = "trigger_mode", .value = 1};
     cfg.trigger_profile_count = 1;
@@ -224,10 +225,8 @@ static void disconnect_and_recover(void **state)
 {
     (void)state;
     camera_sim_options opt = {.unpaced = 1};
-    camera_config cfg = camera_config_default();
+    camera_config cfg = sized_config(32, 8);
     cfg.device = "/dev/sim-cam7";
-    cfg.width = 32;
-    cfg.height = 8;
     camera *cam = open_sim(&cfg, &opt);
     camera_sim *cs = camera_sim_from(cam);
     sci_error err = {0};
@@ -270,9 +269,7 @@ static void frame_source_is_delivered_bit_exact(void **state)
     for (int f = PIXFMT_GREY; f < PIXFMT_COUNT; f++) {
         uint64_t seed = g_seed;
         camera_sim_options opt = {.unpaced = 1, .source = seeded_source, .source_arg = &seed};
-        camera_config cfg = camera_config_default();
-        cfg.width = 37; /* not a multiple of 4: the last Y10P group is partial */
-        cfg.height = 5;
+        camera_config cfg = sized_config(37, 5); /* not a multiple of 4: the last Y10P group is partial */
         cfg.pixfmt = (enum pixfmt)f;
         camera *cam = open_sim(&cfg, &opt);
         sci_error err = {0};
