@@ -43,7 +43,7 @@ typedef struct bench_scene {
 
 typedef struct bench_point {
     int scene;
-    char method[16];
+    char method[32];   /* as sci_result.method */
     char setting[96];  /* e.g. "iters=100 tv_iters=5" */
     json_t *params;    /* passed to the child */
     /* results */
@@ -326,7 +326,11 @@ static int write_plot(const char *outdir, const bench_scene *sc, int s, bench_po
         return -errno;
     /* One gnuplot data block per method (all points), then one per method (front, by time). */
     int blocks = 0;
-    int have[8] = {0};
+    int *have = calloc((size_t)nm + 1, sizeof *have); /* as many methods as the table has */
+    if (!have) {
+        fclose(f);
+        return -ENOMEM;
+    }
     for (int pass = 0; pass < 2; pass++)
         for (int m = 0; m < nm; m++) {
             bench_point *sel[512];
@@ -347,8 +351,10 @@ static int write_plot(const char *outdir, const bench_scene *sc, int s, bench_po
         }
     fclose(f);
     f = fopen(gp, "w");
-    if (!f)
+    if (!f) {
+        free(have);
         return -errno;
+    }
     fprintf(f, "set terminal pngcairo size 900,560 noenhanced\nset output '%s'\n", png);
     fprintf(f, "set title '%s: PSNR against wall time (lines: Pareto fronts)'\n", sc->what);
     fprintf(f, "set xlabel 'wall time (s), log scale'\nset ylabel 'PSNR (dB), peak = frame max'\n");
@@ -364,6 +370,7 @@ static int write_plot(const char *outdir, const bench_scene *sc, int s, bench_po
     }
     fprintf(f, "\n");
     fclose(f);
+    free(have);
     if (first)
         return 0; /* nothing ran on this scene */
     char cmd[2600];
@@ -587,8 +594,13 @@ int cli_bench_main(int argc, char **argv)
     int np = 0, cap = 0;
     size_t n_methods;
     const solver_ops *const *table = solver_list(&n_methods);
-    const char *methods[8];
-    const int N_METHODS = n_methods < 8 ? (int)n_methods : 8;
+    /* every row of the table, however many (a new method needs no edit here) */
+    const char **methods = calloc(n_methods + 1, sizeof *methods);
+    if (!methods) {
+        fprintf(stderr, "scicap bench: out of memory\n");
+        return 1;
+    }
+    const int N_METHODS = (int)n_methods;
     for (int m = 0; m < N_METHODS; m++)
         methods[m] = table[m]->name;
     /* Each method's grid is its own (solver_ops.bench_quick / bench_full): the classical methods over iterations ×
@@ -705,5 +717,6 @@ int cli_bench_main(int argc, char **argv)
     for (int i = 0; i < np; i++)
         json_decref(pts[i].params);
     free(pts);
+    free(methods);
     return failed ? 1 : 0;
 }

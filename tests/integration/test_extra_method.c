@@ -229,6 +229,18 @@ static void test_bench(void **state)
     print_message("  bench: %d toy-mean points of %d rows\n", toy, rows - 1);
     assert_int_equal(toy, 2);
     assert_int_equal(rows, 3);
+    /* and in the report's table of the scene (the front: iters=1 is as accurate as iters=4) */
+    char md[450];
+    snprintf(md, sizeof md, "%s/report.md", out);
+    f = fopen(md, "r");
+    assert_non_null(f);
+    char *text = calloc(1, 1 << 16);
+    assert_non_null(text);
+    size_t n = fread(text, 1, (1 << 16) - 1, f);
+    fclose(f);
+    assert_true(n > 0);
+    must_contain(text, "| toy-mean | iters=1 |", "the bench report");
+    free(text);
 }
 
 int main(void)
