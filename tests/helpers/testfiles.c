@@ -1,5 +1,6 @@
 #include "tests/helpers/testfiles.h"
 
+#include <glob.h>
 #include <matio.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -57,4 +58,21 @@ void testfiles_write_declared_mat(const char *path, size_t snapshots)
     free(mask);
     free(meas);
     assert_int_equal(chmod(path, 0644), 0);
+}
+
+void testfiles_assert_nothing_at(const char *out)
+{
+    struct stat st;
+    if (stat(out, &st) == 0)
+        fail_msg("%s exists", out);
+    char pat[600];
+    glob_t g;
+    for (int i = 0; i < 2; i++) {
+        snprintf(pat, sizeof pat, "%s.%s-*", out, i ? "old" : "tmp");
+        if (glob(pat, 0, NULL, &g) == 0) {
+            const char *first = g.gl_pathv[0];
+            fail_msg("%s left behind", first);
+        }
+        globfree(&g);
+    }
 }

@@ -17,4 +17,8 @@ void testfiles_write_problem(const char *path, int w, int h, int n, int k);
  * without the limits it imports); mode 0644, so another uid can read it. A few KB for 5,000 snapshots. */
 void testfiles_write_declared_mat(const char *path, size_t snapshots);
 
+/* Fails the test unless nothing named out, out.tmp-* or out.old-* exists: a refused or failed run published
+ * nothing and left no staging folder behind. */
+void testfiles_assert_nothing_at(const char *out);
+
 #endif

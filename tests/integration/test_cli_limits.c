@@ -34,24 +34,6 @@
 static char dir[] = "/tmp/scicap-test-cli-limits-XXXXXX";
 static char scicap[1024];
 
-/* Nothing named OUT or OUT.tmp-* / OUT.old-* exists. */
-static void assert_nothing_at(const char *out)
-{
-    struct stat st;
-    if (stat(out, &st) == 0)
-        fail_msg("%s exists", out);
-    char pat[600];
-    glob_t g;
-    for (int i = 0; i < 2; i++) {
-        snprintf(pat, sizeof pat, "%s.%s-*", out, i ? "old" : "tmp");
-        if (glob(pat, 0, NULL, &g) == 0) {
-            const char *first = g.gl_pathv[0];
-            fail_msg("%s left behind", first);
-        }
-        globfree(&g);
-    }
-}
-
 /* A 2 KB .mat: uint8 mask 1×1×nmask and meas 1×1×nmeas, zlib-compressed zeros. */
 static void write_tiny_mat(const char *path, size_t nmask, size_t nmeas)
 {
@@ -78,7 +60,7 @@ static void assert_limit_refusal(const cli_child *c, const char *out)
 {
     if (cli_child_exit_code(c) != 1 || !strstr(c->err, "limit of") || !strstr(c->err, "--allow-large"))
         fail_msg("exit %d, stderr: %s", cli_child_exit_code(c), c->err);
-    assert_nothing_at(out);
+    testfiles_assert_nothing_at(out);
 }
 
 static void test_mat_declaring_2m_frames_refused(void **state)
@@ -145,7 +127,7 @@ static void test_sidecar_claim_refused_before_allocating(void **state)
         fail_msg("exit %d, stderr: %s", cli_child_exit_code(&c), c.err);
     if (c.maxrss_kb >= 300 * 1024)
         fail_msg("peak RSS %ld MB: the claimed cube was allocated", c.maxrss_kb / 1024);
-    assert_nothing_at(out);
+    testfiles_assert_nothing_at(out);
 }
 
 static int setup(void **state) { return cli_child_setup(scicap, sizeof scicap, "scicap", dir); }

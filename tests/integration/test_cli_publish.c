@@ -31,24 +31,6 @@
 static char dir[] = "/tmp/scicap-test-cli-publish-XXXXXX";
 static char scicap[1024];
 
-/* Nothing named OUT or OUT.tmp-* / OUT.old-* exists. */
-static void assert_nothing_at(const char *out)
-{
-    struct stat st;
-    if (stat(out, &st) == 0)
-        fail_msg("%s exists", out);
-    char pat[600];
-    glob_t g;
-    for (int i = 0; i < 2; i++) {
-        snprintf(pat, sizeof pat, "%s.%s-*", out, i ? "old" : "tmp");
-        if (glob(pat, 0, NULL, &g) == 0) {
-            const char *first = g.gl_pathv[0];
-            fail_msg("%s left behind", first);
-        }
-        globfree(&g);
-    }
-}
-
 static int exists(const char *path)
 {
     struct stat st;
@@ -101,7 +83,7 @@ static void test_sigterm_while_writing_publishes_nothing(void **state)
         fail_msg("the write had finished before SIGTERM; make the problem larger");
     if (!WIFSIGNALED(c.status) || WTERMSIG(c.status) != SIGTERM)
         fail_msg("status 0x%x, not death by SIGTERM; stderr: %s", c.status, c.err);
-    assert_nothing_at(out);
+    testfiles_assert_nothing_at(out);
 }
 
 static void test_sigterm_between_snapshots_publishes_nothing(void **state)
@@ -116,7 +98,7 @@ static void test_sigterm_between_snapshots_publishes_nothing(void **state)
     sigterm_when(in, out, "/snap_001", &mid, &c);
     if (!WIFSIGNALED(c.status) || WTERMSIG(c.status) != SIGTERM)
         fail_msg("status 0x%x, not death by SIGTERM; stderr: %s", c.status, c.err);
-    assert_nothing_at(out);
+    testfiles_assert_nothing_at(out);
 }
 
 /* Run a command with stderr into dir/err.txt; its exit status. */
