@@ -33,6 +33,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/file.h"
 #include "bench/bench_load.h"
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
@@ -68,15 +69,9 @@ static char tsv_path[64], md_path[64]; /* bench/results/<out>.{tsv,md} (main) */
  * the stored rows are recognised (attention_rung, write_ladder_steps). */
 static const char *const ladder_tag[5] = {"baseline", "+ patch", "+ inter", "+ intra", "+ TV"};
 
-static void write_tsv(void)
+static int tsv_rows(FILE *f, void *user, sci_error *err)
 {
-    char tmp[80];
-    snprintf(tmp, sizeof tmp, "%s.tmp", tsv_path);
-    FILE *f = fopen(tmp, "w");
-    if (!f) {
-        perror(tmp);
-        return;
-    }
+    (void)user, (void)err;
     fprintf(f, "scene\tmethod\tsteps\trays\tpsnr\tssim\twall_s\tpose_rot\tpose_trans\tload1\tseeds\tpsnr_sd\t"
                "meas_res\tmax_w\n");
     for (int i = 0; i < n_rows; i++) {
@@ -85,10 +80,18 @@ static void write_tsv(void)
                 r->iters, r->rays, r->psnr, r->ssim, r->wall_s, r->pose_rot, r->pose_trans, r->load, r->seeds,
                 r->psnr_sd, r->meas_res, r->max_w);
     }
-    fclose(f);
-    if (rename(tmp, tsv_path) < 0)
-        perror(tsv_path);
+    return 0;
 }
+
+/* Replace a results file with what `rows_fn` writes, or say on stderr why not. */
+static void write_table(const char *path, sci_file_writer rows_fn)
+{
+    sci_error err = {0};
+    if (sci_file_write_atomic_with(path, 0644, 0, rows_fn, NULL, &err) < 0)
+        fprintf(stderr, "%s\n", err.msg);
+}
+
+static void write_tsv(void) { write_table(tsv_path, tsv_rows); }
 
 /* The part of the comparison a row belongs to, by its method label. */
 static const char *row_part(const char *method)
@@ -270,16 +273,9 @@ static void preset_steps(int *rf, int *sn)
     *rf = q.iters, *sn = v.iters;
 }
 
-static void write_md(void)
+static int md_rows(FILE *f, void *user, sci_error *err)
 {
-    sort_rows();
-    char tmp[80];
-    snprintf(tmp, sizeof tmp, "%s.tmp", md_path);
-    FILE *f = fopen(tmp, "w");
-    if (!f) {
-        perror(tmp);
-        return;
-    }
+    (void)user, (void)err;
     fprintf(f, "Measured by bench/bench_nerf_compare.c (`--run`, preset `%s`, 2 threads): each row one reconstruction "
                "of the scene's single snapshot (N = 8), PSNR with peak = 1 and SSIM averaged over the 8 frames, wall "
                "time of the method (training and the final render; trace evaluations excluded); for the NeRF rows the "
@@ -344,10 +340,14 @@ static void write_md(void)
             fprintf(f, "%s %s %.2f–%.2f", i ? ";" : "", rows[i].scene, lo, hi);
         }
     fprintf(f, ".\n");
-    fclose(f);
+    return 0;
+}
+
+static void write_md(void)
+{
+    sort_rows();
+    write_table(md_path, md_rows);
     write_tsv();
-    if (rename(tmp, md_path) < 0)
-        perror(md_path);
 }
 
 /* One finished reconstruction as a row: its last trace entry, the load now, the pose error when poses were

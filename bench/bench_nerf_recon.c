@@ -25,6 +25,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "base/file.h"
 #include "bench/bench_load.h"
 #include "recon/solver.h"
 #include "sim/simulate.h"
@@ -156,34 +157,39 @@ static int measure_in_child(const char *method, const char *preset, const char *
     return got == sizeof *m && WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -EIO;
 }
 
-/* A results table: written to path.tmp with the load average at the start, renamed over path by table_close
- * with the load average at the end, so a killed run leaves the previous file intact. */
+/* A results table: collected in memory with the load average at the start, replacing path atomically at
+ * table_close with the load average at the end, so a killed run leaves the previous file intact. */
 typedef struct table {
-    FILE *md;
+    FILE *md; /* an open_memstream over buf */
+    char *buf;
+    size_t len;
     const char *path;
     char load0[64];
 } table;
 
 static int table_open(table *t, const char *path)
 {
-    char tmp[256];
     t->path = path;
+    t->buf = NULL;
+    t->len = 0;
     bench_loadavg(t->load0, sizeof t->load0);
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    if (!(t->md = fopen(tmp, "w")))
-        perror(tmp);
+    if (!(t->md = open_memstream(&t->buf, &t->len)))
+        perror(path);
     return t->md ? 0 : -1;
 }
 
 /* Returns 1 when the file could not be published, else `status`. */
 static int table_close(table *t, int status)
 {
-    char tmp[256], load1[64];
+    char load1[64];
     bench_loadavg(load1, sizeof load1);
     fprintf(t->md, "\nLoad average %s at the start, %s at the end (2 cores).\n", t->load0, load1);
-    snprintf(tmp, sizeof tmp, "%s.tmp", t->path);
-    if (fclose(t->md) != 0 || rename(tmp, t->path) < 0) {
-        perror(t->path);
+    sci_error err = {0};
+    int rc = fclose(t->md) == 0 ? sci_file_write_atomic(t->path, t->buf, t->len, 0644, 0, &err)
+                                : sci_error_set(&err, -ENOMEM, "%s: out of memory", t->path);
+    free(t->buf);
+    if (rc < 0) {
+        fprintf(stderr, "%s\n", err.msg);
         return 1;
     }
     return status;

@@ -18,6 +18,7 @@
 #include <jansson.h>
 
 #include "base/clock.h"
+#include "base/json.h"
 #include "cli/batch.h"
 #include "cli/commands.h"
 
@@ -434,14 +435,11 @@ int batch_task_run(batch *b, const char *name)
                             ok ? "" : j->error);
     if (rec)
         json_object_set_new(rec, "psnr_db", ok && !isnan(j->psnr) ? json_real(j->psnr) : json_null());
-    char path[PATH_MAX + 300], rel[300], tmp[PATH_MAX + 320];
+    char path[PATH_MAX + 300], rel[300];
     sci_error err = {0};
     snprintf(rel, sizeof rel, "tasks/%s.json", j->name);
-    if (rec && batch_path(b, path, sizeof path, rel, &err) == 0) {
-        snprintf(tmp, sizeof tmp, "%s.tmp-%d", path, (int)getpid());
-        if (json_dump_file(rec, tmp, JSON_INDENT(1)) != 0 || rename(tmp, path) != 0)
-            unlink(tmp);
-    }
+    if (rec && batch_path(b, path, sizeof path, rel, &err) == 0)
+        sci_json_write_atomic(path, rec, JSON_INDENT(1), 0644, 0, &err); /* the state file still says it ran */
     json_decref(rec);
     fprintf(stderr, "scicap batch: task %s: %s in %.1f s%s%s\n", task, ok ? "done" : "FAILED", j->seconds,
             ok ? "" : ": ", ok ? "" : j->error);

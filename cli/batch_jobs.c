@@ -15,6 +15,7 @@
 
 #include <jansson.h>
 
+#include "base/json.h"
 #include "io/staging.h"
 
 static const char *const state_names[] = {"pending", "running", "done", "failed", "submitted"};
@@ -306,7 +307,7 @@ static json_t *job_to_json(const batch_job *j)
 
 int batch_state_save(const batch *b, sci_error *err)
 {
-    char path[PATH_MAX], tmp[PATH_MAX + 16];
+    char path[PATH_MAX];
     int rc = batch_path(b, path, sizeof path, "state.json", err);
     if (rc < 0)
         return rc;
@@ -317,15 +318,10 @@ int batch_state_save(const batch *b, sci_error *err)
         json_array_append_new(args, json_string(b->recon_args[i]));
     json_t *root = json_pack("{s:s, s:i, s:s, s:o, s:s, s:o}", "format", "scicap-batch", "version", 1, "scicap",
                              b->bin, "recon_args", args, "slurm_job", b->slurm_job, "jobs", jobs);
-    snprintf(tmp, sizeof tmp, "%s.tmp-%d", path, (int)getpid());
-    rc = root && json_dump_file(root, tmp, JSON_INDENT(1)) == 0 ? 0 : -EIO;
+    rc = root ? sci_json_write_atomic(path, root, JSON_INDENT(1), 0644, 0, NULL) : -ENOMEM;
     json_decref(root);
-    if (rc == 0 && rename(tmp, path) != 0)
-        rc = -errno;
-    if (rc < 0) {
-        unlink(tmp);
+    if (rc < 0)
         return sci_error_set(err, rc, "%s: cannot write the batch state", path);
-    }
     return 0;
 }
 

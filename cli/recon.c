@@ -203,7 +203,7 @@ static void clean_stale_stages(const char *out)
     closedir(d);
 }
 
-/* The NeRF checkpoint callback: the blob goes to path.tmp, then replaces path (never a half-written checkpoint). */
+/* The NeRF checkpoint callback: the blob replaces path atomically (never a half-written checkpoint). */
 typedef struct ckpt_file {
     const char *path;
     int written, iter;
@@ -212,19 +212,9 @@ typedef struct ckpt_file {
 static int write_checkpoint(const void *blob, size_t bytes, int iter, void *user)
 {
     ckpt_file *c = user;
-    char tmp[4200];
-    snprintf(tmp, sizeof tmp, "%s.tmp", c->path);
-    FILE *f = fopen(tmp, "wb");
-    if (!f)
-        return -errno;
-    int ok = fwrite(blob, 1, bytes, f) == bytes;
-    ok &= fflush(f) == 0 && fsync(fileno(f)) == 0;
-    ok &= fclose(f) == 0;
-    if (!ok || rename(tmp, c->path) != 0) {
-        int e = errno ? -errno : -EIO;
-        unlink(tmp);
-        return e;
-    }
+    int rc = sci_file_write_atomic(c->path, blob, bytes, 0644, 0, NULL);
+    if (rc < 0)
+        return rc;
     c->written++, c->iter = iter;
     return 0;
 }
@@ -599,7 +589,7 @@ static int recon_snapshot_grey(recon_job *j, const sci_problem *p, const char *d
         const sci_recon_store_opts so = {.extra = j->input_info, .stop = &stop_requested,
                                          .preview_auto = o->preview_auto,
                                          .flags = j->first == j->last && o->force ? SCI_STAGING_OVERWRITE : 0};
-        rc = sci_recon_store_write_with(dir, p, &r, j->params, &so, &err);
+        rc = sci_recon_store_save(dir, p, &r, j->params, &so, &err);
         if (rc == SCI_ECANCELED)
             fprintf(stderr, "scicap recon: interrupted while writing; %s not written\n", o->out);
         else if (rc < 0)

@@ -7,6 +7,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "base/json.h"
 #include "cli/progress.h"
 #include "io/image.h"
 #include "io/recon_store.h"
@@ -69,13 +70,12 @@ static int join_traces(const sci_result res[4], sci_trace *out)
     return 0;
 }
 
-/* Add the colour record to dir/result.json (atomically: a temporary file renamed over it). With an RGB truth the
+/* Add the colour record to dir/result.json (replaced atomically). With an RGB truth the
  * top-level PSNR is the RGB one (what the user sees); the raw mosaic's metrics move under "mosaic". */
 static int add_color_record(const char *dir, json_t *color, sci_error *err)
 {
-    char path[4200], tmp[4300];
+    char path[4200];
     snprintf(path, sizeof path, "%s/result.json", dir);
-    snprintf(tmp, sizeof tmp, "%s.tmp-%d", path, (int)getpid());
     json_error_t je;
     json_t *j = json_load_file(path, 0, &je);
     if (!j)
@@ -93,11 +93,7 @@ static int add_color_record(const char *dir, json_t *color, sci_error *err)
         json_object_set(j, "psnr_frame_max_db", json_object_get(color, "psnr_rgb_frame_max_db"));
         json_object_set(j, "psnr_peak1_db", json_object_get(color, "psnr_rgb_peak1_db"));
     }
-    int rc = json_dump_file(j, tmp, JSON_INDENT(2)) == 0 && rename(tmp, path) == 0
-                 ? 0
-                 : sci_error_set(err, -EIO, "%s: cannot write", path);
-    if (rc < 0)
-        unlink(tmp);
+    int rc = sci_json_write_atomic(path, j, JSON_INDENT(2), 0644, 0, err);
     json_decref(j);
     return rc;
 }
@@ -179,7 +175,7 @@ int cli_recon_color(const cli_color_job *job, const sci_problem *p, const sci_cu
         goto out;
     }
     const sci_recon_store_opts so = {.extra = job->extra, .stop = job->stop, .preview_auto = job->preview_auto};
-    if ((rc = sci_recon_store_write_with(stage, p, &r, job->params, &so, err)) < 0)
+    if ((rc = sci_recon_store_save(stage, p, &r, job->params, &so, err)) < 0)
         goto out;
     for (int f = 0; f < n && rc == 0; f++) {
         char path[4200];

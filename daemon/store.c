@@ -14,6 +14,8 @@
 #include <sys/statvfs.h>
 #include <unistd.h>
 
+#include "base/file.h"
+#include "base/json.h"
 #include "io/image.h"
 #include "io/problem_dir.h"
 #include "io/staging.h"
@@ -148,25 +150,12 @@ static int ids_read(scicapd_store *s, sci_error *err)
 /* Write the mark durably. Lock held (or single-threaded). */
 static int ids_write(scicapd_store *s, unsigned long capture, unsigned long calib, sci_error *err)
 {
-    char path[1100], tmp[1100];
+    char path[1100], text[96];
     snprintf(path, sizeof path, "%s/" STORE_IDS_FILE, s->root);
-    snprintf(tmp, sizeof tmp, "%s/." STORE_IDS_FILE ".tmp", s->root);
-    FILE *f = fopen(tmp, "w");
-    if (!f)
-        return sci_error_set(err, -errno, "%s: %s", tmp, strerror(errno));
-    int bad = fprintf(f, "{\"capture\": %lu, \"calibration\": %lu}\n", capture, calib) < 0;
-    bad |= fflush(f) != 0;
-    if (!bad && s->fsync_on)
-        bad = fsync(fileno(f)) != 0;
-    int e = errno;
-    bad |= fclose(f) != 0;
-    if (bad || rename(tmp, path) != 0) {
-        e = bad ? e : errno;
-        unlink(tmp);
-        return sci_error_set(err, -e, "%s: cannot write the capture id high-water mark: %s", path, strerror(e));
-    }
-    if (s->fsync_on && sci_staging_sync(s->root, 0) < 0)
-        return sci_error_set(err, -EIO, "%s: fsync of the folder failed", s->root);
+    int n = snprintf(text, sizeof text, "{\"capture\": %lu, \"calibration\": %lu}\n", capture, calib);
+    int rc = sci_file_write_atomic(path, text, (size_t)n, 0644, s->fsync_on ? 0 : SCI_FILE_NO_SYNC, err);
+    if (rc < 0)
+        return sci_error_set(err, rc, "%s: cannot write the capture id high-water mark: %s", path, sci_strerror(rc));
     s->mark_capture = capture;
     s->mark_calib = calib;
     s->ids_ok = 1;
@@ -527,7 +516,7 @@ int scicapd_store_write_capture(scicapd_store *st, scicapd_snapshot *s, sci_erro
     sci_problem_dir_opts o = {.previews = atomic_load(&st->previews)};
     if (shared_mask_stack(st, p->mask, masks, sizeof masks) == 0)
         o.masks_from = masks;
-    rc = sci_problem_dir_write_ex(tmp, &p, 1, source, &o, err);
+    rc = sci_problem_dir_save(tmp, &p, 1, source, &o, err);
     json_decref(source);
     if (rc < 0)
         goto fail;
@@ -601,18 +590,11 @@ int scicapd_store_write_calibration(scicapd_store *st, const char *key, const sc
     if ((rc = write_json(path, rec, err)) < 0 || (rc = publish(st, tmp, final, parent, err)) < 0)
         goto fail;
     /* the pointer: written beside and renamed over the old one */
-    char ptr[1300], ptmp[1400];
+    char ptr[1300];
     snprintf(ptr, sizeof ptr, "%s/%s.json", parent, key);
-    snprintf(ptmp, sizeof ptmp, "%s/.%s.json.tmp-%d", parent, key, (int)getpid());
-    if ((rc = write_json(ptmp, rec, err)) < 0)
+    if ((rc = sci_json_write_atomic(ptr, rec, JSON_INDENT(2) | JSON_SORT_KEYS, 0644,
+                                    st->fsync_on ? 0 : SCI_FILE_NO_SYNC, err)) < 0)
         goto fail;
-    if (st->fsync_on)
-        sci_staging_sync(ptmp, 0);
-    if (rename(ptmp, ptr) != 0) {
-        rc = sci_error_set(err, -errno, "%s: cannot rename: %s", ptr, strerror(errno));
-        unlink(ptmp);
-        goto fail;
-    }
     if (record_out)
         *record_out = rec;
     else

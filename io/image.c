@@ -8,6 +8,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "base/file.h"
+#include "base/json.h"
 #include "io/gif.h"
 #include "io/oiio_shim.h"
 
@@ -55,28 +57,23 @@ int sci_image_read(const char *path, sci_cube **out, int *bits, sci_error *err)
     return rc;
 }
 
-static int tmp_name(char *buf, size_t n, const char *path)
-{
-    /* Keep the extension last: OpenImageIO picks the writer by it. */
-    const char *slash = strrchr(path, '/'), *dot = strrchr(path, '.');
-    if (!dot || (slash && dot < slash))
-        return snprintf(buf, n, "%s.tmp-%d", path, (int)getpid());
-    return snprintf(buf, n, "%.*s.tmp-%d%s", (int)(dot - path), path, (int)getpid(), dot);
-}
+/* Image files are parts of output folders that their writers stage and sync as a whole (io/staging.h), so each
+ * file is replaced atomically without an fsync of its own. */
+#define IMAGE_FILE_FLAGS SCI_FILE_NO_SYNC
 
-/* The end of every atomic write: on success rename the temporary file into place, on failure remove it. */
-static int publish(const char *tmp, const char *path, int rc, const char *msg, sci_error *err)
+typedef struct image_job {
+    const float *buf;
+    int w, h, channels, type, uncompressed;
+    const char *description;
+} image_job;
+
+static int image_write_named(const char *tmp, void *user, sci_error *err)
 {
-    if (rc < 0) {
-        unlink(tmp);
-        return sci_error_set(err, rc, "%s", msg);
-    }
-    if (rename(tmp, path) != 0) {
-        rc = -errno;
-        unlink(tmp);
-        return sci_error_set(err, rc, "%s: %s", path, strerror(-rc));
-    }
-    return 0;
+    const image_job *j = user;
+    char msg[SCI_ERROR_MSG_MAX];
+    int rc = sci_oiio_write(tmp, j->buf, j->w, j->h, j->channels, j->type, j->description, j->uncompressed, msg,
+                            sizeof msg);
+    return rc < 0 ? sci_error_set(err, rc, "%s", msg) : 0;
 }
 
 /* One image from `channels` frames of `c` starting at `k0` (1: grey, 3: RGB), interleaved per pixel, scaled,
@@ -102,11 +99,10 @@ static int write_frames(const char *path, const sci_cube *c, int k0, int channel
             buf[(size_t)channels * i + ch] = (float)v;
         }
     }
-    char tmp[4096], msg[SCI_ERROR_MSG_MAX];
-    tmp_name(tmp, sizeof tmp, path);
-    int rc = sci_oiio_write(tmp, buf, c->w, c->h, channels, (int)type, description, uncompressed, msg, sizeof msg);
+    const image_job job = {buf, c->w, c->h, channels, (int)type, uncompressed, description};
+    int rc = sci_file_write_atomic_named(path, 0644, IMAGE_FILE_FLAGS, image_write_named, (void *)&job, err);
     free(buf);
-    return publish(tmp, path, rc, msg, err);
+    return rc;
 }
 
 int sci_image_write(const char *path, const sci_cube *c, int k, sci_pixel_type type, double scale,
@@ -150,6 +146,17 @@ int sci_image_write_gif(const char *path, const sci_cube *c, double scale, int d
     return sci_image_write_gif_opt(path, c, scale, delay_ms, NULL, err);
 }
 
+typedef struct gif_job {
+    const unsigned char *buf;
+    int w, h, n, delay_ms;
+} gif_job;
+
+static int gif_write_named(const char *tmp, void *user, sci_error *err)
+{
+    const gif_job *j = user;
+    return sci_gif_write_grey(tmp, j->buf, j->w, j->h, j->n, j->delay_ms, err);
+}
+
 int sci_image_write_gif_opt(const char *path, const sci_cube *c, double scale, int delay_ms, int *factor,
                             sci_error *err)
 {
@@ -180,14 +187,12 @@ int sci_image_write_gif_opt(const char *path, const sci_cube *c, double scale, i
                 buf[(size_t)k * gfs + (size_t)gy * gw + gx] = grey8(acc / cnt * scale);
             }
     }
-    char tmp[4096];
-    tmp_name(tmp, sizeof tmp, path);
-    sci_error gerr = {0};
-    int rc = sci_gif_write_grey(tmp, buf, gw, gh, c->n, delay_ms, &gerr);
+    const gif_job job = {buf, gw, gh, c->n, delay_ms};
+    int rc = sci_file_write_atomic_named(path, 0644, IMAGE_FILE_FLAGS, gif_write_named, (void *)&job, err);
     free(buf);
     if (factor)
         *factor = f;
-    return publish(tmp, path, rc, gerr.msg, err);
+    return rc;
 }
 
 static int mkdir_p(const char *dir, sci_error *err)
@@ -238,16 +243,8 @@ int sci_stack_write_ex(const char *dir, const char *stem, const char *ext, const
         return sci_error_set(err, -ENOMEM, "%s: out of memory", dir);
     if (provenance)
         json_object_set_new(side, "provenance", json_deep_copy(provenance));
-    char tmp[4096];
     snprintf(path, sizeof path, "%s/%s.json", dir, stem);
-    snprintf(tmp, sizeof tmp, "%s.tmp-%d", path, (int)getpid());
-    if (json_dump_file(side, tmp, JSON_INDENT(2) | JSON_SORT_KEYS) != 0) {
-        rc = sci_error_set(err, -EIO, "%s: cannot write", tmp);
-        unlink(tmp);
-    } else if (rename(tmp, path) != 0) {
-        rc = sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
-        unlink(tmp);
-    }
+    rc = sci_json_write_atomic(path, side, JSON_INDENT(2) | JSON_SORT_KEYS, 0644, IMAGE_FILE_FLAGS, err);
     json_decref(side);
     return rc;
 }

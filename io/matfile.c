@@ -1,5 +1,6 @@
 #include "io/matfile.h"
 
+#include "base/file.h"
 #include "io/mat_verify.h"
 #include "io/matfile_sandbox.h"
 
@@ -830,41 +831,51 @@ static matvar_t *make_var(const char *name, sci_cube *const *cubes, int ncubes, 
     return v;
 }
 
-int sci_mat_write(const char *path, sci_problem *const *problems, int k, double scale, sci_error *err)
+typedef struct mat_job {
+    sci_problem *const *problems;
+    int k;
+    double scale;
+} mat_job;
+
+/* The variables mask, meas and (when every problem has one) orig, into the file named tmp. */
+static int mat_write_named(const char *tmp, void *user, sci_error *err)
 {
-    if (scale == 0)
-        scale = 255;
-    if (k < 1)
-        return sci_error_set(err, -EINVAL, "%s: nothing to write", path);
-    char tmp[4096];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%d", path, (int)getpid());
+    const mat_job *job = user;
+    const int k = job->k;
     mat_t *mat = Mat_CreateVer(tmp, NULL, MAT_FT_MAT5);
     if (!mat)
         return sci_error_set(err, -EIO, "%s: cannot create", tmp);
     int rc = 0, have_truth = 1;
     sci_cube **cubes = calloc((size_t)k, sizeof *cubes);
     if (!cubes) {
-        rc = sci_error_set(err, -ENOMEM, "%s: out of memory", path);
-        goto out;
+        Mat_Close(mat);
+        return sci_error_set(err, -ENOMEM, "%s: out of memory", tmp);
     }
     for (int j = 0; j < k; j++)
-        have_truth &= problems[j]->truth != NULL;
+        have_truth &= job->problems[j]->truth != NULL;
     const char *names[3] = {"mask", "meas", "orig"};
     for (int var = 0; var < (have_truth ? 3 : 2) && rc == 0; var++) {
         int nc = var == 0 ? 1 : k;
         for (int j = 0; j < nc; j++)
-            cubes[j] = var == 0 ? problems[0]->mask : var == 1 ? problems[j]->meas : problems[j]->truth;
-        matvar_t *v = make_var(names[var], cubes, nc, var == 0 ? 1.0 : scale);
+            cubes[j] = var == 0   ? job->problems[0]->mask
+                       : var == 1 ? job->problems[j]->meas
+                                  : job->problems[j]->truth;
+        matvar_t *v = make_var(names[var], cubes, nc, var == 0 ? 1.0 : job->scale);
         if (!v || Mat_VarWrite(mat, v, MAT_COMPRESSION_ZLIB) != 0)
             rc = sci_error_set(err, -EIO, "%s: cannot write variable '%s'", tmp, names[var]);
         Mat_VarFree(v);
     }
-out:
     free(cubes);
     Mat_Close(mat);
-    if (rc == 0 && rename(tmp, path) != 0)
-        rc = sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
-    if (rc < 0)
-        unlink(tmp);
     return rc;
+}
+
+int sci_mat_write(const char *path, sci_problem *const *problems, int k, double scale, sci_error *err)
+{
+    if (scale == 0)
+        scale = 255;
+    if (k < 1)
+        return sci_error_set(err, -EINVAL, "%s: nothing to write", path);
+    const mat_job job = {problems, k, scale};
+    return sci_file_write_atomic_named(path, 0644, 0, mat_write_named, (void *)&job, err);
 }

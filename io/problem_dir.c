@@ -5,7 +5,6 @@
 #include <dirent.h>
 #include <errno.h>
 #include <limits.h>
-#include <ftw.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -14,14 +13,7 @@
 #include <unistd.h>
 
 #include "io/image.h"
-
-static int rm_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw)
-{
-    return remove(path);
-}
-
-/* Remove a folder tree we created ourselves (a temporary or a replaced problem folder). */
-static int rm_tree(const char *dir) { return nftw(dir, rm_entry, 16, FTW_DEPTH | FTW_PHYS); }
+#include "io/staging.h"
 
 static json_t *camera_to_json(const sci_camera *c, sci_problem *const *problems, int k)
 {
@@ -39,19 +31,18 @@ static json_t *camera_to_json(const sci_camera *c, sci_problem *const *problems,
                      "near", c->near_m, "far", c->far_m, "poses", poses);
 }
 
-static int problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
-                             const sci_problem_color *color, const sci_problem_dir_opts *opts, sci_error *err);
-
 int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                           int overwrite, sci_error *err)
 {
-    return sci_problem_dir_write_opt(dir, problems, k, source, overwrite, 1, err);
+    const sci_problem_dir_opts o = {.overwrite = overwrite, .previews = 1};
+    return sci_problem_dir_save(dir, problems, k, source, &o, err);
 }
 
 int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                               int overwrite, int previews, sci_error *err)
 {
-    return sci_problem_dir_write_color(dir, problems, k, source, NULL, overwrite, previews, err);
+    const sci_problem_dir_opts o = {.overwrite = overwrite, .previews = previews};
+    return sci_problem_dir_save(dir, problems, k, source, &o, err);
 }
 
 /* Mask previews on [0, 1] × 255, the scale every writer of a problem folder uses for them. */
@@ -96,20 +87,18 @@ static int masks_link(const char *from, const char *to, int n, int previews)
 int sci_problem_dir_write_color(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                                 const sci_problem_color *color, int overwrite, int previews, sci_error *err)
 {
-    sci_problem_dir_opts o = {.overwrite = overwrite, .previews = previews};
-    return problem_dir_write(dir, problems, k, source, color, &o, err);
+    const sci_problem_dir_opts o = {.overwrite = overwrite, .previews = previews, .color = color};
+    return sci_problem_dir_save(dir, problems, k, source, &o, err);
 }
 
-int sci_problem_dir_write_ex(const char *dir, sci_problem *const *problems, int k, const json_t *source,
-                             const sci_problem_dir_opts *opts, sci_error *err)
+int sci_problem_dir_save(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                         const sci_problem_dir_opts *opts, sci_error *err)
 {
-    return problem_dir_write(dir, problems, k, source, NULL, opts, err);
-}
-
-static int problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
-                             const sci_problem_color *color, const sci_problem_dir_opts *opts, sci_error *err)
-{
+    static const sci_problem_dir_opts defaults = {.previews = 1};
+    if (!opts)
+        opts = &defaults;
     const int overwrite = opts->overwrite, previews = opts->previews;
+    const sci_problem_color *color = opts->color;
     if (k < 1)
         return sci_error_set(err, -EINVAL, "%s: no problems to write", dir);
     const sci_problem *p0 = problems[0];
@@ -126,8 +115,8 @@ static int problem_dir_write(const char *dir, sci_problem *const *problems, int 
         return sci_error_set(err, -EEXIST, "%s: already exists (use --force to replace it)", dir);
 
     char tmp[4096];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%d", dir, (int)getpid());
-    rm_tree(tmp);
+    if (sci_staging_name(tmp, sizeof tmp, dir) < 0)
+        return sci_error_set(err, -ENAMETOOLONG, "%s: name too long", dir);
     const int w = p0->mask->w, h = p0->mask->h, n = p0->mask->n;
     sci_cube *meas = NULL, *truth = NULL, *rgb = NULL;
     int rc = sci_cube_new(&meas, w, h, k, err);
@@ -205,20 +194,11 @@ static int problem_dir_write(const char *dir, sci_problem *const *problems, int 
     json_decref(man);
     if (rc < 0)
         goto out;
-    if (stat(dir, &st) == 0 && overwrite) {
-        char old[4200];
-        snprintf(old, sizeof old, "%s.old-%d", dir, (int)getpid());
-        if (rename(dir, old) != 0) {
-            rc = sci_error_set(err, -errno, "%s: cannot replace: %s", dir, strerror(errno));
-            goto out;
-        }
-        rm_tree(old);
-    }
-    if (rename(tmp, dir) != 0)
-        rc = sci_error_set(err, -errno, "%s: %s", dir, strerror(errno));
+    /* an old DIR is put back if the new one cannot take its place */
+    rc = sci_staging_publish(tmp, dir, overwrite ? SCI_STAGING_OVERWRITE : 0, NULL, err);
 out:
     if (rc < 0)
-        rm_tree(tmp);
+        sci_staging_remove(tmp);
     sci_cube_free(meas);
     sci_cube_free(truth);
     sci_cube_free(rgb);

@@ -22,34 +22,6 @@
 #include "io/limits.h"
 #include "recon/problem.h"
 
-/* Write problems[0..k-1] (all the same w, h, n; same masks: problems[0]'s are written) to DIR, creating it.
- * `source` (may be NULL, borrowed) is stored under "source" (e.g. the scene and effects that made it).
- * Writes into DIR.tmp-<pid> and renames it to DIR at the end, so a reader never sees a half-written folder;
- * an existing DIR is replaced only when `overwrite` is nonzero (else -EEXIST). */
-int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
-                          int overwrite, sci_error *err);
-/* Same; previews = 0 leaves out the preview_*.png / preview_truth.gif files (most of the CPU cost of a write:
- * the daemon's storage.previews switch). */
-int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int k, const json_t *source,
-                              int overwrite, int previews, sci_error *err);
-
-/* What sci_problem_dir_write_ex does beyond sci_problem_dir_write_opt. */
-typedef struct sci_problem_dir_opts {
-    int overwrite;          /* replace an existing DIR (else -EEXIST) */
-    int previews;           /* write the preview_*.png / preview_truth.gif files */
-    /* A folder written by sci_problem_dir_write_masks with problems[0]'s masks (NULL: none): its mask.json,
-     * mask_*.exr (and preview_mask_*.png with previews) are hard-linked into DIR instead of written again — a
-     * folder per snapshot then costs no mask encoding. The caller vouches that the folder holds these masks; a
-     * link that fails (another file system, no hard links) falls back to writing the files. Borrowed. */
-    const char *masks_from;
-} sci_problem_dir_opts;
-int sci_problem_dir_write_ex(const char *dir, sci_problem *const *problems, int k, const json_t *source,
-                             const sci_problem_dir_opts *opts, sci_error *err);
-/* The mask files of a problem folder alone — mask.json, mask_*.exr and preview_mask_*.png, exactly as
- * sci_problem_dir_write writes them — into `dir` (created if missing; files replaced atomically), for
- * sci_problem_dir_opts.masks_from. */
-int sci_problem_dir_write_masks(const char *dir, const sci_cube *mask, sci_error *err);
-
 /* Colour (Bayer) problems: the problems hold the raw mosaic (meas, masks and the mosaicked truth, so every grey
  * tool still works on them); the manifest adds "cfa": "RGGB" (or BGGR, GRBG, GBRG) and, when known, "truth_rgb":
  * "truth_rgb.json", a stack of k·N RGB frames as 3·k·N planes (frame f's channel c at 3f + c, recon/bayer.h),
@@ -58,8 +30,42 @@ typedef struct sci_problem_color {
     int cfa;                           /* sci_cfa (recon/demosaic.h), not SCI_CFA_NONE */
     sci_cube *const *truth_rgb;        /* k cubes of w×h×3N, or NULL when unknown; borrowed */
 } sci_problem_color;
+
+/* How to write a problem folder; NULL opts: overwrite 0, previews 1, no shared masks, grey. */
+typedef struct sci_problem_dir_opts {
+    int overwrite;          /* replace an existing DIR (else -EEXIST) */
+    int previews;           /* write the preview_*.png / preview_truth.gif files (most of the CPU cost of a
+                             * write: the daemon's storage.previews switch) */
+    /* A folder written by sci_problem_dir_write_masks with problems[0]'s masks (NULL: none): its mask.json,
+     * mask_*.exr (and preview_mask_*.png with previews) are hard-linked into DIR instead of written again — a
+     * folder per snapshot then costs no mask encoding. The caller vouches that the folder holds these masks; a
+     * link that fails (another file system, no hard links) falls back to writing the files. Borrowed. */
+    const char *masks_from;
+    const sci_problem_color *color; /* a colour folder (NULL: grey); borrowed */
+} sci_problem_dir_opts;
+
+/* Write problems[0..k-1] (all the same w, h, n; same masks: problems[0]'s are written) to DIR, creating it.
+ * `source` (may be NULL, borrowed) is stored under "source" (e.g. the scene and effects that made it).
+ * Writes into DIR.tmp-<pid> and renames it to DIR at the end, so a reader never sees a half-written folder;
+ * an existing DIR is replaced only with opts->overwrite (else -EEXIST). Returns 0 or a negative code. */
+int sci_problem_dir_save(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                         const sci_problem_dir_opts *opts, sci_error *err);
+
+/* Earlier names, thin wrappers over sci_problem_dir_save for their remaining callers (cli/sim.c, cli/bench.c,
+ * python/pyio.c, tests); new code calls sci_problem_dir_save. write: previews on; write_opt: previews chosen;
+ * write_color: a colour folder. */
+int sci_problem_dir_write(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                          int overwrite, sci_error *err);
+int sci_problem_dir_write_opt(const char *dir, sci_problem *const *problems, int k, const json_t *source,
+                              int overwrite, int previews, sci_error *err);
 int sci_problem_dir_write_color(const char *dir, sci_problem *const *problems, int k, const json_t *source,
                                 const sci_problem_color *color, int overwrite, int previews, sci_error *err);
+
+/* The mask files of a problem folder alone — mask.json, mask_*.exr and preview_mask_*.png, exactly as
+ * sci_problem_dir_save writes them — into `dir` (created if missing; files replaced atomically), for
+ * sci_problem_dir_opts.masks_from. */
+int sci_problem_dir_write_masks(const char *dir, const sci_cube *mask, sci_error *err);
+
 /* The colour part of a folder: *cfa = SCI_CFA_NONE (0) for a grey folder; *truth_rgb (may be NULL) receives a
  * malloc'd array of k RGB cubes (free each and the array) or NULL when the folder has none. */
 int sci_problem_dir_read_color(const char *dir, int *cfa, sci_cube ***truth_rgb, int *k, sci_error *err);

@@ -133,20 +133,15 @@ void sci_recon_store_estimate(long long w, long long h, long long n, long long s
 int sci_recon_store_write(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
                           int overwrite, sci_error *err)
 {
-    return sci_recon_store_write_opt(dir, p, r, params, overwrite, NULL, err);
-}
-
-int sci_recon_store_write_opt(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
-                              int overwrite, const volatile sig_atomic_t *stop, sci_error *err)
-{
-    return sci_recon_store_write_ex(dir, p, r, params, NULL, overwrite ? SCI_STAGING_OVERWRITE : 0, stop, err);
+    const sci_recon_store_opts o = {.flags = overwrite ? SCI_STAGING_OVERWRITE : 0};
+    return sci_recon_store_save(dir, p, r, params, &o, err);
 }
 
 int sci_recon_store_write_ex(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
                              const json_t *extra, int flags, const volatile sig_atomic_t *stop, sci_error *err)
 {
     const sci_recon_store_opts o = {.extra = extra, .flags = flags, .stop = stop};
-    return sci_recon_store_write_with(dir, p, r, params, &o, err);
+    return sci_recon_store_save(dir, p, r, params, &o, err);
 }
 
 /* truth | reconstruction | |difference|·4, one row per frame, 8-bit on [0, peak]: one image to look at. */
@@ -173,9 +168,11 @@ static int write_compare(const char *path, const sci_problem *p, const sci_cube 
     return rc;
 }
 
-int sci_recon_store_write_with(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
-                               const sci_recon_store_opts *o, sci_error *err)
+int sci_recon_store_save(const char *dir, const sci_problem *p, const sci_result *r, const json_t *params,
+                         const sci_recon_store_opts *opts, sci_error *err)
 {
+    static const sci_recon_store_opts defaults = {0};
+    const sci_recon_store_opts *o = opts ? opts : &defaults;
     struct stat st;
     const volatile sig_atomic_t *stop = o->stop;
     if (!r->frames)

@@ -7,6 +7,8 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "base/file.h"
+
 int sci_problem_validate(const sci_problem *p, sci_error *err)
 {
     const char *name = p->name[0] ? p->name : "problem";
@@ -116,27 +118,22 @@ void sci_trace_clear(sci_trace *t)
     t->len = t->cap = 0;
 }
 
-int sci_trace_write_csv(const sci_trace *t, const char *path, sci_error *err)
+static int trace_write_rows(FILE *f, void *user, sci_error *err)
 {
-    char tmp[4096];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    FILE *f = fopen(tmp, "w");
-    if (!f)
-        return sci_error_set(err, -errno, "%s: %s", tmp, strerror(errno));
+    (void)err;
+    const sci_trace *t = user;
     fprintf(f, "iter,wall_s,cpu_s,residual,loss,psnr_db,psnr_peak1_db,ssim,meas_residual,max_weight,plane\n");
     for (size_t i = 0; i < t->len; i++) {
         const sci_trace_entry *e = &t->e[i];
         fprintf(f, "%d,%.6f,%.6f,%.9g,%.9g,%.4f,%.4f,%.5f,%.6g,%.4f,%d\n", e->iter, e->wall_s, e->cpu_s,
                 e->residual, e->loss, e->psnr, e->psnr_peak1, e->ssim, e->meas_residual, e->max_weight, e->plane);
     }
-    int bad = ferror(f);
-    if (fclose(f) != 0 || bad) {
-        unlink(tmp);
-        return sci_error_set(err, -EIO, "%s: write failed", tmp);
-    }
-    if (rename(tmp, path) != 0)
-        return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
     return 0;
+}
+
+int sci_trace_write_csv(const sci_trace *t, const char *path, sci_error *err)
+{
+    return sci_file_write_atomic_with(path, 0644, 0, trace_write_rows, (void *)t, err);
 }
 
 void sci_result_free_contents(sci_result *r)
