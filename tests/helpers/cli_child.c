@@ -101,3 +101,55 @@ static int remove_entry(const char *path, const struct stat *sb, int flag, struc
 }
 
 int cli_child_remove_dir(const char *dir) { return nftw(dir, remove_entry, 16, FTW_DEPTH | FTW_PHYS) == 0 ? 0 : -1; }
+
+int cli_child_shell(const char *fmt, ...)
+{
+    char cmd[8192];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(cmd, sizeof cmd, fmt, ap);
+    va_end(ap);
+    int rc = system(cmd);
+    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+int cli_child_sim(const char *scicap, const char *dir, const char *scene_name, const char *scene_json)
+{
+    char path[2048];
+    snprintf(path, sizeof path, "%s/%s", dir, scene_name);
+    FILE *f = fopen(path, "w");
+    if (!f)
+        return -1;
+    int bad = fputs(scene_json, f) < 0;
+    bad |= fclose(f) != 0;
+    if (bad)
+        return -1;
+    return cli_child_shell("%s sim %s -o %s/prob -q >/dev/null 2>&1", scicap, path, dir) == 0 ? 0 : -1;
+}
+
+json_t *cli_child_load_json(const char *dir, const char *name)
+{
+    char path[2048];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    json_error_t je;
+    json_t *j = json_load_file(path, 0, &je);
+    if (!j)
+        fail_msg("%s: %s", path, je.text);
+    return j;
+}
+
+int cli_child_checkpoint_step(const char *log)
+{
+    static const char tag[] = "checkpoint of step ";
+    int step = 0;
+    FILE *f = fopen(log, "r");
+    char line[1024];
+    while (f && fgets(line, sizeof line, f)) {
+        const char *s = strstr(line, tag);
+        if (s)
+            step = atoi(s + strlen(tag));
+    }
+    if (f)
+        fclose(f);
+    return step;
+}

@@ -14,6 +14,7 @@
 #ifndef SCICAP_TESTS_CLI_CHILD_H
 #define SCICAP_TESTS_CLI_CHILD_H
 
+#include <jansson.h>
 #include <stddef.h>
 #include <sys/types.h>
 
@@ -41,5 +42,17 @@ int cli_child_exit_code(const cli_child *c);
  * (0 or -1); then the folder removed with everything in it (0 or -1). */
 int cli_child_setup(char *prog, size_t n, const char *name, char *dir);
 int cli_child_remove_dir(const char *dir);
+
+/* The command line fmt, ... run by /bin/sh (system(3)): its exit status, -1 when it did not exit. For tests that
+ * redirect, pipe or grep; the child's output goes where the command line says. */
+int cli_child_shell(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+/* A scene: scene_json written to dir/scene_name, then `scicap sim dir/scene_name -o dir/prob -q` (its output
+ * discarded), so the group's tests reconstruct dir/prob. 0, or -1 (the file or the simulation failed). */
+int cli_child_sim(const char *scicap, const char *dir, const char *scene_name, const char *scene_json);
+/* The JSON file dir/name (a result.json, a problem.json), a new reference the caller decrefs; a file that is
+ * missing or not JSON fails the test, naming it. */
+json_t *cli_child_load_json(const char *dir, const char *name);
+/* N of the last "checkpoint of step N" line in the log file (scicap recon's, with --checkpoint); 0 when none. */
+int cli_child_checkpoint_step(const char *log);
 
 #endif

@@ -14,38 +14,18 @@
 #include <sys/wait.h>
 #include <unistd.h>
 #include <cmocka.h>
+
+#include "tests/helpers/cli_child.h"
 #include <jansson.h>
 
 static char dir[] = "/tmp/scicap-test-cli-color-XXXXXX";
 static char scicap[1024];
-
-static int run(const char *fmt, ...)
-{
-    char cmd[8192];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(cmd, sizeof cmd, fmt, ap);
-    va_end(ap);
-    int rc = system(cmd);
-    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-}
 
 static int exists(const char *name)
 {
     char path[2048];
     snprintf(path, sizeof path, "%s/%s", dir, name);
     return access(path, F_OK) == 0;
-}
-
-static json_t *load(const char *name)
-{
-    char path[2048];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    json_error_t je;
-    json_t *j = json_load_file(path, 0, &je);
-    if (!j)
-        fail_msg("%s: %s", path, je.text);
-    return j;
 }
 
 /* PNG colour type from the IHDR chunk: 2 = RGB, 0 = grey. */
@@ -63,33 +43,23 @@ static int png_color_type(const char *name)
     return b[25];
 }
 
-static int setup(void **state)
-{
-    const char *build = getenv("BUILD");
-    snprintf(scicap, sizeof scicap, "%s/scicap", build ? build : "build");
-    return mkdtemp(dir) ? 0 : -1;
-}
+static int setup(void **state) { return cli_child_setup(scicap, sizeof scicap, "scicap", dir); }
 
-static int teardown(void **state)
-{
-    char cmd[2048];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    return system(cmd) == 0 ? 0 : -1;
-}
+static int teardown(void **state) { return cli_child_remove_dir(dir); }
 
 static void test_color_scene_end_to_end(void **state)
 {
-    assert_int_equal(run("%s sim etc/scenes/cacti_color.json -o %s/sim -q >/dev/null", scicap, dir), 0);
-    json_t *man = load("sim/problem.json");
+    assert_int_equal(cli_child_shell("%s sim etc/scenes/cacti_color.json -o %s/sim -q >/dev/null", scicap, dir), 0);
+    json_t *man = cli_child_load_json(dir, "sim/problem.json");
     assert_string_equal(json_string_value(json_object_get(man, "cfa")), "RGGB");
     assert_string_equal(json_string_value(json_object_get(man, "truth_rgb")), "truth_rgb.json");
     json_decref(man);
     assert_int_equal(png_color_type("sim/preview_truth_rgb_000.png"), 2);
 
-    assert_int_equal(run("%s recon %s/sim -o %s/rgb -q > %s/out.txt", scicap, dir, dir, dir), 0);
-    assert_int_equal(run("grep -q 'mean .* RGB$' %s/out.txt", dir), 0); /* the RGB PSNR line is printed */
-    run("cat %s/out.txt", dir);
-    json_t *res = load("rgb/result.json");
+    assert_int_equal(cli_child_shell("%s recon %s/sim -o %s/rgb -q > %s/out.txt", scicap, dir, dir, dir), 0);
+    assert_int_equal(cli_child_shell("grep -q 'mean .* RGB$' %s/out.txt", dir), 0); /* the RGB PSNR line is printed */
+    cli_child_shell("cat %s/out.txt", dir);
+    json_t *res = cli_child_load_json(dir, "rgb/result.json");
     json_t *color = json_object_get(res, "color");
     assert_non_null(color);
     assert_string_equal(json_string_value(json_object_get(color, "cfa")), "RGGB");
@@ -103,9 +73,9 @@ static void test_color_scene_end_to_end(void **state)
     json_decref(res);
     printf("RGB PSNR %.2f dB (peak 1), %.2f dB (peak = frame max)\n", rgb1, rgbm);
     /* trace.csv: a plane column; each plane's iterations 1..100 */
-    assert_int_equal(run("head -1 %s/rgb/trace.csv | grep -q ',plane$'", dir), 0);
+    assert_int_equal(cli_child_shell("head -1 %s/rgb/trace.csv | grep -q ',plane$'", dir), 0);
     for (int pl = 1; pl <= 4; pl++)
-        assert_int_equal(run("awk -F, -v p=%d 'NR > 1 && $NF == p { n++; if ($1 != n) bad = 1 } END { exit !(n == 100 "
+        assert_int_equal(cli_child_shell("awk -F, -v p=%d 'NR > 1 && $NF == p { n++; if ($1 != n) bad = 1 } END { exit !(n == 100 "
                              "&& !bad) }' %s/rgb/trace.csv", pl, dir),
                          0);
     assert_true(rgb1 > 22.0); /* measured 24.00 */
@@ -118,8 +88,8 @@ static void test_color_scene_end_to_end(void **state)
     }
 
     /* The same mosaic reconstructed as a grey image: its raw-mosaic PSNR is far below the colour result's. */
-    assert_int_equal(run("%s recon %s/sim --cfa none -o %s/grey -q >/dev/null", scicap, dir, dir), 0);
-    res = load("grey/result.json");
+    assert_int_equal(cli_child_shell("%s recon %s/sim --cfa none -o %s/grey -q >/dev/null", scicap, dir, dir), 0);
+    res = cli_child_load_json(dir, "grey/result.json");
     const double grey = json_number_value(json_object_get(json_object_get(res, "psnr_peak1_db"), "mean"));
     assert_null(json_object_get(res, "color"));
     json_decref(res);
@@ -128,14 +98,14 @@ static void test_color_scene_end_to_end(void **state)
     assert_false(exists("grey/preview_rgb_000.png"));
 
     /* NeRF methods are refused for a mosaic (usage error), naming the way out. */
-    assert_int_equal(run("%s recon %s/sim --method scinerf -o %s/nerf -q 2>/dev/null", scicap, dir, dir), 2);
+    assert_int_equal(cli_child_shell("%s recon %s/sim --method scinerf -o %s/nerf -q 2>/dev/null", scicap, dir, dir), 2);
 }
 
 static void test_grey_scene_has_no_colour(void **state)
 {
-    assert_int_equal(run("%s sim etc/scenes/cacti_layers.json --snapshots 1 -o %s/grey-sim -q >/dev/null", scicap, dir),
+    assert_int_equal(cli_child_shell("%s sim etc/scenes/cacti_layers.json --snapshots 1 -o %s/grey-sim -q >/dev/null", scicap, dir),
                      0);
-    json_t *man = load("grey-sim/problem.json");
+    json_t *man = cli_child_load_json(dir, "grey-sim/problem.json");
     assert_null(json_object_get(man, "cfa"));
     assert_null(json_object_get(man, "truth_rgb"));
     json_decref(man);

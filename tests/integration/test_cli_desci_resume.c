@@ -18,6 +18,7 @@
 #include "base/cube.h"
 #include "base/error.h"
 #include "io/image.h"
+#include "tests/helpers/cli_child.h"
 
 static char dir[] = "/tmp/scicap-test-cli-desci-resume-XXXXXX";
 static char scicap[1024];
@@ -40,58 +41,17 @@ static const char scene[] =
 #define ITERS 6
 #define OPTS "--method desci --preset fast --iters 6 -j 2"
 
-static int run(const char *fmt, ...)
-{
-    char cmd[4096];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(cmd, sizeof cmd, fmt, ap);
-    va_end(ap);
-    int rc = system(cmd);
-    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-}
-
 static int setup(void **state)
 {
-    (void)state;
-    const char *build = getenv("BUILD");
-    snprintf(scicap, sizeof scicap, "%s/scicap", build ? build : "build");
-    if (!mkdtemp(dir))
+    if (cli_child_setup(scicap, sizeof scicap, "scicap", dir) < 0)
         return -1;
-    char path[2048];
-    snprintf(path, sizeof path, "%s/small.json", dir);
-    FILE *f = fopen(path, "w");
-    if (!f)
-        return -1;
-    fputs(scene, f);
-    fclose(f);
 #if defined(__SANITIZE_ADDRESS__)
     printf("AddressSanitizer build: a " SIDE "x" SIDE "x8 problem instead of 64x64x8\n");
 #endif
-    return run("%s sim %s/small.json -o %s/prob -q >/dev/null 2>&1", scicap, dir, dir) == 0 ? 0 : -1;
+    return cli_child_sim(scicap, dir, "small.json", scene);
 }
 
-static int teardown(void **state)
-{
-    (void)state;
-    return run("rm -rf '%s'", dir);
-}
-
-/* The step of the last "checkpoint of step N" line in the file, 0 when none. */
-static int checkpoint_step(const char *log)
-{
-    int step = 0;
-    FILE *f = fopen(log, "r");
-    char line[1024];
-    while (f && fgets(line, sizeof line, f)) {
-        const char *s = strstr(line, "checkpoint of step ");
-        if (s)
-            step = atoi(s + strlen("checkpoint of step "));
-    }
-    if (f)
-        fclose(f);
-    return step;
-}
+static int teardown(void **state) { return cli_child_remove_dir(dir); }
 
 /* The stored floats of an image file (a 1-frame cube the caller frees). */
 static sci_cube *read_frame(const char *path)
@@ -113,7 +73,7 @@ static void test_interrupt_and_resume_is_bitwise(void **state)
     snprintf(log, sizeof log, "%s/int.log", dir);
 
     /* uninterrupted */
-    assert_int_equal(run("%s recon " OPTS " -q %s -o %s/full >%s/full.log 2>&1", scicap, prob, dir, dir), 0);
+    assert_int_equal(cli_child_shell("%s recon " OPTS " -q %s -o %s/full >%s/full.log 2>&1", scicap, prob, dir, dir), 0);
 
     /* interrupted after its first checkpoint (one per iteration) */
     pid_t pid = fork();
@@ -137,16 +97,16 @@ static void test_interrupt_and_resume_is_bitwise(void **state)
     if (!ready)
         fail_msg("no checkpoint %s within 20 s", ck);
     if (!WIFSIGNALED(ws) || WTERMSIG(ws) != SIGINT) {
-        run("cat %s >&2", log);
+        cli_child_shell("cat %s >&2", log);
         fail_msg("interrupted run: expected death by SIGINT, got status %#x (finished before the signal?)", ws);
     }
     assert_int_not_equal(access(out, F_OK), 0);
-    const int step = checkpoint_step(log);
+    const int step = cli_child_checkpoint_step(log);
     printf("interrupted: checkpoint of step %d of %d\n", step, ITERS);
     assert_true(step >= 1 && step < ITERS);
 
     /* resumed to the end */
-    assert_int_equal(run("%s recon " OPTS " --resume %s -q %s -o %s >%s/res.log 2>&1", scicap, ck, prob, out, dir), 0);
+    assert_int_equal(cli_child_shell("%s recon " OPTS " --resume %s -q %s -o %s >%s/res.log 2>&1", scicap, ck, prob, out, dir), 0);
     char path[2048];
     snprintf(path, sizeof path, "%s/result.json", out);
     json_error_t je;

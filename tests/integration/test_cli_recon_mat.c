@@ -27,6 +27,7 @@
  * --iters stops at 50 iterations (33 dB on drop40): the scale checks compare runs with one another, which holds at
  * any count; the golden 34.63 dB of the full default run is checked in the optimised build. */
 #include "tests/helpers/sanitized.h"
+#include "tests/helpers/cli_child.h"
 
 static char dir[] = "/tmp/scicap-test-cli-mat-XXXXXX";
 static char scicap[1024];
@@ -60,14 +61,17 @@ static char *read_stderr(void)
     return buf;
 }
 
+/* out/result.json under the test's folder (fails the test when missing). */
+static json_t *result_of(const char *out)
+{
+    char name[1024];
+    snprintf(name, sizeof name, "%s/result.json", out);
+    return cli_child_load_json(dir, name);
+}
+
 static double psnr_of(const char *out)
 {
-    char path[2048];
-    snprintf(path, sizeof path, "%s/%s/result.json", dir, out);
-    json_error_t je;
-    json_t *j = json_load_file(path, 0, &je);
-    if (!j)
-        fail_msg("%s: %s", path, je.text);
+    json_t *j = result_of(out);
     double v = json_number_value(json_object_get(json_object_get(j, "psnr_frame_max_db"), "mean"));
     json_decref(j);
     return v;
@@ -136,18 +140,11 @@ static void write_lab_files(const char *tag, enum mat_ft ver, enum matio_classes
 
 static int setup(void **state)
 {
-    const char *build = getenv("BUILD");
-    snprintf(scicap, sizeof scicap, "%s/scicap", build ? build : "build");
     have_drop40 = testdata_path("drop40_cacti.mat", drop40, sizeof drop40);
-    return mkdtemp(dir) ? 0 : -1;
+    return cli_child_setup(scicap, sizeof scicap, "scicap", dir);
 }
 
-static int teardown(void **state)
-{
-    char cmd[2048];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    return system(cmd) == 0 ? 0 : -1;
-}
+static int teardown(void **state) { return cli_child_remove_dir(dir); }
 
 #define REQUIRE_DROP40()                                                                                           \
     do {                                                                                                           \
@@ -219,17 +216,6 @@ static void test_scale_auto_from_meas(void **state)
     printf("original: %s", e);
     assert_non_null(strstr(e, "white is 255"));
     assert_true(fabs(psnr_of("orig-auto") - reference_psnr()) < 1e-9);
-}
-
-static json_t *result_of(const char *out)
-{
-    char path[2048];
-    snprintf(path, sizeof path, "%s/%s/result.json", dir, out);
-    json_error_t je;
-    json_t *j = json_load_file(path, 0, &je);
-    if (!j)
-        fail_msg("%s: %s", path, je.text);
-    return j;
 }
 
 /* One .mat with the benchmark's names: masks × mask_gain, meas and truth × gain (drop40 read on [0, 1]). */

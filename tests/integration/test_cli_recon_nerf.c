@@ -17,6 +17,8 @@
 #include <cmocka.h>
 #include <jansson.h>
 
+#include "tests/helpers/cli_child.h"
+
 static char dir[] = "/tmp/scicap-test-cli-nerf-XXXXXX";
 static char scicap[1024];
 
@@ -32,17 +34,6 @@ static const char scene[] =
 /* Small and quick: 2 windows of 8×8 per step, 8 samples. */
 #define SMALL "--patch 8 --patches-per-step 2 --samples 8 --metrics-every 0 -j 1"
 
-static int run(const char *fmt, ...)
-{
-    char cmd[4096];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(cmd, sizeof cmd, fmt, ap);
-    va_end(ap);
-    int rc = system(cmd);
-    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-}
-
 static int exists(const char *fmt, const char *name)
 {
     char path[2048];
@@ -54,22 +45,19 @@ static int exists(const char *fmt, const char *name)
  * the stderr stays in dir/refused.err for a further look. */
 static void refused(const char *args, const char *pattern)
 {
-    assert_int_equal(run("%s recon %s %s/prob -o %s/x 2>%s/refused.err", scicap, args, dir, dir, dir), 2);
-    if (run("grep -q -e '%s' %s/refused.err", pattern, dir) != 0)
+    assert_int_equal(cli_child_shell("%s recon %s %s/prob -o %s/x 2>%s/refused.err", scicap, args, dir, dir, dir), 2);
+    if (cli_child_shell("grep -q -e '%s' %s/refused.err", pattern, dir) != 0)
         fail_msg("scicap recon %s: stderr lacks '%s'", args, pattern);
 }
 
 static json_t *result_params(const char *out)
 {
-    char path[2048];
-    snprintf(path, sizeof path, "%s/%s/result.json", dir, out);
-    json_error_t je;
-    json_t *j = json_load_file(path, 0, &je);
-    if (!j)
-        fail_msg("%s: %s", path, je.text);
+    char name[1024];
+    snprintf(name, sizeof name, "%s/result.json", out);
+    json_t *j = cli_child_load_json(dir, name);
     json_t *p = json_object_get(j, "params");
     if (!p)
-        fail_msg("%s has no params", path);
+        fail_msg("%s/%s has no params", dir, name);
     json_incref(p);
     json_decref(j);
     return p;
@@ -77,39 +65,25 @@ static json_t *result_params(const char *out)
 
 static int setup(void **state)
 {
-    (void)state;
-    const char *build = getenv("BUILD");
-    snprintf(scicap, sizeof scicap, "%s/scicap", build ? build : "build");
-    if (!mkdtemp(dir))
+    if (cli_child_setup(scicap, sizeof scicap, "scicap", dir) < 0)
         return -1;
-    char path[2048];
-    snprintf(path, sizeof path, "%s/tiny.json", dir);
-    FILE *f = fopen(path, "w");
-    if (!f)
-        return -1;
-    fputs(scene, f);
-    fclose(f);
-    return run("%s sim %s/tiny.json -o %s/prob >/dev/null 2>&1", scicap, dir, dir) == 0 ? 0 : -1;
+    return cli_child_sim(scicap, dir, "tiny.json", scene);
 }
 
-static int teardown(void **state)
-{
-    (void)state;
-    return run("rm -rf '%s'", dir);
-}
+static int teardown(void **state) { return cli_child_remove_dir(dir); }
 
 /* Periodic checkpoints, then a resumed run to more steps. */
 static void test_checkpoint_then_resume(void **state)
 {
     (void)state;
-    assert_int_equal(run("%s recon --method rayformer " SMALL " --iters 8 --checkpoint %s/ck --checkpoint-every 4 -q "
+    assert_int_equal(cli_child_shell("%s recon --method rayformer " SMALL " --iters 8 --checkpoint %s/ck --checkpoint-every 4 -q "
                          "%s/prob -o %s/a >%s/a.log 2>&1",
                          scicap, dir, dir, dir, dir),
                      0);
     assert_true(exists("%s/%s", "a/result.json"));
     assert_true(exists("%s/%s", "ck"));
     assert_false(exists("%s/%s", "ck.tmp"));
-    assert_int_equal(run("%s recon --method rayformer " SMALL " --iters 12 --resume %s/ck -q %s/prob -o %s/b >%s/b.log "
+    assert_int_equal(cli_child_shell("%s recon --method rayformer " SMALL " --iters 12 --resume %s/ck -q %s/prob -o %s/b >%s/b.log "
                          "2>&1",
                          scicap, dir, dir, dir, dir),
                      0);
@@ -117,13 +91,13 @@ static void test_checkpoint_then_resume(void **state)
     assert_true(json_is_true(json_object_get(p, "resumed")));
     json_decref(p);
     /* 12 steps in all: the trace of the resumed run ends at step 12 */
-    assert_int_equal(run("grep -q '^  12 iterations' %s/b.log", dir), 0);
+    assert_int_equal(cli_child_shell("grep -q '^  12 iterations' %s/b.log", dir), 0);
     /* a damaged checkpoint is refused with a message, not trained from */
-    assert_int_equal(run("head -c 100 %s/ck > %s/bad && %s recon --method rayformer " SMALL " --iters 12 --resume %s/bad "
+    assert_int_equal(cli_child_shell("head -c 100 %s/ck > %s/bad && %s recon --method rayformer " SMALL " --iters 12 --resume %s/bad "
                          "-q %s/prob -o %s/c >%s/c.log 2>&1",
                          dir, dir, scicap, dir, dir, dir, dir),
                      1);
-    assert_int_equal(run("grep -qi 'checkpoint' %s/c.log", dir), 0);
+    assert_int_equal(cli_child_shell("grep -qi 'checkpoint' %s/c.log", dir), 0);
     assert_false(exists("%s/%s", "c"));
 }
 
@@ -168,25 +142,16 @@ static void test_interrupt_and_resume(void **state)
     int ws;
     assert_int_equal(waitpid(pid, &ws, 0), pid);
     if (!WIFSIGNALED(ws) || WTERMSIG(ws) != SIGINT) {
-        run("cat %s >&2", log);
+        cli_child_shell("cat %s >&2", log);
         fail_msg("interrupted run: expected death by SIGINT, got status %#x", ws);
     }
     assert_int_equal(access(ck, R_OK), 0);
     assert_int_not_equal(access(out, F_OK), 0);
-    int step = 0;
-    FILE *f = fopen(log, "r");
-    char line[1024];
-    while (f && fgets(line, sizeof line, f)) {
-        const char *s = strstr(line, "checkpoint of step ");
-        if (s)
-            step = atoi(s + strlen("checkpoint of step "));
-    }
-    if (f)
-        fclose(f);
+    int step = cli_child_checkpoint_step(log);
     printf("interrupted at step %d\n", step);
     assert_true(step >= 1);
     /* resume to 3 steps past the interruption */
-    assert_int_equal(run("%s recon --method scinerf --samples 8 --metrics-every 0 -j 1 --iters %d --resume %s -q %s -o "
+    assert_int_equal(cli_child_shell("%s recon --method scinerf --samples 8 --metrics-every 0 -j 1 --iters %d --resume %s -q %s -o "
                          "%s >%s/res.log 2>&1",
                          scicap, step + 3, ck, prob, out, dir),
                      0);
@@ -197,7 +162,7 @@ static void test_interrupt_and_resume(void **state)
 static void test_ablation_and_usage(void **state)
 {
     (void)state;
-    assert_int_equal(run("%s recon --method rayformer " SMALL " --iters 2 --ablation baseline -q %s/prob -o %s/abl "
+    assert_int_equal(cli_child_shell("%s recon --method rayformer " SMALL " --iters 2 --ablation baseline -q %s/prob -o %s/abl "
                          ">/dev/null 2>&1",
                          scicap, dir, dir),
                      0);
@@ -208,7 +173,7 @@ static void test_ablation_and_usage(void **state)
     assert_true(json_is_real(json_object_get(p, "tv_weight")));
     assert_true(json_real_value(json_object_get(p, "tv_weight")) == 0);
     json_decref(p);
-    assert_int_equal(run("%s recon --method rayformer --ablation +inter --iters 2 " SMALL " -q %s/prob -o %s/abl2 "
+    assert_int_equal(cli_child_shell("%s recon --method rayformer --ablation +inter --iters 2 " SMALL " -q %s/prob -o %s/abl2 "
                          ">/dev/null 2>&1",
                          scicap, dir, dir),
                      0);
@@ -229,7 +194,7 @@ static void test_ablation_and_usage(void **state)
 static void test_set_any_setting(void **state)
 {
     (void)state;
-    assert_int_equal(run("%s recon --method rayformer " SMALL " --iters 2 --set inter_gate=false --set inter_slope=2 "
+    assert_int_equal(cli_child_shell("%s recon --method rayformer " SMALL " --iters 2 --set inter_gate=false --set inter_slope=2 "
                          "--set spacing=log -q %s/prob -o %s/set >/dev/null 2>&1",
                          scicap, dir, dir),
                      0);
@@ -239,7 +204,7 @@ static void test_set_any_setting(void **state)
     assert_string_equal(json_string_value(json_object_get(p, "spacing")), "log");
     json_decref(p);
     refused("--method rayformer --set bogus=1", "bogus: rayformer has no such setting");
-    assert_int_equal(run("grep -q '^  inter_gate ' %s/refused.err", dir), 0); /* the list of the method's keys */
+    assert_int_equal(cli_child_shell("grep -q '^  inter_gate ' %s/refused.err", dir), 0); /* the list of the method's keys */
     refused("--method rayformer --set inter_slope=-1", "inter_slope: must be a number in");
     refused("--set iters", "set wants KEY=VALUE");
 }
