@@ -431,4 +431,43 @@ static inline int h_exists(const char *fmt, const char *a, const char *b)
     return stat(p, &st) == 0;
 }
 
+/* An import request (args stolen) with nfds (0 to 8) descriptors attached (SCM_RIGHTS), as scicap capture --from
+ * sends it; the reply message (a new reference; events that come before it are dropped). No reply within 30 s fails
+ * the test. */
+static inline json_t *hconn_import_fds(hconn *c, json_t *args, const int *fds, int nfds)
+{
+    assert_true(nfds >= 0 && nfds <= 8);
+    int id = c->next_id++;
+    json_t *req = json_pack("{s:i, s:i, s:s, s:o}", "v", 1, "id", id, "cmd", "import", "args", args);
+    char *s = json_dumps(req, JSON_COMPACT);
+    json_decref(req);
+    size_t n = strlen(s);
+    s[n++] = '\n';
+    union {
+        char b[CMSG_SPACE(sizeof(int) * 8)];
+        struct cmsghdr align;
+    } ctl;
+    struct iovec iov = {.iov_base = s, .iov_len = n};
+    struct msghdr m = {.msg_iov = &iov, .msg_iovlen = 1};
+    if (nfds > 0) {
+        m.msg_control = ctl.b;
+        m.msg_controllen = CMSG_SPACE(sizeof(int) * (size_t)nfds);
+        struct cmsghdr *h = CMSG_FIRSTHDR(&m);
+        h->cmsg_level = SOL_SOCKET;
+        h->cmsg_type = SCM_RIGHTS;
+        h->cmsg_len = CMSG_LEN(sizeof(int) * (size_t)nfds);
+        memcpy(CMSG_DATA(h), fds, sizeof(int) * (size_t)nfds);
+    }
+    assert_int_equal(sendmsg(c->fd, &m, MSG_NOSIGNAL), (ssize_t)n);
+    free(s);
+    for (;;) {
+        json_t *r = hconn_read(c, 30000);
+        if (!r)
+            fail_msg("no reply to import within 30 s");
+        if (!json_object_get(r, "event") && json_integer_value(json_object_get(r, "id")) == id)
+            return r;
+        json_decref(r);
+    }
+}
+
 #endif

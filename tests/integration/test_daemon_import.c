@@ -38,42 +38,6 @@
 static harness H;
 static char scicap[1024];
 
-/* Send one request line with descriptors attached (SCM_RIGHTS) and return the reply message. */
-static json_t *call_with_fds(hconn *c, json_t *args, const int *fds, int nfds)
-{
-    int id = c->next_id++;
-    json_t *req = json_pack("{s:i, s:i, s:s, s:o}", "v", 1, "id", id, "cmd", "import", "args", args);
-    char *s = json_dumps(req, JSON_COMPACT);
-    json_decref(req);
-    size_t n = strlen(s);
-    s[n++] = '\n';
-    union {
-        char b[CMSG_SPACE(sizeof(int) * 8)];
-        struct cmsghdr align;
-    } ctl;
-    struct iovec iov = {.iov_base = s, .iov_len = n};
-    struct msghdr m = {.msg_iov = &iov, .msg_iovlen = 1};
-    if (nfds > 0) {
-        m.msg_control = ctl.b;
-        m.msg_controllen = CMSG_SPACE(sizeof(int) * (size_t)nfds);
-        struct cmsghdr *h = CMSG_FIRSTHDR(&m);
-        h->cmsg_level = SOL_SOCKET;
-        h->cmsg_type = SCM_RIGHTS;
-        h->cmsg_len = CMSG_LEN(sizeof(int) * (size_t)nfds);
-        memcpy(CMSG_DATA(h), fds, sizeof(int) * (size_t)nfds);
-    }
-    assert_int_equal(sendmsg(c->fd, &m, MSG_NOSIGNAL), (ssize_t)n);
-    free(s);
-    for (;;) {
-        json_t *r = hconn_read(c, 30000);
-        if (!r)
-            fail_msg("no reply to import within 30 s");
-        if (!json_object_get(r, "event") && json_integer_value(json_object_get(r, "id")) == id)
-            return r;
-        json_decref(r);
-    }
-}
-
 static const char *err_code(const json_t *reply)
 {
     return json_string_value(json_object_get(json_object_get(reply, "error"), "code"));
@@ -243,7 +207,7 @@ static void test_reads_through_the_clients_descriptor(void **state)
     assert_int_equal(rename(junk, priv), 0);
     hconn c = {.fd = h_connect_raw(sock), .next_id = 1};
     assert_true(c.fd >= 0);
-    json_t *r = call_with_fds(&c, json_pack("{s:[s]}", "files", "drop40.mat"), &fd, 1);
+    json_t *r = hconn_import_fds(&c, json_pack("{s:[s]}", "files", "drop40.mat"), &fd, 1);
     close(fd);
     if (!json_is_true(json_object_get(r, "ok")))
         fail_msg("import refused: %s", json_dumps(r, JSON_COMPACT));
@@ -287,24 +251,24 @@ static void test_refusals(void **state)
     snprintf(fd0, sizeof fd0, "/proc/%d/fd/0", (int)H.pid);
     assert_true(readlink(fd0, before, sizeof before - 1) > 0);
     /* two names, one descriptor */
-    json_t *r = call_with_fds(&c, json_pack("{s:[s,s], s:s}", "files", "a.mat", "b.mat", "mask", "b.mat"), &fd, 1);
+    json_t *r = hconn_import_fds(&c, json_pack("{s:[s,s], s:s}", "files", "a.mat", "b.mat", "mask", "b.mat"), &fd, 1);
     assert_string_equal(err_code(r), "bad_arguments");
     assert_non_null(strstr(json_string_value(json_object_get(json_object_get(r, "error"), "message")),
                            "descriptors passed"));
     json_decref(r);
     /* no descriptor at all: the daemon opens no path */
-    r = call_with_fds(&c, json_pack("{s:[s]}", "files", "drop40.mat"), NULL, 0);
+    r = hconn_import_fds(&c, json_pack("{s:[s]}", "files", "drop40.mat"), NULL, 0);
     assert_string_equal(err_code(r), "bad_arguments");
     json_decref(r);
     /* .mat options on a folder */
-    r = call_with_fds(&c, json_pack("{s:[s], s:s, s:s}", "files", "problem.json", "kind", "folder", "meas_var", "y"),
+    r = hconn_import_fds(&c, json_pack("{s:[s], s:s, s:s}", "files", "problem.json", "kind", "folder", "meas_var", "y"),
                       &fd, 1);
     assert_string_equal(err_code(r), "bad_arguments");
     json_decref(r);
     /* a pipe: refused by the worker, never read (it could block it) */
     int p[2];
     assert_int_equal(pipe(p), 0);
-    r = call_with_fds(&c, json_pack("{s:[s]}", "files", "pipe.mat"), &p[0], 1);
+    r = hconn_import_fds(&c, json_pack("{s:[s]}", "files", "pipe.mat"), &p[0], 1);
     assert_true(json_is_true(json_object_get(r, "ok")));
     json_decref(r);
     json_t *e = hconn_wait_event_ex(&c, "import.failed", 30000, 1);
@@ -314,7 +278,7 @@ static void test_refusals(void **state)
     close(p[0]);
     close(p[1]);
     /* a missing variable: what the file holds, and the option */
-    r = call_with_fds(&c, json_pack("{s:[s], s:s}", "files", "drop40.mat", "meas_var", "y"), &fd, 1);
+    r = hconn_import_fds(&c, json_pack("{s:[s], s:s}", "files", "drop40.mat", "meas_var", "y"), &fd, 1);
     assert_true(json_is_true(json_object_get(r, "ok")));
     json_decref(r);
     e = hconn_wait_event_ex(&c, "import.failed", 30000, 1);

@@ -31,38 +31,6 @@ static int cleanup(void **state)
     return 0;
 }
 
-/* One import request with the file's descriptor attached (SCM_RIGHTS); the reply message. */
-static json_t *import_fd(hconn *c, json_t *args, int fd)
-{
-    int id = c->next_id++;
-    json_t *req = json_pack("{s:i, s:i, s:s, s:o}", "v", 1, "id", id, "cmd", "import", "args", args);
-    char *s = json_dumps(req, JSON_COMPACT);
-    json_decref(req);
-    size_t n = strlen(s);
-    s[n++] = '\n';
-    union {
-        char b[CMSG_SPACE(sizeof(int))];
-        struct cmsghdr align;
-    } ctl;
-    struct iovec iov = {.iov_base = s, .iov_len = n};
-    struct msghdr m = {.msg_iov = &iov, .msg_iovlen = 1, .msg_control = ctl.b, .msg_controllen = sizeof ctl.b};
-    struct cmsghdr *h = CMSG_FIRSTHDR(&m);
-    h->cmsg_level = SOL_SOCKET;
-    h->cmsg_type = SCM_RIGHTS;
-    h->cmsg_len = CMSG_LEN(sizeof(int));
-    memcpy(CMSG_DATA(h), &fd, sizeof fd);
-    assert_int_equal(sendmsg(c->fd, &m, MSG_NOSIGNAL), (ssize_t)n);
-    free(s);
-    for (;;) {
-        json_t *r = hconn_read(c, 30000);
-        if (!r)
-            fail_msg("no reply to import within 30 s");
-        if (!json_object_get(r, "event") && json_integer_value(json_object_get(r, "id")) == id)
-            return r;
-        json_decref(r);
-    }
-}
-
 static void test_refused_as_the_cli_refuses_it(void **state)
 {
     harness_start(&H, "{\"control\": {\"mode\": \"0666\"}}\n", NULL);
@@ -86,7 +54,7 @@ static void test_refused_as_the_cli_refuses_it(void **state)
     hconn_open(&hc, &H);
     int fd = open(file, O_RDONLY | O_CLOEXEC);
     assert_true(fd >= 0);
-    json_t *r = import_fd(&hc, json_pack("{s:[s], s:b}", "files", "many.mat", "reconstruct", 1), fd);
+    json_t *r = hconn_import_fds(&hc, json_pack("{s:[s], s:b}", "files", "many.mat", "reconstruct", 1), &fd, 1);
     close(fd);
     assert_true(json_is_true(json_object_get(r, "ok")));
     json_decref(r);
@@ -113,7 +81,7 @@ static void test_allow_large_is_for_admins(void **state)
     hconn_open_as(&hc, &H, NOBODY, NOBODY);
     int fd = open(file, O_RDONLY | O_CLOEXEC);
     assert_true(fd >= 0);
-    json_t *r = import_fd(&hc, json_pack("{s:[s], s:b}", "files", "many.mat", "allow_large", 1), fd);
+    json_t *r = hconn_import_fds(&hc, json_pack("{s:[s], s:b}", "files", "many.mat", "allow_large", 1), &fd, 1);
     close(fd);
     const char *code = json_string_value(json_object_get(json_object_get(r, "error"), "code"));
     print_message("  uid %d with allow_large: %s\n", NOBODY, json_dumps(r, JSON_COMPACT));
