@@ -1,6 +1,7 @@
 /* tests/helpers/daemon_child.c — see the header. */
 #include "tests/helpers/daemon_child.h"
 
+#include "io/problem_dir.h"
 #include "tests/helpers/cli_child.h"
 
 int daemon_child_setup(harness *h, char *scicap, size_t n, const char *config)
@@ -68,4 +69,37 @@ json_t *daemon_child_result(const harness *h, const char *cap, const char *metho
     if (!r)
         fail_msg("%s: %s", p, je.text);
     return r;
+}
+
+json_t *daemon_child_reconstruct(hconn *c, const char *cap, int iters)
+{
+    json_t *r = hconn_request(c, "reconstruct", json_pack("{s:s, s:s, s:{s:i}}", "capture", cap, "method", "gap-tv",
+                                                         "params", "iters", iters));
+    json_int_t job = json_integer_value(json_object_get(r, "job"));
+    json_decref(r);
+    for (;;) {
+        json_t *e = hconn_wait_event(c, "recon.done", 60000);
+        if (json_integer_value(json_object_get(e, "job")) == job) {
+            json_t *d = json_incref(json_object_get(e, "data"));
+            json_decref(e);
+            return d;
+        }
+        json_decref(e);
+    }
+}
+
+sci_problem *daemon_child_read_capture(const harness *h, const char *id)
+{
+    char d[600];
+    snprintf(d, sizeof d, "%s/captures/%s", h->store, id);
+    sci_problem **pp = NULL;
+    int k = 0;
+    sci_error err = {0};
+    if (sci_problem_dir_read(d, &pp, &k, &err) < 0)
+        fail_msg("%s", err.msg);
+    assert_int_equal(k, 1);
+    sci_problem *p = pp[0];
+    pp[0] = NULL;
+    sci_problem_array_free(pp, k);
+    return p;
 }

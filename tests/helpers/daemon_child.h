@@ -23,6 +23,7 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include "recon/problem.h"
 #include "tests/integration/daemon_harness.h"
 
 /* A group's setup: BUILD/scicap into scicap (n bytes), then scicapd started in a new folder with config text
@@ -45,5 +46,12 @@ int daemon_child_recon_exists(const harness *h, const char *cap, const char *met
 int daemon_child_wait_recon(const harness *h, const char *cap, const char *method, int timeout_ms);
 /* That result.json (new reference); fails the test when it is missing or unreadable. */
 json_t *daemon_child_result(const harness *h, const char *cap, const char *method);
+
+/* Reconstruct capture `cap` with gap-tv at `iters` iterations and wait (60 s at most) for that job's recon.done:
+ * its data (new reference). A refusal, a recon.failed or no event in time fails the test. */
+json_t *daemon_child_reconstruct(hconn *c, const char *cap, int iters);
+/* Capture `id` as stored (ROOT/captures/<id>, one problem): the caller frees it (sci_problem_free). A capture that
+ * cannot be read fails the test. */
+sci_problem *daemon_child_read_capture(const harness *h, const char *id);
 
 #endif

@@ -13,24 +13,6 @@
 static harness H;
 static char scicap[1024];
 
-/* Reconstruct `cap` with gap-tv (`iters` iterations) and wait for its recon.done: its data (new ref). */
-static json_t *reconstruct(hconn *c, const char *cap, int iters)
-{
-    json_t *r = hconn_request(c, "reconstruct", json_pack("{s:s, s:s, s:{s:i}}", "capture", cap, "method", "gap-tv",
-                                                         "params", "iters", iters));
-    json_int_t job = json_integer_value(json_object_get(r, "job"));
-    json_decref(r);
-    for (;;) {
-        json_t *e = hconn_wait_event(c, "recon.done", 60000);
-        if (json_integer_value(json_object_get(e, "job")) == job) {
-            json_t *d = json_incref(json_object_get(e, "data"));
-            json_decref(e);
-            return d;
-        }
-        json_decref(e);
-    }
-}
-
 static json_int_t iterations_of(const char *cap, const char *folder)
 {
     json_t *r = daemon_child_result(&H, cap, folder);
@@ -45,7 +27,7 @@ static void second_goes_beside_the_first(void **state)
     hconn_open(&c, &H);
     char cap[32];
     daemon_child_capture(&c, cap, sizeof cap, 30000);
-    json_t *a = reconstruct(&c, cap, 4), *b = reconstruct(&c, cap, 6);
+    json_t *a = daemon_child_reconstruct(&c, cap, 4), *b = daemon_child_reconstruct(&c, cap, 6);
     print_message("  %s: first -> %s, second -> %s\n", cap, json_string_value(json_object_get(a, "folder")),
                   json_string_value(json_object_get(b, "folder")));
     assert_string_equal(json_string_value(json_object_get(a, "folder")), "gap-tv");

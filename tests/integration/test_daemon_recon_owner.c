@@ -28,20 +28,8 @@ static int cleanup(void **state)
 /* reconstruct cap with gap-tv as this connection's user; recon.done's data (new ref) */
 static json_t *reconstruct(hconn *c, const char *cap)
 {
-    json_t *r = hconn_request(c, "reconstruct", json_pack("{s:s, s:s, s:{s:i}}", "capture", cap, "method", "gap-tv",
-                                                         "params", "iters", 5));
-    json_int_t job = json_integer_value(json_object_get(r, "job"));
-    json_decref(r);
     json_decref(hconn_request(c, "watch", NULL));
-    for (;;) {
-        json_t *e = hconn_wait_event(c, "recon.done", 60000);
-        if (json_integer_value(json_object_get(e, "job")) == job) {
-            json_t *d = json_incref(json_object_get(e, "data"));
-            json_decref(e);
-            return d;
-        }
-        json_decref(e);
-    }
+    return daemon_child_reconstruct(c, cap, 5);
 }
 
 static json_t *result_of(const char *cap, const char *folder)

@@ -30,22 +30,6 @@ static void assert_scene_frames(const char *cap, int first, int n)
     json_decref(m);
 }
 
-static sci_problem *read_capture(const char *cap)
-{
-    char d[600];
-    snprintf(d, sizeof d, "%s/captures/%s", H.store, cap);
-    sci_problem **pp = NULL;
-    int k = 0;
-    sci_error err = {0};
-    if (sci_problem_dir_read(d, &pp, &k, &err) < 0)
-        fail_msg("%s", err.msg);
-    assert_int_equal(k, 1);
-    sci_problem *p = pp[0];
-    pp[0] = NULL;
-    sci_problem_array_free(pp, k);
-    return p;
-}
-
 static double gap_tv_psnr(hconn *c, const char *cap)
 {
     json_decref(hconn_request(c, "reconstruct", json_pack("{s:s, s:s}", "capture", cap, "preset", "fast")));
@@ -72,7 +56,7 @@ static void consecutive_captures_differ(void **state)
     assert_string_equal(cap[1], "c000002");
     assert_scene_frames(cap[0], 0, 8);
     assert_scene_frames(cap[1], 8, 8);
-    sci_problem *a = read_capture(cap[0]), *b = read_capture(cap[1]);
+    sci_problem *a = daemon_child_read_capture(&H, cap[0]), *b = daemon_child_read_capture(&H, cap[1]);
     assert_non_null(a->truth);
     assert_non_null(b->truth);
     double truth_moved = 0, meas_moved = 0;

@@ -86,22 +86,6 @@ static void the_mask_stack(const harness *h, char *buf, size_t n)
     assert_int_equal(found, 1);
 }
 
-static sci_problem *read_capture(const harness *h, const char *id)
-{
-    char d[512];
-    snprintf(d, sizeof d, "%s/captures/%s", h->store, id);
-    sci_problem **pp = NULL;
-    int k = 0;
-    sci_error err = {0};
-    if (sci_problem_dir_read(d, &pp, &k, &err) < 0)
-        fail_msg("%s", err.msg);
-    assert_int_equal(k, 1);
-    sci_problem *p = pp[0];
-    pp[0] = NULL;
-    sci_problem_array_free(pp, k);
-    return p;
-}
-
 static void assert_cubes_equal(const sci_cube *a, const sci_cube *b, const char *what)
 {
     assert_int_equal(a->w, b->w);
@@ -121,7 +105,7 @@ static void mask_stack_linked_once_per_set(void **state)
     capture(&c, 3, ids);
     char shared[700];
     the_mask_stack(&H, shared, sizeof shared);
-    sci_problem *p0 = read_capture(&H, ids[0]);
+    sci_problem *p0 = daemon_child_read_capture(&H, ids[0]);
     const int n = p0->mask->n;
     char name[64];
     for (int f = -1; f < n; f++) {
@@ -146,7 +130,7 @@ static void mask_stack_linked_once_per_set(void **state)
     snprintf(gone, sizeof gone, "%s/captures/%s", H.store, ids[0]);
     assert_int_equal(sci_staging_remove(gone), 0);
     for (int i = 1; i < 3; i++) {
-        sci_problem *p = read_capture(&H, ids[i]);
+        sci_problem *p = daemon_child_read_capture(&H, ids[i]);
         assert_cubes_equal(p->mask, p0->mask, "masks of two captures of one mask set");
         sci_problem_free(p);
     }
@@ -170,7 +154,7 @@ static void mask_stack_linked_once_per_set(void **state)
     snprintf(cap, sizeof cap, "%s/captures/%s", H.store, more[0]);
     struct stat sn = stat_of("%s/%s", cap, "mask_003.exr");
     assert_true(sn.st_ino != sb.st_ino);
-    sci_problem *pn = read_capture(&H, more[0]);
+    sci_problem *pn = daemon_child_read_capture(&H, more[0]);
     assert_cubes_equal(pn->mask, p0->mask, "masks written beside a damaged shared folder");
     printf("  damaged shared folder after a restart: %s wrote its own masks (equal to the first capture's)\n",
            more[0]);
@@ -209,7 +193,7 @@ static void previews_show_the_frames(void **state)
     hconn c;
     char ids[1][32];
     start_capture_reconstruct(&c, ids[0]);
-    sci_problem *p = read_capture(&H, ids[0]);
+    sci_problem *p = daemon_child_read_capture(&H, ids[0]);
     assert_non_null(p->truth);
     char gif[700], side[700];
     snprintf(gif, sizeof gif, "%s/captures/%s/preview_truth.gif", H.store, ids[0]);
