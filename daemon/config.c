@@ -3,12 +3,14 @@
 
 #include <arpa/inet.h>
 #include <errno.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "base/json.h"
+#include "base/json_fields.h"
 #include "recon/solver.h"
 #include "daemon/backends.h"
 #include "drivers/camera.h"
@@ -162,26 +164,33 @@ static int get_obj(const sci_json_doc *doc, const json_t *o, const char *op, con
     return 0;
 }
 
+#define CFG(key, type, member, ...) {key, type, offsetof(scicapd_config, member), __VA_ARGS__}
+#define CFG_STR(key, member, bytes, line) \
+    {key, SCI_JSON_STRING, offsetof(scicapd_config, member), .size = (bytes), .help = line}
+
+static const sci_json_field control_fields[] = {
+    CFG_STR("socket", socket_path, 108, "control socket path (sun_path holds 108 bytes)"),
+    CFG_STR("group", socket_group, SCICAPD_NAME_MAX, "group of the socket"),
+    CFG_STR("admin_group", admin_group, SCICAPD_NAME_MAX, "group whose members may use admin commands"),
+    CFG("max_clients", SCI_JSON_INT, max_clients, .lo = 1, .hi = 1024, .help = "connections at once"),
+    CFG("max_line_bytes", SCI_JSON_SIZE, max_line_bytes, .lo = 1024, .hi = 16 << 20, .help = "longest request"),
+    CFG("admin_slots", SCI_JSON_INT, admin_slots, .lo = 0, .hi = 64, .help = "connections kept for admins"),
+    CFG("request_timeout_ms", SCI_JSON_INT, request_timeout_ms, .lo = 100, .hi = 3600000, .help = "ms"),
+    CFG("idle_timeout_ms", SCI_JSON_INT, idle_timeout_ms, .lo = 0, .hi = 86400000, .help = "ms, 0: none"),
+    CFG("max_per_uid", SCI_JSON_INT, max_per_uid, .lo = 0, .hi = 1024, .help = "connections per user, 0: any"),
+    CFG("stall_timeout_ms", SCI_JSON_INT, stall_timeout_ms, .lo = 0, .hi = 86400000, .help = "ms, 0: none"),
+};
+
 static int parse_control(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
     static const char *const keys[] = {"socket", "mode", "group", "admin_group", "max_clients", "max_line_bytes",
                                        "admin_slots", "request_timeout_ms", "idle_timeout_ms", "max_per_uid",
                                        "stall_timeout_ms", NULL};
     int rc;
-    long long line = (long long)c->max_line_bytes;
     if ((rc = sci_json_check_keys(doc, o, "control", keys, err)) < 0 ||
-        (rc = get_str(doc, o, "control", "socket", c->socket_path, 108, err)) < 0 ||
-        (rc = get_str(doc, o, "control", "group", c->socket_group, sizeof c->socket_group, err)) < 0 ||
-        (rc = get_str(doc, o, "control", "admin_group", c->admin_group, sizeof c->admin_group, err)) < 0 ||
-        (rc = get_int(doc, o, "control", "max_clients", 1, 1024, &c->max_clients, err)) < 0 ||
-        (rc = sci_json_get_int(doc, o, "control", "max_line_bytes", 0, 1024, 16 << 20, &line, err)) < 0 ||
-        (rc = get_int(doc, o, "control", "admin_slots", 0, 64, &c->admin_slots, err)) < 0 ||
-        (rc = get_int(doc, o, "control", "request_timeout_ms", 100, 3600000, &c->request_timeout_ms, err)) < 0 ||
-        (rc = get_int(doc, o, "control", "idle_timeout_ms", 0, 86400000, &c->idle_timeout_ms, err)) < 0 ||
-        (rc = get_int(doc, o, "control", "max_per_uid", 0, 1024, &c->max_per_uid, err)) < 0 ||
-        (rc = get_int(doc, o, "control", "stall_timeout_ms", 0, 86400000, &c->stall_timeout_ms, err)) < 0)
+        (rc = sci_json_fields_read(doc, o, "control", control_fields, SCI_JSON_FIELDS_COUNT(control_fields), c,
+                                   err)) < 0)
         return rc;
-    c->max_line_bytes = (size_t)line;
     if (c->admin_slots >= c->max_clients && !json_object_get(o, "admin_slots"))
         c->admin_slots = c->max_clients - 1; /* the default shrinks with a small max_clients */
     if (c->admin_slots >= c->max_clients)
@@ -206,13 +215,16 @@ static int parse_control(const sci_json_doc *doc, const json_t *o, scicapd_confi
 static int parse_storage(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
     static const char *const keys[] = {"root", "runtime_dir", "fsync", "writers", "previews", NULL};
+    static const sci_json_field fields[] = {
+        CFG("writers", SCI_JSON_INT, writers, .lo = 1, .hi = 16, .help = "threads writing capture folders"),
+        CFG("previews", SCI_JSON_BOOL, previews, .help = "write preview PNGs in capture folders"),
+        CFG_STR("root", storage_root, SCICAPD_PATH_MAX - 64, "captures live here (64 bytes kept for names)"),
+        CFG_STR("runtime_dir", runtime_dir, SCICAPD_PATH_MAX, "pid file and runtime state"),
+        CFG("fsync", SCI_JSON_BOOL, fsync, .help = "make every write durable before it is reported"),
+    };
     int rc;
     if ((rc = sci_json_check_keys(doc, o, "storage", keys, err)) < 0 ||
-        (rc = get_int(doc, o, "storage", "writers", 1, 16, &c->writers, err)) < 0 ||
-        (rc = sci_json_get_bool(doc, o, "storage", "previews", 0, &c->previews, err)) < 0 ||
-        (rc = get_str(doc, o, "storage", "root", c->storage_root, sizeof c->storage_root - 64, err)) < 0 ||
-        (rc = get_str(doc, o, "storage", "runtime_dir", c->runtime_dir, sizeof c->runtime_dir, err)) < 0 ||
-        (rc = sci_json_get_bool(doc, o, "storage", "fsync", 0, &c->fsync, err)) < 0)
+        (rc = sci_json_fields_read(doc, o, "storage", fields, SCI_JSON_FIELDS_COUNT(fields), c, err)) < 0)
         return rc;
     if (c->storage_root[0] != '/')
         return sci_json_fail(doc, err, "storage.root", "must be an absolute path (got \"%s\")", c->storage_root);
@@ -389,24 +401,21 @@ static int parse_simulator(const sci_json_doc *doc, const json_t *o, scicapd_con
 {
     static const char *const keys[] = {"scene", "counts_per_unit", "dark_counts", "read_noise_counts", "seed",
                                        "dmd_latency_us", NULL};
+    static const sci_json_field fields[] = {
+        CFG("counts_per_unit", SCI_JSON_DOUBLE, sim_counts_per_unit, .lo = 1, .hi = 65535, .help = "white"),
+        CFG("dark_counts", SCI_JSON_DOUBLE, sim_dark_counts, .lo = 0, .hi = 60000, .help = "dark offset"),
+        CFG("read_noise_counts", SCI_JSON_DOUBLE, sim_read_noise, .lo = 0, .hi = 1000, .help = "read noise sigma"),
+        CFG("seed", SCI_JSON_U64, sim_seed, .lo = 0, .hi = 9007199254740992.0, .help = "noise seed"),
+        CFG("dmd_latency_us", SCI_JSON_U32, sim_dmd_latency_us, .lo = 0, .hi = 100000, .help = "microseconds"),
+    };
     int rc;
-    long long seed = (long long)c->sim_seed;
     const json_t *sc = json_object_get(o, "scene");
     if ((rc = sci_json_check_keys(doc, o, "simulator", keys, err)) < 0)
         return rc;
     if (sc && !json_is_null(sc) &&
         (rc = get_str(doc, o, "simulator", "scene", c->scene_path, sizeof c->scene_path, err)) < 0)
         return rc;
-    if ((rc = sci_json_get_double(doc, o, "simulator", "counts_per_unit", 0, 1, 65535, &c->sim_counts_per_unit,
-                                  err)) < 0 ||
-        (rc = sci_json_get_double(doc, o, "simulator", "dark_counts", 0, 0, 60000, &c->sim_dark_counts, err)) < 0 ||
-        (rc = sci_json_get_double(doc, o, "simulator", "read_noise_counts", 0, 0, 1000, &c->sim_read_noise, err)) <
-            0 ||
-        (rc = sci_json_get_int(doc, o, "simulator", "seed", 0, 0, (long long)1 << 53, &seed, err)) < 0 ||
-        (rc = get_u32(doc, o, "simulator", "dmd_latency_us", 0, 100000, &c->sim_dmd_latency_us, err)) < 0)
-        return rc;
-    c->sim_seed = (uint64_t)seed;
-    return 0;
+    return sci_json_fields_read(doc, o, "simulator", fields, SCI_JSON_FIELDS_COUNT(fields), c, err);
 }
 
 static int parse_mask_set(const sci_json_doc *doc, const json_t *o, const char *path, scicapd_mask_set *m,
@@ -473,17 +482,19 @@ static int parse_capture(const sci_json_doc *doc, const json_t *o, scicapd_confi
     static const char *const keys[] = {"mask_set", "pattern_us", "dark_us", "exposure_us", "sync_mode",
                                        "counts_per_unit", NULL};
     static const char *const modes[] = {"dmd-master", "host-master", "camera-master", NULL};
-    int rc, mode = (int)c->sync_mode;
-    if ((rc = sci_json_check_keys(doc, o, "capture", keys, err)) < 0 ||
-        (rc = get_str(doc, o, "capture", "mask_set", c->capture_mask_set, sizeof c->capture_mask_set, err)) < 0 ||
-        (rc = get_u32(doc, o, "capture", "pattern_us", 1, 10000000, &c->pattern_us, err)) < 0 ||
-        (rc = get_u32(doc, o, "capture", "dark_us", 0, 10000000, &c->dark_us, err)) < 0 ||
-        (rc = get_u32(doc, o, "capture", "exposure_us", 0, 60000000, &c->exposure_us, err)) < 0 ||
-        (rc = sci_json_get_enum(doc, o, "capture", "sync_mode", 0, modes, &mode, err)) < 0 ||
-        (rc = sci_json_get_double(doc, o, "capture", "counts_per_unit", 0, 0, 1e9, &c->counts_per_unit, err)) < 0)
+    static const sci_json_field fields[] = {
+        CFG_STR("mask_set", capture_mask_set, SCICAPD_NAME_MAX, "masks shown"),
+        CFG("pattern_us", SCI_JSON_U32, pattern_us, .lo = 1, .hi = 10000000, .help = "each mask, microseconds"),
+        CFG("dark_us", SCI_JSON_U32, dark_us, .lo = 0, .hi = 10000000, .help = "dark time between masks"),
+        CFG("exposure_us", SCI_JSON_U32, exposure_us, .lo = 0, .hi = 60000000, .help = "camera exposure"),
+        CFG("sync_mode", SCI_JSON_ENUM, sync_mode, .names = modes, .help = "who triggers whom"),
+        CFG("counts_per_unit", SCI_JSON_DOUBLE, counts_per_unit, .lo = 0, .hi = 1e9, .help = "white, 0: auto"),
+    };
+    _Static_assert(sizeof(enum sync_mode) == sizeof(int), "sync_mode is read as an int");
+    int rc;
+    if ((rc = sci_json_check_keys(doc, o, "capture", keys, err)) < 0)
         return rc;
-    c->sync_mode = (enum sync_mode)mode;
-    return 0;
+    return sci_json_fields_read(doc, o, "capture", fields, SCI_JSON_FIELDS_COUNT(fields), c, err);
 }
 
 static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
@@ -534,12 +545,14 @@ static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config 
 static int parse_queues(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
     static const char *const keys[] = {"capture", "reconstruction", NULL};
+    static const sci_json_field fields[] = {
+        CFG("capture", SCI_JSON_INT, capture_queue, .lo = 1, .hi = 4096, .help = "captures waiting"),
+        CFG("reconstruction", SCI_JSON_INT, recon_queue, .lo = 1, .hi = 4096, .help = "reconstructions waiting"),
+    };
     int rc;
-    if ((rc = sci_json_check_keys(doc, o, "queues", keys, err)) < 0 ||
-        (rc = get_int(doc, o, "queues", "capture", 1, 4096, &c->capture_queue, err)) < 0 ||
-        (rc = get_int(doc, o, "queues", "reconstruction", 1, 4096, &c->recon_queue, err)) < 0)
+    if ((rc = sci_json_check_keys(doc, o, "queues", keys, err)) < 0)
         return rc;
-    return 0;
+    return sci_json_fields_read(doc, o, "queues", fields, SCI_JSON_FIELDS_COUNT(fields), c, err);
 }
 
 /* "listen": "HOST:PORT" or "[V6]:PORT" with a numeric address: a name would be resolved at each start and
@@ -578,16 +591,22 @@ static int parse_web(const sci_json_doc *doc, const json_t *o, scicapd_config *c
 {
     static const char *const keys[] = {"enabled", "listen", "control", "token_file", "max_connections",
                                        "timeout_s", NULL};
+    static const sci_json_field fields[] = {
+        CFG("enabled", SCI_JSON_BOOL, web_enabled, .help = "serve the web interface"),
+        CFG("control", SCI_JSON_BOOL, web_control, .help = "let the web interface start and stop captures"),
+    };
+    static const sci_json_field more[] = {
+        CFG_STR("token_file", web_token_file, SCICAPD_PATH_MAX, "file holding the access token"),
+        CFG("max_connections", SCI_JSON_INT, web_max_connections, .lo = 4, .hi = 1000, .help = "at once"),
+        CFG("timeout_s", SCI_JSON_INT, web_timeout_s, .lo = 1, .hi = 3600, .help = "idle connection, seconds"),
+    };
     int rc;
     char listen[96] = "";
     c->web_enabled = 1;
     if ((rc = sci_json_check_keys(doc, o, "web", keys, err)) < 0 ||
-        (rc = sci_json_get_bool(doc, o, "web", "enabled", 0, &c->web_enabled, err)) < 0 ||
-        (rc = sci_json_get_bool(doc, o, "web", "control", 0, &c->web_control, err)) < 0 ||
+        (rc = sci_json_fields_read(doc, o, "web", fields, SCI_JSON_FIELDS_COUNT(fields), c, err)) < 0 ||
         (rc = get_str(doc, o, "web", "listen", listen, sizeof listen, err)) < 0 ||
-        (rc = get_str(doc, o, "web", "token_file", c->web_token_file, sizeof c->web_token_file, err)) < 0 ||
-        (rc = get_int(doc, o, "web", "max_connections", 4, 1000, &c->web_max_connections, err)) < 0 ||
-        (rc = get_int(doc, o, "web", "timeout_s", 1, 3600, &c->web_timeout_s, err)) < 0)
+        (rc = sci_json_fields_read(doc, o, "web", more, SCI_JSON_FIELDS_COUNT(more), c, err)) < 0)
         return rc;
     if (listen[0] && (rc = parse_listen(doc, listen, c, err)) < 0)
         return rc;

@@ -2,9 +2,11 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/json_fields.h"
 #include "sim/pose.h"
 
 static const char *const kinds[] = {"plane", "box", "sphere", NULL};
@@ -130,6 +132,15 @@ static int parse_pose(const sci_json_doc *doc, const json_t *o, const char *path
     return 0;
 }
 
+/* The camera's intrinsics after fx (fy defaults to fx, so fx is read first) and its clip range. */
+static const sci_json_field camera_fields[] = {
+    {"fy", SCI_JSON_DOUBLE, offsetof(sim_static3d, fy), 1e-3, 1e7, .help = "focal length, pixels (default fx)"},
+    {"cx", SCI_JSON_DOUBLE, offsetof(sim_static3d, cx), -1e6, 1e6, .help = "principal point, pixels"},
+    {"cy", SCI_JSON_DOUBLE, offsetof(sim_static3d, cy), -1e6, 1e6, .help = "principal point, pixels"},
+    {"near", SCI_JSON_DOUBLE, offsetof(sim_static3d, near_m), 0, 1e9, .help = "near clip, scene units"},
+    {"far", SCI_JSON_DOUBLE, offsetof(sim_static3d, far_m), 0, 1e12, .help = "far clip, scene units"},
+};
+
 static int parse_camera(const sci_json_doc *doc, const json_t *root, int w, int h, int frames, sim_static3d *s,
                         sci_error *err)
 {
@@ -147,11 +158,8 @@ static int parse_camera(const sci_json_doc *doc, const json_t *root, int w, int 
         (rc = sci_json_get_double(doc, c, "camera", "fx", 0, 1e-3, 1e7, &s->fx, err)) < 0)
         return rc;
     s->fy = s->fx;
-    if ((rc = sci_json_get_double(doc, c, "camera", "fy", 0, 1e-3, 1e7, &s->fy, err)) < 0 ||
-        (rc = sci_json_get_double(doc, c, "camera", "cx", 0, -1e6, 1e6, &s->cx, err)) < 0 ||
-        (rc = sci_json_get_double(doc, c, "camera", "cy", 0, -1e6, 1e6, &s->cy, err)) < 0 ||
-        (rc = sci_json_get_double(doc, c, "camera", "near", 0, 0, 1e9, &s->near_m, err)) < 0 ||
-        (rc = sci_json_get_double(doc, c, "camera", "far", 0, 0, 1e12, &s->far_m, err)) < 0)
+    if ((rc = sci_json_fields_read(doc, c, "camera", camera_fields, SCI_JSON_FIELDS_COUNT(camera_fields), s, err)) <
+        0)
         return rc;
     if (!(s->far_m > s->near_m))
         return sci_json_fail(doc, err, "camera.far", "must be greater than near (%g)", s->near_m);

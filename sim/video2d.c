@@ -1,8 +1,10 @@
 #include "sim/video2d.h"
 
+#include "base/json_fields.h"
 #include "recon/demosaic.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -48,6 +50,15 @@ static int get_rgb(const sci_json_doc *doc, const json_t *obj, const char *path,
     return 0;
 }
 
+/* A layer's motion and order; its shape, size, position, velocity and texture are read by hand (pairs, lists). */
+static const sci_json_field layer_fields[] = {
+    {"angle_rad", SCI_JSON_DOUBLE, offsetof(sim_layer, angle_rad), -1e3, 1e3, .help = "rotation at frame 0"},
+    {"spin_rad", SCI_JSON_DOUBLE, offsetof(sim_layer, spin_rad), -10, 10, .help = "rotation per frame"},
+    {"scale", SCI_JSON_DOUBLE, offsetof(sim_layer, scale), 1e-3, 1e3, .help = "size multiplier at frame 0"},
+    {"scale_rate", SCI_JSON_DOUBLE, offsetof(sim_layer, scale_rate), -10, 10, .help = "scale change per frame"},
+    {"depth", SCI_JSON_DOUBLE, offsetof(sim_layer, depth), -1e9, 1e9, .help = "larger is nearer (file order)"},
+};
+
 static int parse_layer(const sci_json_doc *doc, const json_t *o, const char *path, const char *base_dir, int w,
                        int h, uint64_t seed, int index, sim_layer *L, sci_error *err)
 {
@@ -76,11 +87,7 @@ static int parse_layer(const sci_json_doc *doc, const json_t *o, const char *pat
     }
     if ((rc = get_pair(doc, o, path, "position", &L->x, &L->y, err)) < 0 ||
         (rc = get_pair(doc, o, path, "velocity", &L->vx, &L->vy, err)) < 0 ||
-        (rc = sci_json_get_double(doc, o, path, "angle_rad", 0, -1e3, 1e3, &L->angle_rad, err)) < 0 ||
-        (rc = sci_json_get_double(doc, o, path, "spin_rad", 0, -10, 10, &L->spin_rad, err)) < 0 ||
-        (rc = sci_json_get_double(doc, o, path, "scale", 0, 1e-3, 1e3, &L->scale, err)) < 0 ||
-        (rc = sci_json_get_double(doc, o, path, "scale_rate", 0, -10, 10, &L->scale_rate, err)) < 0 ||
-        (rc = sci_json_get_double(doc, o, path, "depth", 0, -1e9, 1e9, &L->depth, err)) < 0)
+        (rc = sci_json_fields_read(doc, o, path, layer_fields, SCI_JSON_FIELDS_COUNT(layer_fields), L, err)) < 0)
         return rc;
     if (L->shape == SIM_SHAPE_POLYGON) {
         const json_t *vs = json_object_get(o, "vertices");
