@@ -48,12 +48,8 @@ void testfiles_write_declared_mat(const char *path, size_t snapshots)
         mask[i] = i % 2;
     for (size_t i = 0; i < (size_t)8 * 8 * snapshots; i++)
         meas[i] = 4;
-    matvar_t *v = Mat_VarCreate("mask", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dm, mask, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_ZLIB), 0);
-    Mat_VarFree(v);
-    v = Mat_VarCreate("meas", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dy, meas, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_ZLIB), 0);
-    Mat_VarFree(v);
+    testfiles_mat_put(m, "mask", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dm, mask, MAT_COMPRESSION_ZLIB);
+    testfiles_mat_put(m, "meas", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dy, meas, MAT_COMPRESSION_ZLIB);
     Mat_Close(m);
     free(mask);
     free(meas);
@@ -75,4 +71,13 @@ void testfiles_assert_nothing_at(const char *out)
         }
         globfree(&g);
     }
+}
+
+void testfiles_mat_put(mat_t *m, const char *name, enum matio_classes cls, enum matio_types type, int rank,
+                       size_t *dims, void *data, enum matio_compression compression)
+{
+    matvar_t *v = Mat_VarCreate(name, cls, type, rank, dims, data, 0);
+    assert_non_null(v);
+    assert_int_equal(Mat_VarWrite(m, v, compression), 0);
+    Mat_VarFree(v);
 }

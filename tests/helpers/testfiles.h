@@ -7,6 +7,7 @@
 #ifndef SCICAP_TESTS_TESTFILES_H
 #define SCICAP_TESTS_TESTFILES_H
 
+#include <matio.h>
 #include <stddef.h>
 
 /* A problem folder at `path` (io/problem_dir.h): k problems named limits#1..k, each with the same w×h×n binary
@@ -16,6 +17,11 @@ void testfiles_write_problem(const char *path, int w, int h, int n, int k);
 /* A MAT 5 file (zlib) with mask 8×8×8 (0/1) and meas 8×8×snapshots, every value 4 (a plausible measurement:
  * without the limits it imports); mode 0644, so another uid can read it. A few KB for 5,000 snapshots. */
 void testfiles_write_declared_mat(const char *path, size_t snapshots);
+
+/* One variable `name` (rank dims, data in the class's C type, column-major as MATLAB) written to the open file m
+ * with the given compression; a failure fails the test. matio copies nothing: data must live until it returns. */
+void testfiles_mat_put(mat_t *m, const char *name, enum matio_classes cls, enum matio_types type, int rank,
+                       size_t *dims, void *data, enum matio_compression compression);
 
 /* Fails the test unless nothing named out, out.tmp-* or out.old-* exists: a refused or failed run published
  * nothing and left no staging folder behind. */

@@ -43,12 +43,8 @@ static void write_tiny_mat(const char *path, size_t nmask, size_t nmeas)
     assert_non_null(d);
     d[0] = 1;
     size_t dm[3] = {1, 1, nmask}, dy[3] = {1, 1, nmeas};
-    matvar_t *v = Mat_VarCreate("mask", MAT_C_UINT8, MAT_T_UINT8, 3, dm, d, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_ZLIB), 0);
-    Mat_VarFree(v);
-    v = Mat_VarCreate("meas", MAT_C_UINT8, MAT_T_UINT8, 3, dy, d, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_ZLIB), 0);
-    Mat_VarFree(v);
+    testfiles_mat_put(m, "mask", MAT_C_UINT8, MAT_T_UINT8, 3, dm, d, MAT_COMPRESSION_ZLIB);
+    testfiles_mat_put(m, "meas", MAT_C_UINT8, MAT_T_UINT8, 3, dy, d, MAT_COMPRESSION_ZLIB);
     Mat_Close(m);
     free(d);
     struct stat st;

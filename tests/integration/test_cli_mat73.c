@@ -14,6 +14,7 @@
 #include <cmocka.h>
 
 #include "tests/helpers/cli_child.h"
+#include "tests/helpers/testfiles.h"
 
 static char scicap[1024], dir[512] = "/tmp/scicap-mat73-XXXXXX";
 
@@ -31,12 +32,8 @@ static void write_v73(const char *path)
         mask[i] = i * 7 % 3 == 0;
     for (int i = 0; i < 64; i++)
         meas[i] = i % 5;
-    matvar_t *v = Mat_VarCreate("mask", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dm, mask, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_NONE), 0);
-    Mat_VarFree(v);
-    v = Mat_VarCreate("meas", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, dy, meas, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_NONE), 0);
-    Mat_VarFree(v);
+    testfiles_mat_put(m, "mask", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dm, mask, MAT_COMPRESSION_NONE);
+    testfiles_mat_put(m, "meas", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, dy, meas, MAT_COMPRESSION_NONE);
     Mat_Close(m);
 }
 

@@ -19,6 +19,7 @@
 #include "io/mat_verify.h"
 #include "io/matfile.h"
 #include "tests/helpers/testdata.h"
+#include "tests/helpers/testfiles.h"
 
 static char dir[] = "/tmp/scicap-test-mat-integrity-XXXXXX";
 
@@ -134,13 +135,9 @@ static void test_uncompressed_size_flip_refused(void **state)
     for (int i = 0; i < 32; i++)
         d[i] = i;
     size_t dims[3] = {4, 4, 2};
-    matvar_t *v = Mat_VarCreate("mask", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dims, d, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_NONE), 0);
-    Mat_VarFree(v);
+    testfiles_mat_put(m, "mask", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dims, d, MAT_COMPRESSION_NONE);
     size_t dm[2] = {4, 4};
-    v = Mat_VarCreate("meas", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, dm, d, 0);
-    assert_int_equal(Mat_VarWrite(m, v, MAT_COMPRESSION_NONE), 0);
-    Mat_VarFree(v);
+    testfiles_mat_put(m, "meas", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, dm, d, MAT_COMPRESSION_NONE);
     Mat_Close(m);
     sci_error err = {0};
     if (sci_mat_verify(path, &err) < 0)
