@@ -211,15 +211,21 @@ $(XM)/python/scicap/%.py: python/scicap/%.py
 	@mkdir -p $(dir $@)
 	cp $< $@
 
-# The C test runs the extra build's programs; the pytest one its module (check-python).
+# The C test runs the extra build's programs; the pytest one its module (check-python); the method table's own
+# test (every row's rules, presets, JSON round trip, run and cancel) runs again on the extra build's table.
 $(BUILD)/tests/integration/test_extra_method: $(XM_BINS)
+XM_TEST_BIN := $(XM)/tests/unit/test_solver
+$(XM)/tests/%: tests/%.c $(TEST_HELPERS) $(CLI_LIB) $(XM_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(ALL_CFLAGS) -MMD -MP -o $@ $< $(TEST_HELPERS) $(CLI_LIB) $(XM_LIB) $(LDLIBS_ALL) -lcmocka
+tests: $(XM_TEST_BIN)
 python-extra-method: $(XM_PY_EXT) $(XM_PY_PURE)
 .PHONY: python-extra-method
 
 # The C tests, then the Python module's (tests/python, pytest): both always run; either failing fails the check.
 check: deps
 	@$(MAKE) --no-print-directory $(JOBS) tests python
-	@rc=0; BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" tests/run $(TEST_BIN) tests/vm/test_resolve || rc=1; \
+	@rc=0; BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" tests/run $(TEST_BIN) $(XM_TEST_BIN) tests/vm/test_resolve || rc=1; \
 	  $(MAKE) --no-print-directory check-python || rc=1; exit $$rc
 
 check-python: python python-extra-method $(BINS)
@@ -234,7 +240,7 @@ check-asan: deps
 	@$(MAKE) --no-print-directory $(JOBS) BUILD=$(ASAN_BUILD) OPT=-O1 SANITIZE=1 tests
 	@ASAN_OPTIONS=detect_leaks=0:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=0 \
 	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 BUILD=$(ASAN_BUILD) SCICAP_DATA="$(SCICAP_DATA)" \
-	  tests/run $(TEST_BIN:$(BUILD)/%=$(ASAN_BUILD)/%)
+	  tests/run $(TEST_BIN:$(BUILD)/%=$(ASAN_BUILD)/%) $(XM_TEST_BIN:$(BUILD)/%=$(ASAN_BUILD)/%)
 
 demo: deps
 	@$(MAKE) --no-print-directory $(JOBS) all
@@ -345,4 +351,4 @@ clean:
 
 -include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d) $(GV_TEST_BIN:=.d) $(FUZZ_OBJ:.o=.d)
 -include $(PIC_OBJ:.o=.d) $(PY_OBJ:.o=.d) $(XM)/recon/solver.d $(XM)/pic/recon/solver.d
--include $(XM_C:%.c=$(BUILD)/%.d) $(XM_C:%.c=$(BUILD)/pic/%.d)
+-include $(XM_C:%.c=$(BUILD)/%.d) $(XM_C:%.c=$(BUILD)/pic/%.d) $(XM_TEST_BIN:=.d)
