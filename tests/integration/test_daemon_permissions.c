@@ -64,14 +64,22 @@ static json_int_t root_job(void)
     return job;
 }
 
-static void test_socket_group_is_not_admin_by_default(void **state)
+/* A daemon started with config, a job of root's in it, and c connected as NOBODY with primary group `group`:
+ * the job's id. Skips without root. */
+static json_int_t start_with_root_job(const char *config, const char *group, hconn *c)
 {
     harness_require_root("connect as other uids (seteuid)");
-    gid_t users = group_gid("users");
-    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\", \"group\": \"users\"}}\n");
+    gid_t gid = group_gid(group);
+    harness_start_open(&H, config);
     json_int_t job = root_job();
+    hconn_open_as(c, &H, NOBODY, gid);
+    return job;
+}
+
+static void test_socket_group_is_not_admin_by_default(void **state)
+{
     hconn c;
-    hconn_open_as(&c, &H, NOBODY, users);
+    json_int_t job = start_with_root_job("{\"control\": {\"mode\": \"0666\", \"group\": \"users\"}}\n", "users", &c);
     char msg[512];
     expect_refusal(&c, "reload", NULL, "permission", msg, sizeof msg);
     print_message("  reload by uid %d (group users, the socket's): %s\n", NOBODY, msg);
@@ -88,12 +96,9 @@ static void test_socket_group_is_not_admin_by_default(void **state)
 
 static void test_admin_group_member_is_admin(void **state)
 {
-    harness_require_root("connect as other uids (seteuid)");
-    gid_t adm = group_gid("adm");
-    harness_start_open(&H, "{\"control\": {\"mode\": \"0666\", \"group\": \"users\", \"admin_group\": \"adm\"}}\n");
-    json_int_t job = root_job();
     hconn c;
-    hconn_open_as(&c, &H, NOBODY, adm);
+    json_int_t job = start_with_root_job(
+        "{\"control\": {\"mode\": \"0666\", \"group\": \"users\", \"admin_group\": \"adm\"}}\n", "adm", &c);
     json_decref(hconn_request(&c, "reload", NULL));
     json_t *r = hconn_request(&c, "cancel", json_pack("{s:I}", "job", job));
     print_message("  uid %d in group adm: reload ok, cancel of root's job %lld -> state %s\n", NOBODY,
