@@ -79,6 +79,18 @@ static void budget_picks_from_curves(void **state)
     daemon_child_teardown(&h);
 }
 
+/* After harness_init: scicapd started with $SCICAP_DATADIR at datadir, c connected, and one capture stored (its id
+ * into cap). */
+static void spawn_with_datadir(harness *h, const char *datadir, hconn *c, char *cap, size_t ncap)
+{
+    char env[600];
+    snprintf(env, sizeof env, "SCICAP_DATADIR=%s", datadir);
+    char *envv[] = {env, NULL};
+    harness_spawn(h, envv);
+    hconn_open(c, h);
+    daemon_child_capture(c, cap, ncap, 20000);
+}
+
 /* No curves in the config: $SCICAP_DATADIR/results.csv wins over the installed file (here: the hand-written
  * curves, so the choice is known: gap-tv 50 iterations for 0.1 s). */
 static void budget_curves_from_env_datadir(void **state)
@@ -86,18 +98,14 @@ static void budget_curves_from_env_datadir(void **state)
     (void)state;
     harness h;
     harness_init(&h, NULL);
-    char csv[400], env[400], cap[64];
+    char csv[400], cap[64];
     snprintf(csv, sizeof csv, "%s/results.csv", h.dir);
     FILE *f = fopen(csv, "w");
     assert_non_null(f);
     fputs(curves, f);
     fclose(f);
-    snprintf(env, sizeof env, "SCICAP_DATADIR=%s", h.dir);
-    char *envv[] = {env, NULL};
-    harness_spawn(&h, envv);
     hconn c;
-    hconn_open(&c, &h);
-    daemon_child_capture(&c, cap, sizeof cap, 20000);
+    spawn_with_datadir(&h, h.dir, &c, cap, sizeof cap);
     json_decref(hconn_request(&c, "reconstruct", json_pack("{s:s, s:f}", "capture", cap, "budget_s", 0.1)));
     json_decref(hconn_wait_event(&c, "recon.done", 60000));
     json_t *p = result_params(&h, cap, "gap-tv");
@@ -123,13 +131,10 @@ static void budget_curves_from_build_tree(void **state)
         fail_msg("no %s: the build tree's curves are part of the checkout", tree_csv);
     harness h;
     harness_init(&h, NULL);
-    char env[400], cap[64];
-    snprintf(env, sizeof env, "SCICAP_DATADIR=%s/not-installed", h.dir);
-    char *envv[] = {env, NULL};
-    harness_spawn(&h, envv);
+    char datadir[400], cap[64];
+    snprintf(datadir, sizeof datadir, "%s/not-installed", h.dir);
     hconn c;
-    hconn_open(&c, &h);
-    daemon_child_capture(&c, cap, sizeof cap, 20000);
+    spawn_with_datadir(&h, datadir, &c, cap, sizeof cap);
     json_decref(hconn_request(&c, "reconstruct", json_pack("{s:s, s:f}", "capture", cap, "budget_s", 5.0)));
     json_t *e = hconn_wait_event(&c, "recon.done", 60000);
     const char *method = json_string_value(json_object_get(json_object_get(e, "data"), "method"));
