@@ -30,6 +30,7 @@
 #include "daemon/protocol.h"
 #include "daemon/queue.h"
 #include "daemon/reconq.h"
+#include "daemon/reconsubmit.h"
 #include "daemon/store.h"
 #include "daemon/timing.h"
 #include "daemon/web.h"
@@ -127,6 +128,13 @@ static int reload(scicapd *d, json_t **restart, sci_error *err)
     return 0;
 }
 
+/* What scicapd_recon_submit needs of the daemon (borrowed). */
+static scicapd_recon_submit_env recon_env(scicapd *d)
+{
+    return (scicapd_recon_submit_env){.jobs = d->jobs, .store = d->store, .mailbox = d->mailbox,
+                                      .queue = d->recon_q, .log = d->log};
+}
+
 /* ---- from the writer thread ---- */
 
 static long long problem_bytes(const sci_problem *p)
@@ -170,46 +178,23 @@ static void on_stored(void *user, scicapd_snapshot *s, int rc, const sci_error *
                                        json_pack("{s:s, s:s, s:i, s:b, s:f}", "capture", s->capture_id, "dir", s->dir,
                                                  "index", s->index, "broken", s->broken, "latency_ms", latency_ms)));
     if (c->reconstruct) {
-        scicapd_job *r;
-        const char *why = NULL;
-        if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_RECONSTRUCT, j->client, j->owner, j->request_id, &r) < 0) {
-            why = "out of memory";
-        } else {
-            snprintf(r->recon.capture_id, sizeof r->recon.capture_id, "%s", s->capture_id);
-            r->recon.spec = c->recon;
-            if (problem_bytes(s->problem) <= HANDOVER_MAX_BYTES) {
-                r->problem = s->problem; /* the worker need not read back what was just written */
-                s->problem = NULL;
-            }
-            sci_error e2 = {0};
-            if (scicapd_reconq_save(d->store, r, &e2) < 0) {
-                sci_log_write(d->log, SCI_LOG_ERR, "job %llu: %s", (unsigned long long)r->id, e2.msg);
-                why = "cannot save the queue entry";
-                scicapd_reconq_drop(d->store, r);
-                scicapd_jobs_forget(d->jobs, r);
-                scicapd_job_unref(d->jobs, r);
-            } else {
-                /* announced before the hand-over: once pushed, a worker may post recon.started (or be done with
-                 * the job) before this thread runs again */
-                scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1,
-                                     scicapd_event("recon.queued", r->id, r->request_id,
-                                                   json_pack("{s:s, s:s, s:I}", "capture", s->capture_id, "method",
-                                                             c->recon.method->name, "capture_job",
-                                                             (json_int_t)j->id)));
-                /* back-pressure: a full queue holds this writer, the store queue then the acquisition, so a
-                 * capture runs at the pace its reconstructions keep up with instead of refusing them */
-                if (scicapd_queue_push_wait(d->recon_q, r) == -EPIPE) {
-                    /* stopping: the saved entry stays and is resumed at the next start */
-                    why = "daemon stopping; resumed at the next start";
-                    scicapd_jobs_forget(d->jobs, r);
-                    scicapd_job_unref(d->jobs, r);
-                }
-            }
+        scicapd_recon_request q = {.client = j->client, .owner = j->owner, .request_id = j->request_id,
+                                   .capture_id = s->capture_id, .spec = c->recon, .origin = "capture_job",
+                                   .origin_job = j->id, .mode = SCICAPD_ENQUEUE_WAIT};
+        if (problem_bytes(s->problem) <= HANDOVER_MAX_BYTES) {
+            q.problem = s->problem; /* the worker need not read back what was just written */
+            s->problem = NULL;
         }
-        if (why)
+        /* back-pressure: a full queue holds this writer, the store queue then the acquisition, so a capture runs
+         * at the pace its reconstructions keep up with instead of refusing them */
+        const char *why = NULL;
+        sci_error e2 = {0};
+        scicapd_recon_submit_env env = recon_env(d);
+        if (scicapd_recon_submit(&env, &q, NULL, &why, &e2) < 0)
             scicapd_mailbox_post(d->mailbox, j->client, (long)j->owner, 1,
                                  scicapd_event("recon.rejected", j->id, j->request_id,
-                                               json_pack("{s:s, s:s}", "capture", s->capture_id, "reason", why)));
+                                               json_pack("{s:s, s:s}", "capture", s->capture_id, "reason",
+                                                         why ? why : e2.msg)));
     }
     /* after the events of this snapshot: capture.done is the job's last word */
     if (scicapd_job_settle(d->jobs, j, 1) == c->count && scicapd_job_state_get(d->jobs, j) == SCICAPD_JOB_RUNNING) {
@@ -309,36 +294,13 @@ static json_t *status_json(scicapd *d)
                      "timing", scicapd_timing_json(d->timing));
 }
 
-/* A queued job's reply: {job, state}, and for a reconstruction what it will run (capture, method, preset, and
- * what a budget chose), so a client can say it before the job starts. */
-static json_t *queued_json(const scicapd_job *j)
-{
-    json_t *o = json_pack("{s:I, s:s}", "job", (json_int_t)j->id, "state", "queued");
-    if (o && j->kind == SCICAPD_JOB_RECONSTRUCT) {
-        const scicapd_recon_spec *s = &j->recon.spec;
-        json_object_set_new(o, "capture", json_string(j->recon.capture_id));
-        json_object_set_new(o, "method", json_string(s->method->name));
-        json_object_set_new(o, "preset", json_string(s->preset));
-        json_t *b = scicapd_recon_budget_json(s);
-        if (b)
-            json_object_set_new(o, "budget", b);
-    }
-    return o;
-}
-
+/* A capture, calibrate or import job into queue q (reconstructions: scicapd_recon_submit), answered {job, state}
+ * or why not. */
 static void submit(scicapd *d, scicapd_client *c, const json_t *id, scicapd_job *j, scicapd_queue *q,
                    const char *what)
 {
-    sci_error err = {0};
-    if (j->kind == SCICAPD_JOB_RECONSTRUCT && scicapd_reconq_save(d->store, j, &err) < 0) {
-        scicapd_jobs_forget(d->jobs, j);
-        scicapd_job_unref(d->jobs, j);
-        reply_err(d, c, id, SCICAPD_E_FAILED, err.msg);
-        return;
-    }
     int rc = scicapd_queue_push(q, j);
     if (rc < 0) {
-        scicapd_reconq_drop(d->store, j);
         char msg[128];
         snprintf(msg, sizeof msg, "%s queue full (%d jobs); try again later", what, scicapd_queue_capacity(q));
         scicapd_jobs_forget(d->jobs, j);
@@ -347,7 +309,7 @@ static void submit(scicapd *d, scicapd_client *c, const json_t *id, scicapd_job 
                   rc == SCI_EBUSY ? msg : "the daemon is stopping");
         return;
     }
-    reply(d, c, scicapd_reply_ok(id, queued_json(j)));
+    reply(d, c, scicapd_reply_ok(id, json_pack("{s:I, s:s}", "job", (json_int_t)j->id, "state", "queued")));
 }
 
 static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
@@ -456,12 +418,17 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
             reply_err(d, c, r.id, SCICAPD_E_NOT_FOUND, err.msg);
             break;
         }
-        if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_RECONSTRUCT, c->id, c->uid, r.id, &j) < 0) {
-            reply_err(d, c, r.id, SCICAPD_E_FAILED, "out of memory");
-            break;
-        }
-        j->recon = rec;
-        submit(d, c, r.id, j, d->recon_q, "reconstruction");
+        scicapd_recon_request q = {.client = c->id, .owner = c->uid, .request_id = r.id,
+                                   .capture_id = rec.capture_id, .spec = rec.spec,
+                                   .mode = SCICAPD_ENQUEUE_REFUSE};
+        scicapd_recon_submit_env env = recon_env(d);
+        json_t *queued = NULL;
+        int rc2 = scicapd_recon_submit(&env, &q, &queued, NULL, &err);
+        if (rc2 < 0)
+            reply_err(d, c, r.id, rc2 == SCI_EBUSY ? SCICAPD_E_BUSY : rc2 == -EPIPE ? SCICAPD_E_SHUTTING_DOWN
+                                                                                      : SCICAPD_E_FAILED, err.msg);
+        else
+            reply(d, c, scicapd_reply_ok(r.id, queued));
         break;
     }
     case SCICAPD_CMD_CANCEL: {

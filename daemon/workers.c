@@ -20,6 +20,7 @@
 #include "daemon/import.h"
 #include "daemon/reconout.h"
 #include "daemon/reconq.h"
+#include "daemon/reconsubmit.h"
 #include "io/problem_dir.h"
 #include "io/recon_store.h"
 #include "io/staging.h"
@@ -356,8 +357,57 @@ static void process(scicapd_workers *w, scicapd_job *j)
     atomic_fetch_sub(&w->busy, 1);
 }
 
-/* An import (daemon/import.h): the passed files read, each snapshot stored as a capture, then, when asked,
- * reconstructed here one after the other (each its own job, persisted first so that a stop resumes them).
+/* What scicapd_recon_submit needs of the workers (borrowed). */
+static scicapd_recon_submit_env recon_env(scicapd_workers *w)
+{
+    return (scicapd_recon_submit_env){.jobs = w->env.jobs, .store = w->env.store, .mailbox = w->env.mailbox,
+                                      .queue = w->env.in, .log = w->env.log};
+}
+
+/* An import's reconstructions made, persisted and announced (daemon/reconsubmit.h), each snapshot's or its
+ * recon.rejected: up to SCICAPD_IMPORT_RECON_MAX, into r (the caller's references). Returns how many. */
+static int import_prepare_recons(scicapd_workers *w, scicapd_job *j, json_t *ids, scicapd_job **r)
+{
+    const scicapd_import_args *a = j->import;
+    scicapd_recon_submit_env env = recon_env(w);
+    size_t i;
+    json_t *v;
+    int nr = 0;
+    json_array_foreach(ids, i, v) {
+        const char *why = NULL;
+        sci_error e2 = {0};
+        if (nr == SCICAPD_IMPORT_RECON_MAX) {
+            why = "more snapshots than one import reconstructs; request the rest with reconstruct";
+        } else {
+            scicapd_recon_request q = {.client = j->client, .owner = j->owner, .request_id = j->request_id,
+                                       .capture_id = json_string_value(v), .spec = a->recon,
+                                       .origin = "import_job", .origin_job = j->id,
+                                       .mode = SCICAPD_ENQUEUE_TRY};
+            if (scicapd_recon_prepare(&env, &q, &r[nr], &why, &e2) == 0)
+                nr++;
+        }
+        if (why)
+            post(w, j, "recon.rejected", json_pack("{s:s, s:s}", "capture", json_string_value(v), "reason", why));
+    }
+    return nr;
+}
+
+/* A prepared reconstruction of an import into the queue, after import.done. Without waiting: this runs on a
+ * worker, and a worker waiting for room only workers make could wait for ever. When the queue is full (or
+ * closed) it runs here instead, as imports always did, so a full queue never loses an import's reconstruction;
+ * a stopping daemon's then keeps its entry (process). Takes the reference. */
+static void import_enqueue(scicapd_workers *w, scicapd_job *r)
+{
+    scicapd_recon_submit_env env = recon_env(w);
+    sci_error err = {0};
+    if (scicapd_recon_enqueue(&env, r, SCICAPD_ENQUEUE_TRY, NULL, &err) == 0)
+        return;
+    process(w, r);
+    scicapd_job_unref(w->env.jobs, r);
+}
+
+/* An import (daemon/import.h): the passed files read, each snapshot stored as a capture, then, when asked, its
+ * reconstructions queued like any other (each its own job, persisted first so that a stop resumes them).
  * Their recon.queued events come before import.done, as a capture's come before capture.done: a client that
  * waits knows what to wait for when the import's last word arrives. */
 static void run_import(scicapd_workers *w, scicapd_job *j)
@@ -398,39 +448,8 @@ static void run_import(scicapd_workers *w, scicapd_job *j)
         json_decref(ids);
         return;
     }
-    size_t i;
-    json_t *v;
     scicapd_job *r[SCICAPD_IMPORT_RECON_MAX];
-    int nr = 0;
-    json_array_foreach(ids, i, v) {
-        if (!a->reconstruct)
-            break;
-        const char *why = NULL;
-        scicapd_job *q;
-        if (nr == SCICAPD_IMPORT_RECON_MAX) {
-            why = "more snapshots than one import reconstructs; request the rest with reconstruct";
-        } else if (scicapd_jobs_create(w->env.jobs, SCICAPD_JOB_RECONSTRUCT, j->client, j->owner, j->request_id,
-                                       &q) < 0) {
-            why = "out of memory";
-        } else {
-            snprintf(q->recon.capture_id, sizeof q->recon.capture_id, "%s", json_string_value(v));
-            q->recon.spec = a->recon;
-            sci_error e2 = {0};
-            if (scicapd_reconq_save(w->env.store, q, &e2) < 0) {
-                sci_log_write(w->env.log, SCI_LOG_ERR, "job %llu: %s", (unsigned long long)q->id, e2.msg);
-                why = "cannot save the queue entry";
-                scicapd_jobs_forget(w->env.jobs, q);
-                scicapd_job_unref(w->env.jobs, q);
-            } else {
-                r[nr++] = q;
-                post(w, q, "recon.queued", json_pack("{s:s, s:s, s:I}", "capture", q->recon.capture_id, "method",
-                                                     a->recon.method->name, "import_job",
-                                                     (json_int_t)j->id));
-            }
-        }
-        if (why)
-            post(w, j, "recon.rejected", json_pack("{s:s, s:s}", "capture", json_string_value(v), "reason", why));
-    }
+    int nr = a->reconstruct ? import_prepare_recons(w, j, ids, r) : 0;
     json_t *d = json_pack("{s:O, s:i}", "captures", ids, "snapshots", stored);
     if (!a->folder) {
         json_object_set_new(d, "white", json_real(info.white));
@@ -443,10 +462,8 @@ static void run_import(scicapd_workers *w, scicapd_job *j)
                   (unsigned long long)j->id, stored, a->names[a->folder ? 0 : a->data_index], (int)j->owner);
     post(w, j, "import.done", d);
     json_decref(ids);
-    for (int n = 0; n < nr; n++) {
-        process(w, r[n]);
-        scicapd_job_unref(w->env.jobs, r[n]);
-    }
+    for (int n = 0; n < nr; n++)
+        import_enqueue(w, r[n]);
 }
 
 static void *worker_main(void *arg)
