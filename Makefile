@@ -13,7 +13,7 @@ ifeq ($(origin CC),default)
 CC := gcc
 endif
 OPT     ?= -O3
-# No -ffast-math anywhere: it breaks the NaN/Inf checks the numerics rely on (DESIGN.md, Numerics).
+# No -ffast-math anywhere: it breaks the NaN/Inf checks the numerics rely on (docs/architecture.md, Numerics).
 CFLAGS  ?= $(OPT) -g
 CXXFLAGS ?= $(OPT) -g
 WARN    := -Wall -Wextra -Werror -Wshadow -Wno-unused-parameter -Wno-format-truncation
