@@ -153,3 +153,16 @@ int cli_child_checkpoint_step(const char *log)
         fclose(f);
     return step;
 }
+
+pid_t cli_child_spawn_logged(const char *log, const char *prog, const char *const *args)
+{
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        FILE *f = freopen(log, "w", stderr);
+        (void)f;
+        execv(prog, (char *const *)args);
+        _exit(127);
+    }
+    return pid;
+}

@@ -52,6 +52,10 @@ int cli_child_sim(const char *scicap, const char *dir, const char *scene_name, c
 /* The JSON file dir/name (a result.json, a problem.json), a new reference the caller decrefs; a file that is
  * missing or not JSON fails the test, naming it. */
 json_t *cli_child_load_json(const char *dir, const char *name);
+/* Start `prog args...` (args NULL-terminated, args[0] is argv[0]) with its stderr to the file log (stdout left as
+ * ours), without waiting: for a test that signals it mid-run and reaps it itself. The pid; a failed fork fails the
+ * test. */
+pid_t cli_child_spawn_logged(const char *log, const char *prog, const char *const *args);
 /* N of the last "checkpoint of step N" line in the log file (scicap recon's, with --checkpoint); 0 when none. */
 int cli_child_checkpoint_step(const char *log);
 

@@ -76,15 +76,10 @@ static void test_interrupt_and_resume_is_bitwise(void **state)
     assert_int_equal(cli_child_shell("%s recon " OPTS " -q %s -o %s/full >%s/full.log 2>&1", scicap, prob, dir, dir), 0);
 
     /* interrupted after its first checkpoint (one per iteration) */
-    pid_t pid = fork();
-    assert_true(pid >= 0);
-    if (pid == 0) {
-        FILE *f = freopen(log, "w", stderr);
-        (void)f;
-        execl(scicap, scicap, "recon", "--method", "desci", "--preset", "fast", "--iters", "6", "-j", "2",
-              "--checkpoint", ck, "--checkpoint-every", "1", "-q", prob, "-o", out, (char *)NULL);
-        _exit(127);
-    }
+    pid_t pid = cli_child_spawn_logged(
+        log, scicap, (const char *const[]){scicap, "recon", "--method", "desci", "--preset", "fast", "--iters", "6",
+                                           "-j", "2", "--checkpoint", ck, "--checkpoint-every", "1", "-q", prob,
+                                           "-o", out, NULL});
     int ready = 0;
     for (int i = 0; i < 2000 && !ready; i++) { /* at most 20 s */
         ready = access(ck, R_OK) == 0;

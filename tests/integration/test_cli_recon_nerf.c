@@ -111,16 +111,10 @@ static void test_interrupt_and_resume(void **state)
     snprintf(log, sizeof log, "%s/int.log", dir);
     char prob[2048];
     snprintf(prob, sizeof prob, "%s/prob", dir);
-    pid_t pid = fork();
-    assert_true(pid >= 0);
-    if (pid == 0) {
-        FILE *f = freopen(log, "w", stderr);
-        (void)f;
-        execl(scicap, scicap, "recon", "--method", "scinerf", "--samples", "8", "--metrics-every", "0", "-j", "1",
-              "--iters", "1000000", "--checkpoint", ck, "--checkpoint-every", "1000000", "-q", prob, "-o", out,
-              (char *)NULL);
-        _exit(127);
-    }
+    pid_t pid = cli_child_spawn_logged(
+        log, scicap, (const char *const[]){scicap, "recon", "--method", "scinerf", "--samples", "8", "--metrics-every",
+                                           "0", "-j", "1", "--iters", "1000000", "--checkpoint", ck,
+                                           "--checkpoint-every", "1000000", "-q", prob, "-o", out, NULL});
     /* wait until it has installed its SIGINT handler (SigCgt bit 1), then give it a few steps */
     char status[64];
     snprintf(status, sizeof status, "/proc/%d/status", (int)pid);
