@@ -22,6 +22,7 @@
 #include <cmocka.h>
 
 #include "recon/solver.h"
+#include "tests/helpers/cli_child.h"
 
 static char build[1024];
 
@@ -364,14 +365,10 @@ static void test_capture_recon_method(void **state)
     snprintf(run, sizeof run, "%s/run", dir);
     char daemon[1100];
     snprintf(daemon, sizeof daemon, "%s/scicapd", build);
-    pid_t pid = fork();
-    assert_true(pid >= 0);
-    if (pid == 0) {
-        freopen("/dev/null", "w", stderr);
-        execl(daemon, "scicapd", "--no-config", "--socket", sock, "--storage", store, "--runtime-dir", run,
-              geteuid() == 0 ? "--allow-root" : NULL, (char *)NULL);
-        _exit(127);
-    }
+    pid_t pid = cli_child_spawn_logged("/dev/null", daemon,
+                                       (const char *const[]){"scicapd", "--no-config", "--socket", sock, "--storage",
+                                                             store, "--runtime-dir", run,
+                                                             geteuid() == 0 ? "--allow-root" : NULL, NULL});
     struct stat st;
     for (int i = 0; i < 100 && stat(sock, &st) != 0; i++)
         nanosleep(&(struct timespec){0, 100000000}, NULL);
