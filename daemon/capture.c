@@ -9,9 +9,10 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "base/file.h"
+#include "base/json.h"
 #include "daemon/package.h"
 #include "daemon/store.h"
-#include "io/staging.h"
 
 /* Snapshot `index` of job j taken and packaged for the store (*out; its id not yet set). */
 static int shoot(scicapd_rig *a, const scicapd_job *j, int index, const sci_cube *masks, uint32_t exposure,
@@ -33,21 +34,21 @@ static int shoot(scicapd_rig *a, const scicapd_job *j, int index, const sci_cube
 
 /* ROOT/capture.running names the capture in progress, so that a daemon killed during it (kill -9, a power cut)
  * reports it interrupted at its next start (daemon.c) instead of losing it silently; removed when the capture
- * ends in any way. Written whole (tmp + rename); failures only logged: it is a report, not the capture. */
+ * ends in any way. Written whole (sci_json_write_atomic); failures only logged: it is a report, not the capture. */
 static void running_mark(const scicapd_rig_env *env, const scicapd_job *j, int count)
 {
-    char path[1100], tmp[1200];
+    char path[1100];
     snprintf(path, sizeof path, "%s/capture.running", scicapd_store_root(env->store));
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
     json_t *m = json_pack("{s:I, s:I, s:i, s:I}", "job", (json_int_t)j->id, "owner", (json_int_t)j->owner, "count",
                           count, "started_unix", (json_int_t)time(NULL));
-    int ok = m && json_dump_file(m, tmp, JSON_COMPACT) == 0 && rename(tmp, path) == 0;
+    sci_error err = {0};
+    int rc = m ? sci_json_write_atomic(path, m, JSON_COMPACT, 0644,
+                                       scicapd_store_fsync_on(env->store) ? 0 : SCI_FILE_NO_SYNC, &err)
+               : sci_error_set(&err, -ENOMEM, "%s: out of memory", path);
     json_decref(m);
-    if (ok && scicapd_store_fsync_on(env->store))
-        sci_staging_sync(path, SCI_SYNC_PARENT);
-    if (!ok)
-        sci_log_write(env->log, SCI_LOG_WARNING, "%s: %s (an interruption of this capture would go unreported)",
-                      path, strerror(errno));
+    if (rc < 0)
+        sci_log_write(env->log, SCI_LOG_WARNING, "%s (an interruption of this capture would go unreported)",
+                      err.msg);
 }
 
 static void running_clear(const scicapd_rig_env *env)

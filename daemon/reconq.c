@@ -11,6 +11,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "base/file.h"
 #include "base/json.h"
 #include "daemon/reconout.h"
 
@@ -47,9 +48,15 @@ static json_t *item_json(const scicapd_job *j)
     return o;
 }
 
+/* The atomic writers' flags for this store: fsync'd only with storage.fsync. */
+static unsigned fsync_flags(const scicapd_store *st)
+{
+    return scicapd_store_fsync_on(st) ? 0 : SCI_FILE_NO_SYNC;
+}
+
 int scicapd_reconq_save(scicapd_store *st, scicapd_job *j, sci_error *err)
 {
-    char dir[1100], path[1300], tmp[1300];
+    char dir[1100], path[1300];
     int rc;
     if ((rc = ensure_dir(st, dir, sizeof dir, err)) < 0)
         return rc;
@@ -59,37 +66,21 @@ int scicapd_reconq_save(scicapd_store *st, scicapd_job *j, sci_error *err)
     snprintf(name, sizeof name, "r-%020lld-%llu.json", (long long)ts.tv_sec * 1000000000LL + ts.tv_nsec,
              (unsigned long long)j->id);
     snprintf(path, sizeof path, "%s/%s", dir, name);
-    snprintf(tmp, sizeof tmp, "%s/.%s.tmp", dir, name);
     json_t *o = item_json(j);
     char *text = o ? json_dumps(o, JSON_COMPACT) : NULL;
     json_decref(o);
-    if (!text)
-        return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
-    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0640);
-    if (fd < 0) {
-        rc = sci_error_set(err, -errno, "%s: %s", tmp, strerror(errno));
+    size_t len = text ? strlen(text) : 0;
+    char *line = text ? realloc(text, len + 2) : NULL;
+    if (!line) {
         free(text);
-        return rc;
+        return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
     }
-    size_t len = strlen(text);
-    int ok = write(fd, text, len) == (ssize_t)len && write(fd, "\n", 1) == 1;
-    free(text);
-    if (ok && scicapd_store_fsync_on(st))
-        ok = fsync(fd) == 0;
-    int e = errno;
-    ok &= close(fd) == 0;
-    if (!ok || rename(tmp, path) != 0) {
-        e = ok ? errno : e;
-        unlink(tmp);
-        return sci_error_set(err, -e, "%s: cannot save the queued reconstruction: %s", path, strerror(e));
-    }
-    if (scicapd_store_fsync_on(st)) {
-        int dfd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-        if (dfd >= 0) {
-            fsync(dfd);
-            close(dfd);
-        }
-    }
+    memcpy(line + len, "\n", 2);
+    /* beside, then renamed (a dot and .tmp: an interrupted save is removed at the next load) */
+    rc = sci_file_write_atomic(path, line, len + 1, 0640, fsync_flags(st), err);
+    free(line);
+    if (rc < 0)
+        return sci_error_set(err, rc, "%s: cannot save the queued reconstruction: %s", path, sci_strerror(rc));
     snprintf(j->persisted, sizeof j->persisted, "%s", name);
     return 0;
 }
@@ -122,36 +113,12 @@ void scicapd_reconq_drop(scicapd_store *st, const scicapd_job *j)
 int scicapd_reconq_checkpoint_save(scicapd_store *st, const scicapd_job *j, const void *blob, size_t bytes,
                                    sci_error *err)
 {
-    char dir[1100], path[1300], tmp[1400], name[128];
+    char path[1300], name[128];
     if (ckpt_path(st, j, path, sizeof path, name, sizeof name) < 0)
         return sci_error_set(err, -ENOENT, "job %llu has no saved entry", (unsigned long long)j->id);
-    dir_of(st, dir, sizeof dir);
-    snprintf(tmp, sizeof tmp, "%s/.%s.tmp", dir, name); /* a dot and .tmp: removed at the next load */
-    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0640);
-    if (fd < 0)
-        return sci_error_set(err, -errno, "%s: %s", tmp, strerror(errno));
-    const unsigned char *p = blob;
-    size_t left = bytes;
-    int ok = 1;
-    while (ok && left > 0) {
-        ssize_t w = write(fd, p, left);
-        if (w < 0 && errno == EINTR)
-            continue;
-        ok = w > 0;
-        if (ok) {
-            p += w;
-            left -= (size_t)w;
-        }
-    }
-    if (ok && scicapd_store_fsync_on(st))
-        ok = fsync(fd) == 0;
-    int e = errno;
-    ok &= close(fd) == 0;
-    if (!ok || rename(tmp, path) != 0) {
-        e = ok ? errno : e;
-        unlink(tmp);
-        return sci_error_set(err, -e, "%s: cannot save the checkpoint: %s", path, strerror(e));
-    }
+    int rc = sci_file_write_atomic(path, blob, bytes, 0640, fsync_flags(st), err);
+    if (rc < 0)
+        return sci_error_set(err, rc, "%s: cannot save the checkpoint: %s", path, sci_strerror(rc));
     return 0;
 }
 
