@@ -30,17 +30,23 @@ static json_t *result_params(const harness *h, const char *cap, const char *meth
     return p;
 }
 
+/* The hand-written curves as h's folder/name; its path into path (n bytes). */
+static void write_curves(const harness *h, const char *name, char *path, size_t n)
+{
+    snprintf(path, n, "%s/%s", h->dir, name);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(curves, f);
+    fclose(f);
+}
+
 static void budget_picks_from_curves(void **state)
 {
     (void)state;
     harness h;
     harness_init(&h, NULL);
     char csv[400], cfg[800];
-    snprintf(csv, sizeof csv, "%s/curves.csv", h.dir);
-    FILE *f = fopen(csv, "w");
-    assert_non_null(f);
-    fputs(curves, f);
-    fclose(f);
+    write_curves(&h, "curves.csv", csv, sizeof csv);
     snprintf(cfg, sizeof cfg, "{\"reconstruction\": {\"curves\": \"%s\"}}", csv);
     harness_write_config(&h, cfg);
     harness_spawn(&h, NULL);
@@ -99,11 +105,7 @@ static void budget_curves_from_env_datadir(void **state)
     harness h;
     harness_init(&h, NULL);
     char csv[400], cap[64];
-    snprintf(csv, sizeof csv, "%s/results.csv", h.dir);
-    FILE *f = fopen(csv, "w");
-    assert_non_null(f);
-    fputs(curves, f);
-    fclose(f);
+    write_curves(&h, "results.csv", csv, sizeof csv);
     hconn c;
     spawn_with_datadir(&h, h.dir, &c, cap, sizeof cap);
     json_decref(hconn_request(&c, "reconstruct", json_pack("{s:s, s:f}", "capture", cap, "budget_s", 0.1)));
