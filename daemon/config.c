@@ -133,26 +133,6 @@ static int get_str(const sci_json_doc *doc, const json_t *o, const char *op, con
     return 0;
 }
 
-static int get_u32(const sci_json_doc *doc, const json_t *o, const char *op, const char *key, long long lo,
-                   long long hi, uint32_t *out, sci_error *err)
-{
-    long long v = *out;
-    int rc = sci_json_get_int(doc, o, op, key, 0, lo, hi, &v, err);
-    if (rc == 0)
-        *out = (uint32_t)v;
-    return rc < 0 ? rc : 0;
-}
-
-static int get_int(const sci_json_doc *doc, const json_t *o, const char *op, const char *key, long long lo,
-                   long long hi, int *out, sci_error *err)
-{
-    long long v = *out;
-    int rc = sci_json_get_int(doc, o, op, key, 0, lo, hi, &v, err);
-    if (rc == 0)
-        *out = (int)v;
-    return rc < 0 ? rc : 0;
-}
-
 /* An object member (absent: NULL, 0); anything else than an object is an error. */
 static int get_obj(const sci_json_doc *doc, const json_t *o, const char *op, const char *key, const json_t **out,
                    sci_error *err)
@@ -165,6 +145,7 @@ static int get_obj(const sci_json_doc *doc, const json_t *o, const char *op, con
 }
 
 #define CFG(key, type, member, ...) {key, type, offsetof(scicapd_config, member), __VA_ARGS__}
+#define CFG_SIZE(member) sizeof(((scicapd_config *)0)->member)
 #define CFG_STR(key, member, bytes, line) \
     {key, SCI_JSON_STRING, offsetof(scicapd_config, member), .size = (bytes), .help = line}
 
@@ -295,13 +276,16 @@ static int parse_dmd(const sci_json_doc *doc, const json_t *d, scicapd_config *c
 {
     static const char *const dkeys[] = {"backend", "serial", "emulator", "timeout_ms", "trigger_delay_us",
                                         "trigger_falling", NULL};
+    static const sci_json_field fields[] = {
+        CFG_STR("serial", dmd_serial, SCICAPD_NAME_MAX, "which DMD, \"\": the first found"),
+        CFG("emulator", SCI_JSON_BOOL, dmd_emulator, .help = "the DLPC900 protocol emulated in-process"),
+        CFG("timeout_ms", SCI_JSON_INT, dmd_timeout_ms, .lo = 1, .hi = 60000, .help = "per USB transfer"),
+        CFG("trigger_delay_us", SCI_JSON_U32, dmd_trigger_delay_us, .lo = 0, .hi = 65535, .help = "microseconds"),
+        CFG("trigger_falling", SCI_JSON_BOOL, dmd_trigger_falling, .help = "trigger on the falling edge"),
+    };
     int rc;
     if ((rc = sci_json_check_keys(doc, d, "devices.dmd", dkeys, err)) < 0 ||
-        (rc = get_str(doc, d, "devices.dmd", "serial", c->dmd_serial, sizeof c->dmd_serial, err)) < 0 ||
-        (rc = sci_json_get_bool(doc, d, "devices.dmd", "emulator", 0, &c->dmd_emulator, err)) < 0 ||
-        (rc = get_int(doc, d, "devices.dmd", "timeout_ms", 1, 60000, &c->dmd_timeout_ms, err)) < 0 ||
-        (rc = get_u32(doc, d, "devices.dmd", "trigger_delay_us", 0, 65535, &c->dmd_trigger_delay_us, err)) < 0 ||
-        (rc = sci_json_get_bool(doc, d, "devices.dmd", "trigger_falling", 0, &c->dmd_trigger_falling, err)) < 0)
+        (rc = sci_json_fields_read(doc, d, "devices.dmd", fields, SCI_JSON_FIELDS_COUNT(fields), c, err)) < 0)
         return rc;
     if (!scicapd_dmd_is_dlpc900(scicapd_dmd_backend_find(c->dmd_backend, NULL))) {
         static const char *const hw[] = {"emulator", "timeout_ms", "trigger_delay_us", "trigger_falling", NULL};
@@ -319,6 +303,14 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
 {
     static const char *const keys[] = {"dmd", "camera", "trigger", NULL};
     static const char *const cam_strip[] = {"readout_us", "usb", NULL};
+    static const sci_json_field cam_fields[] = {
+        CFG("readout_us", SCI_JSON_U32, camera_readout_us, .lo = 0, .hi = 1000000, .help = "sensor readout"),
+    };
+    static const sci_json_field usb_fields[] = {
+        CFG_STR("vendor", camera_usb_vendor, CFG_SIZE(camera_usb_vendor), "USB vendor id (lsusb)"),
+        CFG_STR("product", camera_usb_product, CFG_SIZE(camera_usb_product), "USB product id (lsusb)"),
+        CFG_STR("serial", camera_usb_serial, SCICAPD_NAME_MAX, "USB serial, \"\": any"),
+    };
     int rc;
     if ((rc = sci_json_check_keys(doc, o, "devices", keys, err)) < 0 ||
         (rc = parse_device(doc, o, "dmd", c->dmd_backend, sizeof c->dmd_backend, NULL, NULL, err)) < 0 ||
@@ -331,7 +323,7 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
     if (d && (rc = parse_dmd(doc, d, c, err)) < 0)
         return rc;
     const json_t *cam = json_object_get(o, "camera");
-    if (cam && (rc = get_u32(doc, cam, "devices.camera", "readout_us", 0, 1000000, &c->camera_readout_us, err)) < 0)
+    if (cam && (rc = sci_json_fields_read(doc, cam, "devices.camera", cam_fields, 1, c, err)) < 0)
         return rc;
     const json_t *usb = cam ? json_object_get(cam, "usb") : NULL;
     if (usb) { /* the camera's USB ids, for `scicapd --udev-rules` only (daemon/udev_rules.h) */
@@ -340,12 +332,8 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
             return sci_json_fail(doc, err, "devices.camera.usb", "must be an object {\"vendor\", \"product\", "
                                  "\"serial\"}");
         if ((rc = sci_json_check_keys(doc, usb, "devices.camera.usb", ukeys, err)) < 0 ||
-            (rc = get_str(doc, usb, "devices.camera.usb", "vendor", c->camera_usb_vendor,
-                          sizeof c->camera_usb_vendor, err)) < 0 ||
-            (rc = get_str(doc, usb, "devices.camera.usb", "product", c->camera_usb_product,
-                          sizeof c->camera_usb_product, err)) < 0 ||
-            (rc = get_str(doc, usb, "devices.camera.usb", "serial", c->camera_usb_serial,
-                          sizeof c->camera_usb_serial, err)) < 0)
+            (rc = sci_json_fields_read(doc, usb, "devices.camera.usb", usb_fields, SCI_JSON_FIELDS_COUNT(usb_fields),
+                                       c, err)) < 0)
             return rc;
         if (!c->camera_usb_vendor[0] || !c->camera_usb_product[0])
             return sci_json_fail(doc, err, "devices.camera.usb", "needs \"vendor\" and \"product\" (lsusb: "
@@ -425,26 +413,30 @@ static int parse_mask_set(const sci_json_doc *doc, const json_t *o, const char *
                                        NULL};
     static const char *const kinds[] = {"random", "shifting", "superpixel", "file", NULL};
     static const char *const dirs[] = {"x", "y", NULL};
-    int rc, kind = 0, dir = 1;
-    long long seed = 7;
+#define MASK(key, type, member, ...) {key, type, offsetof(scicapd_mask_set, member), __VA_ARGS__}
+    static const sci_json_field fields[] = {
+        MASK("type", SCI_JSON_ENUM, spec.kind, .names = kinds, .required = 1, .help = "how the masks are made"),
+        MASK("frames", SCI_JSON_INT, frames, .lo = 1, .hi = 400, .help = "N, masks per snapshot"),
+        MASK("seed", SCI_JSON_U64, seed, .lo = 0, .hi = 9007199254740992.0, .help = "random kinds"),
+        MASK("density", SCI_JSON_DOUBLE, spec.density, .lo = 1e-6, .hi = 1, .help = "probability of on"),
+        MASK("block", SCI_JSON_INT, spec.block, .lo = 1, .hi = 4096, .help = "superpixel size, mirrors"),
+        MASK("step", SCI_JSON_INT, spec.step, .lo = -64, .hi = 64, .help = "shifting: pixels per frame"),
+        MASK("direction", SCI_JSON_ENUM, spec.dir_y, .names = dirs, .help = "shifting: along x or y"),
+        {"path", SCI_JSON_STRING, offsetof(scicapd_mask_set, spec.path), .size = sizeof(((sim_mask_spec *)0)->path),
+         .help = "file kind: the masks' file"},
+    };
+#undef MASK
+    _Static_assert(sizeof(sim_mask_kind) == sizeof(int), "a mask kind is read as an int");
+    int rc;
     if (!json_is_object(o))
         return sci_json_fail(doc, err, path, "must be an object");
     m->frames = 8;
+    m->seed = 7;
     m->spec = (sim_mask_spec){.kind = SIM_MASK_RANDOM, .density = 0.5, .block = 4, .step = 1, .dir_y = 1,
                               .scale = 1};
     if ((rc = sci_json_check_keys(doc, o, path, keys, err)) < 0 ||
-        (rc = sci_json_get_enum(doc, o, path, "type", 1, kinds, &kind, err)) < 0 ||
-        (rc = get_int(doc, o, path, "frames", 1, 400, &m->frames, err)) < 0 ||
-        (rc = sci_json_get_int(doc, o, path, "seed", 0, 0, (long long)1 << 53, &seed, err)) < 0 ||
-        (rc = sci_json_get_double(doc, o, path, "density", 0, 1e-6, 1, &m->spec.density, err)) < 0 ||
-        (rc = get_int(doc, o, path, "block", 1, 4096, &m->spec.block, err)) < 0 ||
-        (rc = get_int(doc, o, path, "step", -64, 64, &m->spec.step, err)) < 0 ||
-        (rc = sci_json_get_enum(doc, o, path, "direction", 0, dirs, &dir, err)) < 0 ||
-        (rc = get_str(doc, o, path, "path", m->spec.path, sizeof m->spec.path, err)) < 0)
+        (rc = sci_json_fields_read(doc, o, path, fields, SCI_JSON_FIELDS_COUNT(fields), m, err)) < 0)
         return rc;
-    m->spec.kind = (sim_mask_kind)kind;
-    m->spec.dir_y = dir;
-    m->seed = (uint64_t)seed;
     if (m->spec.kind == SIM_MASK_FILE && !m->spec.path[0]) {
         char p[256];
         return sci_json_fail(doc, err, sci_json_path_key(p, sizeof p, path, "path"), "required for type \"file\"");
@@ -497,6 +489,13 @@ static int parse_capture(const sci_json_doc *doc, const json_t *o, scicapd_confi
     return sci_json_fields_read(doc, o, "capture", fields, SCI_JSON_FIELDS_COUNT(fields), c, err);
 }
 
+static const sci_json_field recon_fields[] = {
+    CFG("auto", SCI_JSON_BOOL, recon_auto, .help = "reconstruct every capture"),
+    CFG("workers", SCI_JSON_INT, workers, .lo = 1, .hi = 16, .help = "reconstructions at once"),
+    CFG("threads", SCI_JSON_INT, recon_threads, .lo = 0, .hi = 256, .help = "threads each, 0: all cores"),
+    CFG("checkpoint_every", SCI_JSON_INT, recon_checkpoint_every, .lo = 0, .hi = 1000000, .help = "steps, 0: none"),
+};
+
 static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config *c, sci_error *err)
 {
     static const char *const keys[] = {"method", "preset", "auto", "workers", "threads", "curves",
@@ -519,11 +518,8 @@ static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config 
         return rc;
     if (rc == 0)
         snprintf(c->recon_preset, sizeof c->recon_preset, "%s", presets[p >= 3 ? p - 2 : p]); /* alias -> name */
-    if ((rc = sci_json_get_bool(doc, o, "reconstruction", "auto", 0, &c->recon_auto, err)) < 0 ||
-        (rc = get_int(doc, o, "reconstruction", "workers", 1, 16, &c->workers, err)) < 0 ||
-        (rc = get_int(doc, o, "reconstruction", "threads", 0, 256, &c->recon_threads, err)) < 0 ||
-        (rc = get_int(doc, o, "reconstruction", "checkpoint_every", 0, 1000000, &c->recon_checkpoint_every,
-                      err)) < 0)
+    if ((rc = sci_json_fields_read(doc, o, "reconstruction", recon_fields, SCI_JSON_FIELDS_COUNT(recon_fields), c,
+                                   err)) < 0)
         return rc;
     const solver_ops *method = solver_find(c->recon_method);
     if (c->recon_auto && method && (method->caps & SOLVER_NEEDS_CAMERA))
