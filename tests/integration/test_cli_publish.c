@@ -68,37 +68,36 @@ static void sigterm_when(const char *in, const char *out, const char *suffix, in
         fail_msg("%s never appeared", w1);
 }
 
-static void test_sigterm_while_writing_publishes_nothing(void **state)
+/* dir/name, a problem of k w×h×n snapshots, reconstructed into dir/out_name and sent SIGTERM once `mark` (a path
+ * under the staging folder) exists: scicap dies of the signal and nothing is published. must_be_mid: the write
+ * must have been under way when the signal came (else the problem is too small to tell). */
+static void sigterm_publishes_nothing(const char *name, int w, int h, int n, int k, const char *mark, int must_be_mid)
 {
     char in[512], out[512];
-    snprintf(in, sizeof in, "%s/large", dir);
-    snprintf(out, sizeof out, "%s/out_large", dir);
-    testfiles_write_problem(in, 1024, 1024, 16, 1);
-    /* the staging folder OUT.tmp-PID exists from the first file written to the rename that publishes it; the
-     * 16 1024² frames take about a second to write (EXR, PNG, GIF) */
+    snprintf(in, sizeof in, "%s/%s", dir, name);
+    snprintf(out, sizeof out, "%s/out_%s", dir, name);
+    testfiles_write_problem(in, w, h, n, k);
     int mid = 0;
     cli_child c;
-    sigterm_when(in, out, "", &mid, &c);
-    if (!mid)
+    sigterm_when(in, out, mark, &mid, &c);
+    if (must_be_mid && !mid)
         fail_msg("the write had finished before SIGTERM; make the problem larger");
     if (!WIFSIGNALED(c.status) || WTERMSIG(c.status) != SIGTERM)
         fail_msg("status 0x%x, not death by SIGTERM; stderr: %s", c.status, c.err);
     testfiles_assert_nothing_at(out);
 }
 
+/* the staging folder OUT.tmp-PID exists from the first file written to the rename that publishes it; the 16 1024²
+ * frames take about a second to write (EXR, PNG, GIF) */
+static void test_sigterm_while_writing_publishes_nothing(void **state)
+{
+    sigterm_publishes_nothing("large", 1024, 1024, 16, 1, "", 1);
+}
+
+/* snapshot 1 finished: OUT.tmp-PID/snap_001 now (OUT/snap_001 before publish-on-success) */
 static void test_sigterm_between_snapshots_publishes_nothing(void **state)
 {
-    char in[512], out[512];
-    snprintf(in, sizeof in, "%s/three", dir);
-    snprintf(out, sizeof out, "%s/out_three", dir);
-    testfiles_write_problem(in, 256, 256, 8, 3);
-    /* snapshot 1 finished: OUT.tmp-PID/snap_001 now (OUT/snap_001 before publish-on-success) */
-    int mid = 0;
-    cli_child c;
-    sigterm_when(in, out, "/snap_001", &mid, &c);
-    if (!WIFSIGNALED(c.status) || WTERMSIG(c.status) != SIGTERM)
-        fail_msg("status 0x%x, not death by SIGTERM; stderr: %s", c.status, c.err);
-    testfiles_assert_nothing_at(out);
+    sigterm_publishes_nothing("three", 256, 256, 8, 3, "/snap_001", 0);
 }
 
 /* Run a command with stderr into dir/err.txt; its exit status. */
