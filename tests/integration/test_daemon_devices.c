@@ -178,6 +178,31 @@ static const char *const EMULATED =
     " \"camera\": {\"backend\": \"sim\"}, \"trigger\": {\"backend\": \"sim\"}},"
     " \"storage\": {\"writers\": 2, \"previews\": false}}";
 
+/* The next recon.done: its PSNR printed after `what`, and above 18 dB (GAP-TV fast on the simulated scene). */
+static void expect_recon_psnr(hconn *c, const char *what)
+{
+    json_t *e = hconn_wait_event(c, "recon.done", 60000);
+    double psnr = json_number_value(json_object_get(json_object_get(e, "data"), "psnr"));
+    printf("  %s: GAP-TV fast PSNR %.2f dB\n", what, psnr);
+    assert_true(psnr > 18);
+    json_decref(e);
+}
+
+/* One capture in sync_mode: its snapshot whole (when broken, the sync and offset are printed first), then done. */
+static void expect_whole_capture(hconn *c, const char *sync_mode)
+{
+    json_decref(hconn_request(c, "capture", json_pack("{s:s}", "sync_mode", sync_mode)));
+    json_t *e = hconn_wait_event(c, "capture.snapshot", 20000);
+    json_t *sd = json_object_get(e, "data");
+    if (!json_is_false(json_object_get(sd, "broken"))) /* say which check failed */
+        printf("  %s snapshot broken: sync %s, offset %lld ns\n", sync_mode,
+               json_string_value(json_object_get(sd, "sync")),
+               (long long)json_integer_value(json_object_get(sd, "offset_ns")));
+    assert_true(json_is_false(json_object_get(sd, "broken")));
+    json_decref(e);
+    json_decref(hconn_wait_event(c, "capture.done", 20000));
+}
+
 static void dlpc900_backend_on_the_emulator(void **state)
 {
     (void)state;
@@ -200,23 +225,11 @@ static void dlpc900_backend_on_the_emulator(void **state)
     snprintf(dir, sizeof dir, "%s", json_string_value(json_object_get(json_object_get(e, "data"), "dir")));
     json_decref(e);
     json_decref(hconn_wait_event(&c, "capture.done", 20000));
-    e = hconn_wait_event(&c, "recon.done", 60000);
-    double psnr = json_number_value(json_object_get(json_object_get(e, "data"), "psnr"));
-    printf("  dlpc900 backend on the emulator: GAP-TV fast PSNR %.2f dB\n", psnr);
-    assert_true(psnr > 18);
-    json_decref(e);
+    expect_recon_psnr(&c, "dlpc900 backend on the emulator");
     assert_true(h_exists("%s/%s", dir, "dmd_mask_000.png"));
     assert_false(h_exists("%s/%s", dir, "preview_truth.gif")); /* storage.previews false */
     /* dmd master */
-    json_decref(hconn_request(&c, "capture", json_pack("{s:s}", "sync_mode", "dmd-master")));
-    e = hconn_wait_event(&c, "capture.snapshot", 20000);
-    json_t *sd = json_object_get(e, "data");
-    if (!json_is_false(json_object_get(sd, "broken"))) /* say which check failed */
-        printf("  dmd master snapshot broken: sync %s, offset %lld ns\n", json_string_value(json_object_get(sd, "sync")),
-               (long long)json_integer_value(json_object_get(sd, "offset_ns")));
-    assert_true(json_is_false(json_object_get(sd, "broken")));
-    json_decref(e);
-    json_decref(hconn_wait_event(&c, "capture.done", 20000));
+    expect_whole_capture(&c, "dmd-master");
     /* unplugged through the emulator: the real backend notices, reconnects, uploads again */
     json_decref(hconn_request(&c, "simulate", json_pack("{s:s}", "fault", "dmd-unplug")));
     json_decref(hconn_request(&c, "capture", NULL));
@@ -258,20 +271,8 @@ static void camera_master_on_the_simulated_bench(void **state)
         assert_true(json_is_false(json_object_get(d, "broken")));
         json_decref(e);
     }
-    json_t *e = hconn_wait_event(&c, "recon.done", 60000);
-    double psnr = json_number_value(json_object_get(json_object_get(e, "data"), "psnr"));
-    printf("  camera master: GAP-TV fast PSNR %.2f dB\n", psnr);
-    assert_true(psnr > 18);
-    json_decref(e);
-    json_decref(hconn_request(&c, "capture", json_pack("{s:s}", "sync_mode", "host-master")));
-    e = hconn_wait_event(&c, "capture.snapshot", 20000);
-    json_t *sd = json_object_get(e, "data");
-    if (!json_is_false(json_object_get(sd, "broken"))) /* say which check failed */
-        printf("  dmd master snapshot broken: sync %s, offset %lld ns\n", json_string_value(json_object_get(sd, "sync")),
-               (long long)json_integer_value(json_object_get(sd, "offset_ns")));
-    assert_true(json_is_false(json_object_get(sd, "broken")));
-    json_decref(e);
-    json_decref(hconn_wait_event(&c, "capture.done", 20000));
+    expect_recon_psnr(&c, "camera master");
+    expect_whole_capture(&c, "host-master");
     hconn_close(&c);
     harness_stop(&h);
     harness_cleanup(&h);
