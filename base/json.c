@@ -374,24 +374,13 @@ int sci_json_check_keys(const sci_json_doc *doc, const json_t *obj, const char *
     return 0;
 }
 
-typedef struct json_dump_job {
-    const json_t *j;
-    size_t flags;
-} json_dump_job;
-
-static int json_write_dump(FILE *f, void *user, sci_error *err)
-{
-    (void)err;
-    const json_dump_job *job = user;
-    errno = 0;
-    if (json_dumpf(job->j, f, job->flags) != 0)
-        return errno ? -errno : -EIO;
-    return 0;
-}
-
 int sci_json_write_atomic(const char *path, const json_t *j, size_t json_flags, mode_t mode, unsigned file_flags,
                           sci_error *err)
 {
-    json_dump_job job = {j, json_flags};
-    return sci_file_write_atomic_with(path, mode, file_flags, json_write_dump, &job, err);
+    char *text = json_dumps(j, json_flags);
+    if (!text)
+        return sci_error_set(err, -ENOMEM, "%s: cannot encode the document (out of memory)", path);
+    int rc = sci_file_write_atomic(path, text, strlen(text), mode, file_flags, err);
+    free(text);
+    return rc;
 }

@@ -59,10 +59,10 @@ int sci_json_get_enum(const sci_json_doc *doc, const json_t *obj, const char *ob
 /* Reject members of `obj` not listed in `allowed` (NULL-terminated): catches typos in option names. */
 int sci_json_check_keys(const sci_json_doc *doc, const json_t *obj, const char *objpath, const char *const *allowed,
                         sci_error *err);
-/* Replace the file `path` atomically with `j` as json_dumpf writes it (`json_flags`: JSON_COMPACT,
- * JSON_INDENT(n), ...; no newline is added), through sci_file_write_atomic_with: `mode` and `file_flags`
- * (0 or SCI_FILE_NO_SYNC) as there. Returns 0 or a negative errno with err naming the path; on failure the old
- * file is intact. */
+/* Replace the file `path` atomically with `j` as json_dumps encodes it (`json_flags`: JSON_COMPACT,
+ * JSON_INDENT(n), ...; no newline is added), through sci_file_write_atomic (base/file.h): `mode` and
+ * `file_flags` (0 or SCI_FILE_NO_SYNC) as there. The text is built in memory first. Returns 0 or a negative errno
+ * with err naming the path; on failure the old file is intact. */
 int sci_json_write_atomic(const char *path, const json_t *j, size_t json_flags, mode_t mode, unsigned file_flags,
                           sci_error *err);
 /* Join a path: "a" + "b" -> "a.b"; "" + "b" -> "b". Writes into buf (size n); returns buf. */
