@@ -150,6 +150,21 @@ static int file_fill(int fd, const char *tmp, const char *path, unsigned flags, 
     return 0;
 }
 
+/* The process's umask without changing it (umask(2) can only set it, which races with other threads): the
+ * "Umask:" line of /proc/self/status (Linux 4.7 and later); 022 when it cannot be read. */
+static mode_t file_umask(void)
+{
+    FILE *f = fopen("/proc/self/status", "re");
+    unsigned mask = 022;
+    char line[128];
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, "Umask: %o", &mask) == 1)
+            break;
+    if (f)
+        fclose(f);
+    return (mode_t)mask;
+}
+
 static int file_replace(const char *path, mode_t mode, unsigned flags, const file_source *src, sci_error *err)
 {
     char *dir;
@@ -163,7 +178,8 @@ static int file_replace(const char *path, mode_t mode, unsigned flags, const fil
         rc = sci_error_set(err, -errno, "%s: cannot create a temporary file: %s", path, strerror(errno));
         goto out_free;
     }
-    if (fchmod(fd, mode) != 0) {
+    /* mkstemp creates 0600; the file gets what open(path, O_CREAT, mode) would have given it */
+    if (fchmod(fd, mode & ~file_umask()) != 0) {
         rc = sci_error_set(err, -errno, "%s: %s", tmp, strerror(errno));
         close(fd);
         goto out_unlink;

@@ -45,8 +45,8 @@ typedef int (*sci_file_writer)(FILE *f, void *user, sci_error *err);
  * libraries that open files by name (OpenImageIO, matio, the GIF encoder). Returns 0 or a negative code. */
 typedef int (*sci_file_name_writer)(const char *tmp_path, void *user, sci_error *err);
 
-/* Replace `path` with `len` bytes of `data`. `mode` is the new file's permission bits, set exactly (the umask
- * is not applied). `flags`: 0 or SCI_FILE_NO_SYNC. Returns 0 or a negative code (see above). A failing folder
+/* Replace `path` with `len` bytes of `data`. `mode` is the new file's permission bits less the process's umask,
+ * as open(2) would give them. `flags`: 0 or SCI_FILE_NO_SYNC. Returns 0 or a negative code (see above). A failing folder
  * fsync after the rename returns -errno although the new file is already in place. */
 int sci_file_write_atomic(const char *path, const void *data, size_t len, mode_t mode, unsigned flags,
                           sci_error *err);

@@ -87,6 +87,20 @@ static void test_write_creates_and_replaces(void **state)
     assert_int_equal(count_entries(fx->dir), 1); /* no temporary file left */
 }
 
+/* The mode is what open(2) would give: a private umask keeps the file private. */
+static void test_umask_applies(void **state)
+{
+    fixture *fx = *state;
+    sci_error err = {0};
+    mode_t old = umask(077);
+    int rc = sci_file_write_atomic(fx->path, "x", 1, 0644, 0, &err);
+    umask(old);
+    assert_int_equal(rc, 0);
+    struct stat st;
+    assert_int_equal(stat(fx->path, &st), 0);
+    assert_int_equal(st.st_mode & 0777, 0600);
+}
+
 static int write_lines(FILE *f, void *user, sci_error *err)
 {
     (void)err;
@@ -232,6 +246,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_write_creates_and_replaces, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_umask_applies, setup, teardown),
         cmocka_unit_test_setup_teardown(test_writer_failure_keeps_old, setup, teardown),
         cmocka_unit_test_setup_teardown(test_full_disk_keeps_old, setup, teardown),
         cmocka_unit_test_setup_teardown(test_missing_folder, setup, teardown),
