@@ -25,6 +25,7 @@
 #include "daemon/control.h"
 #include "daemon/import.h"
 #include "daemon/jobs.h"
+#include "daemon/loop.h"
 #include "daemon/mailbox.h"
 #include "daemon/notify.h"
 #include "daemon/protocol.h"
@@ -61,6 +62,7 @@ struct scicapd {
     scicapd_control *ctl;
     scicapd_web *web;           /* the web view, or NULL when web is off (the default) */
     int sfd, stopfd;
+    scicapd_loop *loop;         /* the event loop while scicapd_run runs (daemon/loop.h), else NULL */
     sigset_t oldmask;
     int store_started;
     atomic_int stopping;
@@ -675,15 +677,6 @@ static void housekeeping(scicapd *d)
 {
     int64_t now = sci_clock_mono_ns();
     scicapd_control_expire(d->ctl, now);
-    int64_t period = scicapd_notify_watchdog_period_ns(&d->notify);
-    if (period > 0 && now - d->notify.last_ping_ns >= period) {
-        /* only when the acquisition thread shows signs of life within the watchdog interval */
-        if (now - scicapd_acquire_heartbeat_ns(d->acq) < 2 * period)
-            scicapd_notify_watchdog(&d->notify);
-        else
-            sci_log_write(d->log, SCI_LOG_ERR, "acquisition thread silent for %.1f s: watchdog not fed",
-                          sci_clock_s(scicapd_acquire_heartbeat_ns(d->acq), now));
-    }
     if (now - d->last_status_ns >= 2000000000LL) {
         d->last_status_ns = now;
         int q, r, f;
@@ -694,54 +687,75 @@ static void housekeeping(scicapd *d)
     }
 }
 
+/* The systemd watchdog (a loop timer): fed when due, only while the acquisition thread shows signs of life within
+ * the interval. Returns the ms to the next ping (-1 without a watchdog: the timer ends). */
+static int on_watchdog(void *user)
+{
+    scicapd *d = user;
+    int64_t period = scicapd_notify_watchdog_period_ns(&d->notify);
+    if (period <= 0)
+        return -1;
+    int64_t now = sci_clock_mono_ns();
+    if (now - d->notify.last_ping_ns >= period) {
+        if (now - scicapd_acquire_heartbeat_ns(d->acq) < 2 * period)
+            scicapd_notify_watchdog(&d->notify);
+        else
+            sci_log_write(d->log, SCI_LOG_ERR, "acquisition thread silent for %.1f s: watchdog not fed",
+                          sci_clock_s(scicapd_acquire_heartbeat_ns(d->acq), now));
+    }
+    int64_t left = d->notify.last_ping_ns + period - now;
+    return left <= 0 ? 0 : (int)(left / 1000000) + 1;
+}
+
+static void on_signal(void *user, int fd, short revents)
+{
+    scicapd *d = user;
+    struct signalfd_siginfo si;
+    while (read(fd, &si, sizeof si) == sizeof si) {
+        if (si.ssi_signo == SIGHUP) {
+            sci_error err = {0};
+            sci_log_write(d->log, SCI_LOG_NOTICE, "SIGHUP: reloading the configuration");
+            reload(d, NULL, &err);
+        } else {
+            sci_log_write(d->log, SCI_LOG_NOTICE, "signal %d: stopping", (int)si.ssi_signo);
+            scicapd_loop_stop(d->loop);
+        }
+    }
+}
+
+static void on_stopfd(void *user, int fd, short revents) { scicapd_loop_stop(((scicapd *)user)->loop); }
+/* The mailbox's eventfd only wakes the loop: the letters are delivered after every turn (on_turn_end). */
+static void on_mail(void *user, int fd, short revents) { (void)user; }
+
+static int control_fill(void *user, struct pollfd *fds, int max) { return scicapd_control_pollfds(user, fds, max); }
+static void control_dispatch(void *user, const struct pollfd *fds, int n) { scicapd_control_dispatch(user, fds, n); }
+static int control_deadline(void *user, int64_t now_ns) { return scicapd_control_next_deadline_ms(user, now_ns); }
+
+static void on_turn_end(void *user)
+{
+    scicapd *d = user;
+    deliver(d);
+    housekeeping(d);
+}
+
 int scicapd_run(scicapd *d)
 {
-    enum { FIXED = 3, MAXFD = FIXED + 1 + 1100 };
-    struct pollfd *fds = calloc(MAXFD, sizeof *fds);
-    if (!fds)
-        return -ENOMEM;
-    int stop = 0;
-    while (!stop) {
-        fds[0] = (struct pollfd){.fd = d->sfd, .events = POLLIN};
-        fds[1] = (struct pollfd){.fd = scicapd_mailbox_fd(d->mailbox), .events = POLLIN};
-        fds[2] = (struct pollfd){.fd = d->stopfd, .events = POLLIN};
-        int n = scicapd_control_pollfds(d->ctl, fds + FIXED, MAXFD - FIXED);
-        int64_t period = scicapd_notify_watchdog_period_ns(&d->notify);
-        int timeout = 1000;
-        if (period > 0) {
-            int64_t left = d->notify.last_ping_ns + period - sci_clock_mono_ns();
-            timeout = left <= 0 ? 0 : left / 1000000 < timeout ? (int)(left / 1000000) + 1 : timeout;
-        }
-        int due = scicapd_control_next_deadline_ms(d->ctl, sci_clock_mono_ns());
-        if (due >= 0 && due < timeout)
-            timeout = due;
-        int pr = poll(fds, (nfds_t)(FIXED + n), timeout);
-        if (pr < 0 && errno != EINTR) {
-            free(fds);
-            return -errno;
-        }
-        if (pr > 0 && (fds[0].revents & POLLIN)) {
-            struct signalfd_siginfo si;
-            while (read(d->sfd, &si, sizeof si) == sizeof si) {
-                if (si.ssi_signo == SIGHUP) {
-                    sci_error err = {0};
-                    sci_log_write(d->log, SCI_LOG_NOTICE, "SIGHUP: reloading the configuration");
-                    reload(d, NULL, &err);
-                } else {
-                    sci_log_write(d->log, SCI_LOG_NOTICE, "signal %d: stopping", (int)si.ssi_signo);
-                    stop = 1;
-                }
-            }
-        }
-        if (pr > 0 && (fds[2].revents & POLLIN))
-            stop = 1;
-        if (pr > 0)
-            scicapd_control_dispatch(d->ctl, fds + FIXED, n);
-        deliver(d);
-        housekeeping(d);
-    }
-    free(fds);
-    return 0;
+    /* a turn waits at most 1 s: the status line and the connections' deadlines are checked after each */
+    int rc = scicapd_loop_new(&d->loop, 1000);
+    if (rc < 0)
+        return rc;
+    if ((rc = scicapd_loop_add_fd(d->loop, d->sfd, POLLIN, on_signal, d)) < 0 ||
+        (rc = scicapd_loop_add_fd(d->loop, scicapd_mailbox_fd(d->mailbox), POLLIN, on_mail, d)) < 0 ||
+        (rc = scicapd_loop_add_fd(d->loop, d->stopfd, POLLIN, on_stopfd, d)) < 0 ||
+        (rc = scicapd_loop_add_poller(d->loop, control_fill, control_dispatch, control_deadline, d->ctl)) < 0 ||
+        (rc = scicapd_loop_add_timer(d->loop, 0, on_watchdog, d)) < 0)
+        goto out;
+    scicapd_loop_set_after(d->loop, on_turn_end, d);
+    rc = scicapd_loop_run(d->loop);
+out:
+    scicapd_loop_free(d->loop);
+    d->loop = NULL;
+    return rc < 0 ? rc : 0;
 }
 
 void scicapd_free(scicapd *d)
@@ -775,12 +789,13 @@ void scicapd_free(scicapd *d)
     /* last words to the clients */
     if (d->ctl && d->mailbox) {
         deliver(d);
-        for (int i = 0; i < 50 && scicapd_control_flushing(d->ctl); i++) {
-            struct pollfd fds[1100];
-            int n = scicapd_control_pollfds(d->ctl, fds, 1100);
-            poll(fds, (nfds_t)n, 20);
-            scicapd_control_dispatch(d->ctl, fds, n);
-        }
+        /* a loop of the connections alone: no signal or reload may run now */
+        scicapd_loop *l = NULL;
+        if (scicapd_loop_new(&l, 20) == 0 &&
+            scicapd_loop_add_poller(l, control_fill, control_dispatch, NULL, d->ctl) > 0)
+            for (int i = 0; i < 50 && scicapd_control_flushing(d->ctl); i++)
+                scicapd_loop_turn(l, 20);
+        scicapd_loop_free(l);
     }
     scicapd_control_close(d->ctl);
     scicapd_acquire_free(d->acq);
