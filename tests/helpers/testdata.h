@@ -23,4 +23,10 @@ int testdata_path(const char *name, char *buf, size_t n);
     } while (0)
 int testdata_is_ci(void);
 
+#include "recon/problem.h"
+/* For use inside a cmocka test: data file `name` (a .mat of the benchmark) read by sci_mat_read at white 255, its
+ * k problems (the caller frees them: sci_problem_array_free). A missing file fails or skips as TESTDATA_REQUIRE;
+ * one that cannot be read fails the test. */
+sci_problem **testdata_read_mat(const char *name, int *k);
+
 #endif

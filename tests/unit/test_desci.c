@@ -27,13 +27,8 @@
  * is exactly the cropped masks applied to the cropped truth. */
 static sci_problem *drop_crop(int x0, int y0, int cw, int ch)
 {
-    char path[4096];
-    TESTDATA_REQUIRE("drop40_cacti.mat", path);
-    sci_problem **p = NULL;
     int k = 0;
-    sci_error err = {0};
-    if (sci_mat_read(path, 255, &p, &k, &err) < 0)
-        fail_msg("%s", err.msg);
+    sci_problem **p = testdata_read_mat("drop40_cacti.mat", &k);
     sci_problem *c = calloc(1, sizeof *c);
     const sci_cube *src[3] = {p[0]->meas, p[0]->mask, p[0]->truth};
     sci_cube **dst[3] = {&c->meas, &c->mask, &c->truth};

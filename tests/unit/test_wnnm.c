@@ -349,13 +349,8 @@ static double denoise_gain(const char *what, const float *clean, int w, int h, i
 /* The truth frames of drop40's first snapshot, cropped to cw × ch from (x0, y0). */
 static float *drop_crop(int x0, int y0, int cw, int ch, int *n)
 {
-    char path[4096];
-    TESTDATA_REQUIRE("drop40_cacti.mat", path);
-    sci_problem **p = NULL;
     int k = 0;
-    sci_error err = {0};
-    if (sci_mat_read(path, 255, &p, &k, &err) < 0)
-        fail_msg("%s", err.msg);
+    sci_problem **p = testdata_read_mat("drop40_cacti.mat", &k);
     const sci_cube *t = p[0]->truth;
     *n = t->n;
     float *c = malloc((size_t)cw * ch * t->n * sizeof *c);
