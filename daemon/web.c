@@ -19,6 +19,7 @@
 #include "base/clock.h"
 #include "daemon/web_bridge.h"
 #include "daemon/web_events.h"
+#include "recon/solver.h"
 
 #define WEB_URL_MAX 1024
 #define WEB_BODY_MAX 4096
@@ -364,6 +365,19 @@ static enum MHD_Result serve_file(scicapd_web *w, struct MHD_Connection *c, cons
 }
 
 /* {status, jobs, captures, control}: three control-socket calls, kept WEB_STATE_CACHE_NS. */
+
+/* The control form's methods, from the solver table (a method added there appears in the page with no other edit):
+ * name, help line, and whether it needs a camera (a static scene seen by a moving camera). */
+static json_t *web_methods_json(void)
+{
+    size_t n = 0;
+    const solver_ops *const *m = solver_list(&n);
+    json_t *a = json_array();
+    for (size_t i = 0; a && i < n; i++)
+        json_array_append_new(a, json_pack("{s:s, s:s, s:b}", "name", m[i]->name, "summary", m[i]->summary,
+                                           "needs_camera", (m[i]->caps & SOLVER_NEEDS_CAMERA) != 0));
+    return a;
+}
 static enum MHD_Result serve_state(scicapd_web *w, struct MHD_Connection *c)
 {
     int64_t now = sci_clock_mono_ns();
@@ -384,8 +398,8 @@ static enum MHD_Result serve_state(scicapd_web *w, struct MHD_Connection *c)
         json_decref(caps);
         return respond_json(c, 503, json_pack("{s:s}", "error", msg));
     }
-    json_t *o = json_pack("{s:o, s:O, s:o, s:b}", "status", status, "jobs", json_object_get(jobs, "jobs"),
-                          "captures", caps, "control", w->o.control);
+    json_t *o = json_pack("{s:o, s:O, s:o, s:b, s:o}", "status", status, "jobs", json_object_get(jobs, "jobs"),
+                          "captures", caps, "control", w->o.control, "methods", web_methods_json());
     json_decref(jobs);
     char *s = o ? json_dumps(o, JSON_COMPACT) : NULL;
     json_decref(o);

@@ -37,10 +37,23 @@ async function loadState() {
   }
 }
 
+// The control form's methods come from the daemon's solver table; filled once, so a choice is not reset.
+function renderMethods(methods) {
+  const sel = $('method');
+  if (sel.options.length || !methods.length) return;
+  for (const m of methods) {
+    const o = document.createElement('option');
+    o.value = o.textContent = m.name;
+    o.title = m.summary + (m.needs_camera ? ' (static 3-D scenes only)' : '');
+    sel.appendChild(o);
+  }
+}
+
 function render() {
   const s = state.status || {};
   $('summary').textContent = `scicapd ${s.version || ''} · up ${fmt(s.uptime_s, 0)} s · ` +
     `${s.captures_stored || 0} stored this run`;
+  renderMethods(state.methods || []);
   renderDevices(s);
   renderJobs(state.jobs || []);
   renderCaptures(state.captures || {});

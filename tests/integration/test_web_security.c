@@ -15,6 +15,7 @@
 #include <dirent.h>
 #include <netinet/in.h>
 
+#include "recon/solver.h"
 #include "tests/integration/daemon_harness.h"
 
 #define SLOW_CONNECTIONS 50
@@ -238,6 +239,13 @@ static void listens_and_serves_page(void **s)
     json_t *o = json_loadb(r.body, r.body_len, 0, NULL);
     assert_non_null(json_object_get(json_object_get(o, "status"), "devices"));
     assert_true(json_is_true(json_object_get(o, "control")));
+    /* the control form's methods are the solver table's, in its order */
+    size_t n = 0;
+    const solver_ops *const *m = solver_list(&n);
+    json_t *methods = json_object_get(o, "methods");
+    assert_int_equal(json_array_size(methods), n);
+    for (size_t i = 0; i < n; i++)
+        assert_string_equal(json_string_value(json_object_get(json_array_get(methods, i), "name")), m[i]->name);
     json_decref(o);
 }
 

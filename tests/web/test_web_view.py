@@ -256,6 +256,7 @@ DOM_PROBE = """(() => {
           framesFailed: imgs.filter(i => i.dataset.loaded === 'error').length,
           jobs: document.querySelectorAll('#jobs tr[data-job]').length,
           devices: document.querySelectorAll('#devices li').length, curves: +(b.curves || 0), diff: +(b.diff || 0),
+          methods: [...document.querySelectorAll('#method option')].map(o => o.value),
           anim: (() => { const a = document.getElementById('recon-anim'); return a.complete && a.naturalWidth > 0; })(),
           overflow: document.documentElement.scrollWidth - window.innerWidth};
 })()"""
@@ -278,6 +279,13 @@ def main():
             time.sleep(0.1)
             left()
         print("tests/web: page live on its event stream")
+        table = [m["name"] for m in json.loads(http(port, "/api/state")[1])["methods"]]
+        while dt.eval(DOM_PROBE)["methods"] != table:  # the control form's methods are the solver table's
+            time.sleep(0.1)
+            left()
+        print(f"tests/web: the control form offers the solver table's methods: {', '.join(table)}")
+        if "gap-tv" not in table or "rayformer" not in table:
+            fail(f"/api/state lists methods {table}, not the solver table")
         status, body = http(port, "/api/capture", json.dumps(
             {"count": 1, "reconstruct": True, "method": "gap-tv", "preset": "best"}).encode(), token)
         if status != 200:
