@@ -116,6 +116,25 @@ static void sweep(const char *dir, const char *prefix, unsigned long *max, int *
     closedir(d);
 }
 
+/* ROOT's own files (ids.json, capture.running, the calibration pointer) are replaced through base/file's atomic
+ * writers: a crash mid-write leaves a temporary ".<name>.tmp-XXXXXX" beside them. Only such regular files go;
+ * anything else in ROOT is the administrator's. */
+static void sweep_root_temporaries(const char *root, int *removed)
+{
+    DIR *d = opendir(root);
+    if (!d)
+        return;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        struct stat st;
+        if (e->d_name[0] == '.' && strstr(e->d_name, ".tmp-") &&
+            fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISREG(st.st_mode) &&
+            unlinkat(dirfd(d), e->d_name, 0) == 0)
+            (*removed)++;
+    }
+    closedir(d);
+}
+
 /* ---- the id high-water mark (ROOT/ids.json) ----
  * Folder names alone cannot say which ids were used: a crash removes the partial folder of a reserved id and a
  * user may delete the newest capture. So the largest id that may have been handed out is kept in a file, and
@@ -239,6 +258,7 @@ int scicapd_store_open(scicapd_store **out, const char *root, int fsync_on, cons
     unsigned long unused = 0;
     sweep(shown, NULL, &unused, NULL, &r.removed, 0);
     sweep(stacks, NULL, &unused, NULL, &r.removed, 0);
+    sweep_root_temporaries(root, &r.removed);
     if ((rc = ids_read(s, err)) < 0) {
         scicapd_store_close(s);
         return rc;

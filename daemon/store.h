@@ -17,8 +17,9 @@
  *
  * Atomicity: a capture is written under ROOT/captures/.c000042.partial and renamed when complete (after fsync
  * of every file and of the folder when fsync is on); only then is it announced. A kill -9 leaves at most a
- * dot-named partial folder or a *.tmp-<pid> folder, which scicapd_store_open removes: a reader never sees half a
- * capture, and every announced capture survives.
+ * dot-named partial folder, a *.tmp-<pid> folder or a ROOT/.<name>.tmp-XXXXXX file (an interrupted atomic write of
+ * one of ROOT's own files), which scicapd_store_open removes: a reader never sees half a capture, and every
+ * announced capture survives.
  * Capture ids are c000001, c000002, ... and are never reused, not after a crash, not after captures are deleted:
  * ROOT/ids.json holds a durable high-water mark (the largest capture and calibration number that may have been
  * handed out), written and fsync'd before any id above it is used, STORE_ID_BLOCK (16) at a time; numbering
@@ -63,7 +64,7 @@ void scicapd_snapshot_free(scicapd_jobs *jobs, scicapd_snapshot *s);
 
 typedef struct scicapd_store_recovery {
     int captures;            /* complete captures found */
-    int removed;             /* partial folders removed */
+    int removed;             /* partial folders and interrupted temporary files removed */
 } scicapd_store_recovery;
 
 /* Lock ROOT (ROOT/scicapd.lock, flock, for the store's life: -EBUSY naming the holder's pid when another
