@@ -22,6 +22,7 @@
 
 #include "base/error.h"
 #include "drivers/sync.h"
+#include "recon/solver.h"
 #include "sim/masks.h"
 
 #define SCICAPD_CONFIG_DEFAULT_PATH "/etc/scicap/scicapd.json"
@@ -95,7 +96,7 @@ typedef struct scicapd_config {
     enum sync_mode sync_mode;
     double counts_per_unit;               /* uncalibrated scale: counts for "white" (0 = simulator's value) */
     /* reconstruction defaults */
-    char recon_method[16];                /* a method of recon/solver.h (default: the table's first) */
+    char recon_method[SOLVER_NAME_MAX];   /* a method of recon/solver.h (default: the table's first) */
     char recon_preset[16];                /* "balanced" (fast|balanced|best; default|quality: aliases) */
     char recon_curves[SCICAPD_PATH_MAX];  /* measured accuracy-against-time curves (scicap bench CSV) used to
                                              honour a reconstruct request's budget_s; default

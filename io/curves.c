@@ -7,7 +7,7 @@
 #include <string.h>
 
 typedef struct curve_row {
-    char scene[32], method[16], setting[96];
+    char scene[32], method[SOLVER_NAME_MAX], setting[96];
     double psnr, wall_s, voxels;
     int camera;
 } curve_row;
@@ -63,6 +63,11 @@ int sci_curves_load(sci_curves **out, const char *csv_path, sci_error *err)
             c->rows = r;
         }
         curve_row *r = &c->rows[c->n];
+        if (strlen(fields[1]) >= sizeof r->method) {
+            rc = sci_error_set(err, SCI_EFORMAT, "%s:%d: method name longer than %zu bytes", csv_path, lineno,
+                               sizeof r->method - 1);
+            break;
+        }
         snprintf(r->scene, sizeof r->scene, "%s", fields[0]);
         snprintf(r->method, sizeof r->method, "%s", fields[1]);
         snprintf(r->setting, sizeof r->setting, "%s", fields[2]);

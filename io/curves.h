@@ -16,11 +16,12 @@
 #include <jansson.h>
 
 #include "base/error.h"
+#include "recon/solver.h"
 
 typedef struct sci_curves sci_curves;
 
 typedef struct sci_curve_choice {
-    char method[16];
+    char method[SOLVER_NAME_MAX];
     char setting[96];   /* "iters=100 tv_iters=5" */
     double predicted_s; /* largest predicted wall time over the scenes of the kind */
     double mean_psnr;   /* mean PSNR over those scenes, dB (peak = frame max) */

@@ -78,13 +78,17 @@ void sci_trace_clear(sci_trace *t);
 /* Write the trace as CSV with a header line. -errno with the path on failure. */
 int sci_trace_write_csv(const sci_trace *t, const char *path, sci_error *err);
 
+/* Bytes of a method name, the NUL included (recon/solver.h calls it SOLVER_NAME_MAX; its table check refuses a
+ * longer name, so buffers of this size never cut one). */
+#define SCI_METHOD_NAME_MAX 32
+
 typedef struct sci_result {
     sci_cube *frames;   /* w×h×N reconstruction, owned */
     sci_trace trace;    /* owned */
     int iters_done;     /* iterations completed */
     int stopped;        /* 0 ran to the end; SCI_ECANCELED; SCI_EDIVERGED */
     sci_error error;    /* message when the solver returned an error */
-    char method[32];    /* "gap-tv", "admm-tv", ... */
+    char method[SCI_METHOD_NAME_MAX]; /* "gap-tv", "admm-tv", ... */
     /* The metrics the tracer computed on its last iteration (truth known), per frame, so that writers of
      * result.json need not compute them again (an SSIM is ~25 ms for 256×256×8): 3·n values — PSNR (per-frame
      * max), PSNR (peak), SSIM — owned, or NULL. Valid for `final_of` (the frames' data they were computed on). */

@@ -15,6 +15,7 @@
 #include "recon/pnp_ffdnet.h"
 #include "recon/nerf/rayformer_solve.h"
 #include "recon/nerf/scinerf_solve.h"
+#include "recon/nerf/trainer.h"
 
 /* A test build compiles this file with -DSCICAP_EXTRA_SOLVER=<its solver_ops> and links that method in: the row
  * below is then all that tells every interface about it (tests/extra_method). */
@@ -74,10 +75,34 @@ const solver_ops *const *solver_list(size_t *count)
     return solvers;
 }
 
+/* Names are copied into fixed buffers (sci_result.method, scicapd's config, the curves, a NeRF checkpoint's
+ * header): one that does not fit would be cut silently there, so the table refuses it. */
+static int name_check(const solver_ops *m, sci_error *err)
+{
+    size_t len = m->name ? strlen(m->name) : 0;
+    if (len == 0)
+        return sci_error_set(err, -EINVAL, "a row without a name");
+    if (len >= SOLVER_NAME_MAX)
+        return sci_error_set(err, -EINVAL, "%.*s...: a name of %zu bytes, SOLVER_NAME_MAX (%d) allows %d",
+                             SOLVER_NAME_MAX - 1, m->name, len, SOLVER_NAME_MAX, SOLVER_NAME_MAX - 1);
+    if ((m->caps & SOLVER_CHECKPOINTS) && len >= NERF_CKPT_METHOD_MAX)
+        return sci_error_set(err, -EINVAL, "%s: a name of %zu bytes, a checkpoint header (NERF_CKPT_METHOD_MAX %d) "
+                             "holds %d", m->name, len, NERF_CKPT_METHOD_MAX, NERF_CKPT_METHOD_MAX - 1);
+    return 0;
+}
+
 int solver_list_check(sci_error *err)
 {
-    for (size_t i = 0; solvers[i]; i++) {
-        const solver_ops *m = solvers[i];
+    return solver_table_check(solvers, err);
+}
+
+int solver_table_check(const solver_ops *const *list, sci_error *err)
+{
+    for (size_t i = 0; list[i]; i++) {
+        const solver_ops *m = list[i];
+        int rc = name_check(m, err);
+        if (rc < 0)
+            return rc;
         const solver_field *it = solver_field_find(m, "iters", NULL);
         if (m->settings_size > SOLVER_SETTINGS_MAX)
             return sci_error_set(err, -EINVAL, "%s: settings of %zu bytes exceed SOLVER_SETTINGS_MAX (%d)", m->name,
@@ -88,7 +113,7 @@ int solver_list_check(sci_error *err)
             return sci_error_set(err, -EINVAL, "%s: the row lacks defaults, preset, run, summary or bench grids",
                                  m->name);
         for (size_t j = 0; j < i; j++)
-            if (strcmp(solvers[j]->name, m->name) == 0)
+            if (strcmp(list[j]->name, m->name) == 0)
                 return sci_error_set(err, -EINVAL, "%s: two rows of that name", m->name);
     }
     return 0;

@@ -68,6 +68,7 @@ typedef enum solver_field_type {
     SOLVER_FIELD_LIST,   /* solver_values; JSON array of 1..SOLVER_LIST_MAX numbers in [lo, hi], or a string "50,25" */
 } solver_field_type;
 
+#define SOLVER_NAME_MAX SCI_METHOD_NAME_MAX /* bytes of a method name (solver_ops.name), the NUL included */
 #define SOLVER_STRING_MAX 256 /* bytes of a STRING field, the NUL included */
 #define SOLVER_LIST_MAX 8     /* values of a LIST field */
 typedef struct solver_values {
@@ -148,9 +149,12 @@ typedef struct solver_ops {
 
 /* The methods in table order (NULL-terminated); *count (nullable) receives how many. */
 const solver_ops *const *solver_list(size_t *count);
-/* 0, or -EINVAL naming the first row of the table that breaks a rule every interface relies on (settings_size
+/* 0, or -EINVAL naming the first row of the table that breaks a rule every interface relies on (a name shorter
+ * than SOLVER_NAME_MAX bytes, or than NERF_CKPT_METHOD_MAX for a method with SOLVER_CHECKPOINTS; settings_size
  * within SOLVER_SETTINGS_MAX, an "iters" field, names unique, presets and bench grids present). */
 int solver_list_check(sci_error *err);
+/* The same rules on a NULL-terminated table like solver_list's (a test hands it one with a broken row). */
+int solver_table_check(const solver_ops *const *list, sci_error *err);
 /* The method called `name` in `list` (a NULL-terminated table like solver_list's), or NULL; with err (nullable)
  * set to -EINVAL "unknown method 'x' (the list's names)". Interfaces that take the table as a parameter (the
  * command line, so a test can hand it a table with an extra method) find methods through this. */

@@ -32,7 +32,7 @@
  * a run with known poses may also start a run that optimises them (the scene first, then the poses): the poses
  * then start as configured.
  * Layout (little-endian, native float/double): header {magic "SCINERF\0", u32 version, u32 reserved,
- * char method[16], i32 w, h, n, iter, u64 n_params[2], u64 n_pose_params, u64 rng[4], f64 wall_s, cpu_s,
+ * char method[NERF_CKPT_METHOD_MAX], i32 w, h, n, iter, u64 n_params[2], u64 n_pose_params, u64 rng[4], f64 wall_s, cpu_s,
  * f32 box[6]},
  * then for each model: params (f32), Adam m, s (f32), steps (u32); pose twists, pose Adam m, v, grad (f64),
  * pose step (i64); then a u64 FNV-1a checksum of everything before it.
@@ -50,6 +50,11 @@
 #include "recon/nerf/patch_sampler.h"
 #include "recon/nerf/poses.h"
 #include "recon/problem.h"
+
+/* Bytes of the method name in a checkpoint header, the NUL included: part of the file format, so it stays 16 even
+ * though names may be longer elsewhere (SCI_METHOD_NAME_MAX); solver_list_check refuses a checkpointing method
+ * whose name does not fit. */
+#define NERF_CKPT_METHOD_MAX 16
 
 /* A radiance field as the trainer sees it. A call evaluates n_groups groups of R rays × L samples each: point
  * (g·R + r)·L + s, pos (n_groups·R·L × 3, world), dir (n_groups·R × 3, unit, world, borrowed until the backward)
@@ -165,6 +170,7 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
 
 /* Checkpoint facts without resuming: the step it was taken after and the method. 0, or SCI_EFORMAT naming what is
  * wrong (magic, version, truncated, checksum). */
-int nerf_checkpoint_peek(const void *blob, size_t bytes, int *iter, char method[16], sci_error *err);
+int nerf_checkpoint_peek(const void *blob, size_t bytes, int *iter, char method[NERF_CKPT_METHOD_MAX],
+                         sci_error *err);
 
 #endif

@@ -14,7 +14,7 @@
 typedef struct ckpt_header {
     char magic[8];
     uint32_t version, reserved;
-    char method[16];
+    char method[NERF_CKPT_METHOD_MAX];
     int32_t w, h, n, iter;
     uint64_t n_params[2], n_pose_params;
     uint64_t rng[4];
@@ -105,7 +105,8 @@ static int ckpt_header_check(const void *blob, size_t bytes, ckpt_header *h, sci
     return 0;
 }
 
-int nerf_checkpoint_peek(const void *blob, size_t bytes, int *iter, char method[16], sci_error *err)
+int nerf_checkpoint_peek(const void *blob, size_t bytes, int *iter, char method[NERF_CKPT_METHOD_MAX],
+                         sci_error *err)
 {
     ckpt_header h;
     int rc = ckpt_header_check(blob, bytes, &h, err);

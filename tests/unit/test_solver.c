@@ -17,6 +17,7 @@
 #include "recon/gaptv.h"
 #include "recon/nerf/rayformer_solve.h"
 #include "recon/nerf/scinerf_solve.h"
+#include "recon/nerf/trainer.h"
 #include "recon/solver.h"
 #include "sim/default_scene.h"
 #include "sim/simulate.h"
@@ -58,6 +59,28 @@ static void test_lookup(void **state)
     snprintf(want, sizeof want, "unknown method '%s' (%s)", l[0]->name, l[1]->name);
     assert_string_equal(err.msg, want);
     assert_int_equal(solver_list_check(&err), 0);
+    /* a name that a SOLVER_NAME_MAX buffer would cut is refused; one byte shorter fits */
+    char longest[SOLVER_NAME_MAX + 1];
+    memset(longest, 'x', sizeof longest - 1);
+    longest[SOLVER_NAME_MAX] = 0;
+    solver_ops too_long = sci_gaptv_solver;
+    too_long.name = longest;
+    const solver_ops *const bad[] = {l[0], &too_long, NULL};
+    assert_int_equal(solver_table_check(bad, &err), -EINVAL);
+    printf("%s\n", err.msg);
+    assert_non_null(strstr(err.msg, "SOLVER_NAME_MAX"));
+    longest[SOLVER_NAME_MAX - 1] = 0;
+    assert_int_equal(solver_table_check(bad, &err), 0);
+    /* a checkpointing method's name must also fit the checkpoint header, which keeps its 16 bytes */
+    solver_ops ckpt = sci_rayformer_solver;
+    ckpt.name = "rayformer-16byte";
+    const solver_ops *const bad_ckpt[] = {&ckpt, NULL};
+    assert_int_equal((int)strlen(ckpt.name), NERF_CKPT_METHOD_MAX);
+    assert_int_equal(solver_table_check(bad_ckpt, &err), -EINVAL);
+    printf("%s\n", err.msg);
+    assert_non_null(strstr(err.msg, "checkpoint header"));
+    ckpt.name = "rayformer-15byt";
+    assert_int_equal(solver_table_check(bad_ckpt, &err), 0);
     /* only the NeRF methods need a camera and checkpoint */
     assert_false(sci_gaptv_solver.caps & SOLVER_NEEDS_CAMERA);
     assert_true(sci_scinerf_solver.caps & SOLVER_NEEDS_CAMERA);
