@@ -51,14 +51,15 @@ static void test_quick_report(void **state)
     assert_non_null(fgets(line, sizeof line, f));
     assert_non_null(strstr(line, "scene,method,setting,psnr_db"));
     /* scene, method -> count of recommended; scenes seen */
-    char keys[64][48];
+    _Static_assert(SOLVER_NAME_MAX == 32, "the sscanf width below reads SOLVER_NAME_MAX - 1 bytes");
+    char keys[64][32 + SOLVER_NAME_MAX];
     int rec[64] = {0}, nk = 0, rows = 0, fronts = 0;
     while (fgets(line, sizeof line, f)) {
-        char scene[32], method[16], setting[96];
+        char scene[32], method[SOLVER_NAME_MAX], setting[96];
         double psnr, psnr1, ssim, wall, cpu, rss;
         int pareto, recommended, threads, camera;
         double voxels;
-        int got = sscanf(line, "%31[^,],%15[^,],%95[^,],%lf,%lf,%lf,%lf,%lf,%lf,%d,%d,%d,%lf,%d", scene, method,
+        int got = sscanf(line, "%31[^,],%31[^,],%95[^,],%lf,%lf,%lf,%lf,%lf,%lf,%d,%d,%d,%lf,%d", scene, method,
                          setting, &psnr, &psnr1, &ssim, &wall, &cpu, &rss, &pareto, &recommended, &threads, &voxels,
                          &camera);
         assert_int_equal(got, 14);
@@ -66,7 +67,7 @@ static void test_quick_report(void **state)
         assert_true(isfinite(psnr) && isfinite(ssim) && wall > 0 && rss > 1);
         rows++;
         fronts += pareto;
-        char key[48];
+        char key[32 + SOLVER_NAME_MAX];
         snprintf(key, sizeof key, "%s/%s", scene, method);
         int k;
         for (k = 0; k < nk && strcmp(keys[k], key) != 0; k++)

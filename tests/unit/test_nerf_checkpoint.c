@@ -98,7 +98,7 @@ static void test_rayformer_cancel_resume(void **state)
     assert_int_equal(st.calls, 1);
     assert_int_equal(st.iter, 7);
     int it = -1;
-    char method[16];
+    char method[NERF_CKPT_METHOD_MAX];
     assert_int_equal(nerf_checkpoint_peek(st.blob, st.bytes, &it, method, NULL), 0);
     assert_int_equal(it, 7);
     assert_string_equal(method, "rayformer");
