@@ -106,7 +106,9 @@ static void test_presets(void **state)
     assert_int_equal(solver_preset_parse("turbo", &p, NULL, &err), -EINVAL);
     assert_non_null(strstr(err.msg, "fast, balanced, best"));
 
-    const int gap_it[3] = {80, 130, 300}, gap_tvi[3] = {5, 5, 5};
+    /* the presets are written once, in each method's file: here only their relations (GAP-TV and ADMM-TV share
+     * the measured points; each preset costs more than the one before) */
+    int prev_iters = 0;
     for (int k = 0; k < SOLVER_PRESET_COUNT; k++) {
         sci_gaptv_params g;
         sci_admmtv_params a;
@@ -114,10 +116,10 @@ static void test_presets(void **state)
         sci_admmtv_params_default(&a);
         solver_settings_preset(&sci_gaptv_solver, &g, (solver_preset)k);
         solver_settings_preset(&sci_admmtv_solver, &a, (solver_preset)k);
-        assert_int_equal(g.iters, gap_it[k]);
-        assert_int_equal(g.tv_iters, gap_tvi[k]);
-        assert_int_equal(a.iters, gap_it[k]);
-        assert_int_equal(a.tv_iters, gap_tvi[k]);
+        assert_true(g.iters > prev_iters);
+        prev_iters = g.iters;
+        assert_int_equal(a.iters, g.iters);
+        assert_int_equal(a.tv_iters, g.tv_iters);
         sci_rayformer_params r1, r2;
         sci_rayformer_params_default(&r1);
         sci_rayformer_params_default(&r2);
@@ -143,18 +145,19 @@ static void test_presets(void **state)
         json_decref(jd), json_decref(jb);
         solver_settings_free(d), solver_settings_free(b);
     }
-    /* the rayformer presets (900 / 1800 / 3600 steps of 128 windows of 2 × 2, 32 samples; best decays the rate
-     * further) */
-    sci_rayformer_params r;
-    sci_rayformer_params_default(&r);
-    solver_settings_preset(&sci_rayformer_solver, &r, SOLVER_PRESET_FAST);
-    assert_int_equal(r.iters, 900);
-    assert_int_equal(r.samples, 32);
-    assert_true(r.lr_final == 3e-3);
-    solver_settings_preset(&sci_rayformer_solver, &r, SOLVER_PRESET_BEST);
-    assert_int_equal(r.iters, 3600);
-    assert_int_equal(r.patches_per_step, 128);
-    assert_true(r.lr_final == 2e-3);
+    /* the rayformer presets: each trains longer than the one before, on the same windows and samples, and best
+     * decays the rate at least as far */
+    sci_rayformer_params r[SOLVER_PRESET_COUNT];
+    for (int k = 0; k < SOLVER_PRESET_COUNT; k++) {
+        sci_rayformer_params_default(&r[k]);
+        solver_settings_preset(&sci_rayformer_solver, &r[k], (solver_preset)k);
+        if (k > 0) {
+            assert_true(r[k].iters > r[k - 1].iters);
+            assert_int_equal(r[k].samples, r[0].samples);
+            assert_int_equal(r[k].patches_per_step, r[0].patches_per_step);
+            assert_true(r[k].lr_final <= r[k - 1].lr_final);
+        }
+    }
 }
 
 static void test_json(void **state)
