@@ -464,12 +464,41 @@ static int method_enabled(const char *list, const char *m)
     return 0;
 }
 
-int cli_bench_main(int argc, char **argv)
-{
-    int quick = 0, threads = 0;
-    const char *out = "bench/results", *csv = "bench/results.csv", *data = getenv("SCICAP_DATA"),
-               *scenes = NULL, *methods_arg = NULL, *point = NULL, *scene_arg = NULL;
+/* The command line, as parsed. `scenes` may point into scenes_buf once defaults are filled. */
+typedef struct bench_opts {
+    int quick, threads;
+    const char *out, *csv, *data, *scenes, *methods_arg, *point, *scene_arg;
     char scenes_buf[4096];
+} bench_opts;
+
+/* One run of the suite: what cli_bench_main's steps share. pts and methods are owned (bench_run_free). */
+typedef struct bench_run {
+    bench_opts *o;
+    char self[4096];           /* this executable, re-run per point */
+    char tmpdir[32];           /* the simulated scenes' problem folders */
+    bench_scene sc[8];
+    int ns;
+    bench_point *pts;
+    int np, cap;
+    const char **methods;      /* every row of the solver table */
+    int n_methods;
+    const solver_ops *const *table;
+    int nrun, nkept, failed;
+    int64_t t0;
+} bench_run;
+
+/* The simulator's example scenes of the suite; quick = part of --quick. */
+static const struct { const char *file, *name, *what; int quick; } bench_suite[] = {
+    {"cacti_layers.json", "video2d", "video2d layers, no noise", 1},
+    {"cacti_sensor_noise.json", "video2d_noise", "video2d layers, sensor noise", 0},
+    {"static3d_corridor.json", "static3d", "static3d corridor, moving camera, no noise", 1},
+    {"static3d_noisy.json", "static3d_noise", "static3d, moving camera, shot and read noise", 0},
+};
+#define BENCH_SUITE_LEN (sizeof bench_suite / sizeof bench_suite[0])
+
+/* Parses argv into o. Returns -1 to go on, else the exit code (0 after --help, 2 on a bad option). */
+static int bench_opts_parse(bench_opts *o, int argc, char **argv)
+{
     static const struct option longopts[] = {
         {"quick", no_argument, 0, 'Q'},        {"full", no_argument, 0, 'F'},
         {"out", required_argument, 0, 'o'},    {"csv", required_argument, 0, 'c'},
@@ -479,197 +508,255 @@ int cli_bench_main(int argc, char **argv)
         {"scene", required_argument, 0, 'S'},
         {0, 0, 0, 0},
     };
+    o->out = "bench/results", o->csv = "bench/results.csv", o->data = getenv("SCICAP_DATA");
     optind = 1;
     int c;
     while ((c = getopt_long(argc, argv, "o:c:d:s:m:j:h", longopts, NULL)) != -1) {
         switch (c) {
-        case 'Q': quick = 1; break;
-        case 'F': quick = 0; break;
-        case 'o': out = optarg; break;
-        case 'c': csv = optarg; break;
-        case 'd': data = optarg; break;
-        case 's': scenes = optarg; break;
-        case 'm': methods_arg = optarg; break;
-        case 'j': threads = atoi(optarg); break;
-        case 'P': point = optarg; break;
-        case 'S': scene_arg = optarg; break;
+        case 'Q': o->quick = 1; break;
+        case 'F': o->quick = 0; break;
+        case 'o': o->out = optarg; break;
+        case 'c': o->csv = optarg; break;
+        case 'd': o->data = optarg; break;
+        case 's': o->scenes = optarg; break;
+        case 'm': o->methods_arg = optarg; break;
+        case 'j': o->threads = atoi(optarg); break;
+        case 'P': o->point = optarg; break;
+        case 'S': o->scene_arg = optarg; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
     }
-    if (threads > 0)
-        omp_set_num_threads(threads);
-    if (point)
-        return run_point(point);
-    if (optind != argc) {
-        usage(stderr);
-        return 2;
+    return -1;
+}
+
+/* Defaults for data, scenes and threads; finds this executable and makes the output and temporary folders.
+ * Returns 0, or 1 after a message. */
+static int bench_run_prepare(bench_run *r)
+{
+    bench_opts *o = r->o;
+    if (!o->data || !*o->data)
+        o->data = "../shared/data";
+    if (!o->scenes) {
+        o->scenes = find_scenes(o->scenes_buf, sizeof o->scenes_buf);
+        fprintf(stderr, "scicap bench: example scenes from %s\n", o->scenes);
     }
-    if (!data || !*data)
-        data = "../shared/data";
-    if (!scenes) {
-        scenes = find_scenes(scenes_buf, sizeof scenes_buf);
-        fprintf(stderr, "scicap bench: example scenes from %s\n", scenes);
-    }
-    if (threads <= 0)
-        threads = omp_get_max_threads();
-    char self[4096];
-    ssize_t sl = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (o->threads <= 0)
+        o->threads = omp_get_max_threads();
+    ssize_t sl = readlink("/proc/self/exe", r->self, sizeof r->self - 1);
     if (sl <= 0) {
         fprintf(stderr, "scicap bench: cannot find my own executable: %s\n", strerror(errno));
         return 1;
     }
-    self[sl] = 0;
-    mkdir(out, 0755);
-    char tmpdir[] = "/tmp/scicap-bench-XXXXXX";
-    if (!mkdtemp(tmpdir)) {
+    r->self[sl] = 0;
+    mkdir(o->out, 0755);
+    snprintf(r->tmpdir, sizeof r->tmpdir, "/tmp/scicap-bench-XXXXXX");
+    if (!mkdtemp(r->tmpdir)) {
         fprintf(stderr, "scicap bench: mkdtemp: %s\n", strerror(errno));
         return 1;
     }
+    return 0;
+}
 
-    /* The suite. */
-    bench_scene sc[8];
-    int ns = 0;
+/* The drop40 benchmark as the suite's first scene when its .mat is readable. Returns 0, or 1 after a message. */
+static int bench_suite_add_drop40(bench_run *r)
+{
     char mat[2048];
-    snprintf(mat, sizeof mat, "%s/drop40_cacti.mat", data);
-    if (access(mat, R_OK) == 0) {
-        sci_problem **p = NULL;
-        int k = 0;
-        sci_error err = {0};
-        if (sci_source_read(mat, &p, &k, &err) < 0) {
-            fprintf(stderr, "scicap bench: %s\n", err.msg);
-            return 1;
-        }
-        snprintf(sc[ns].name, sizeof sc[ns].name, "drop40");
-        snprintf(sc[ns].path, sizeof sc[ns].path, "%s", mat);
-        snprintf(sc[ns].what, sizeof sc[ns].what, "drop40 benchmark, snapshot 1 (%dx%dx%d)", p[0]->mask->w,
-                 p[0]->mask->h, p[0]->mask->n);
-        sc[ns].has_camera = 0;
-        sc[ns].voxels = (double)sci_cube_count(p[0]->mask);
-        sci_problem_array_free(p, k);
-        ns++;
-    } else {
+    snprintf(mat, sizeof mat, "%s/drop40_cacti.mat", r->o->data);
+    if (access(mat, R_OK) != 0) {
         fprintf(stderr, "scicap bench: NOTE: %s not found (set SCICAP_DATA or --data); the suite runs without it\n",
                 mat);
+        return 0;
     }
-    static const struct { const char *file, *name, *what; int quick; } suite[] = {
-        {"cacti_layers.json", "video2d", "video2d layers, no noise", 1},
-        {"cacti_sensor_noise.json", "video2d_noise", "video2d layers, sensor noise", 0},
-        {"static3d_corridor.json", "static3d", "static3d corridor, moving camera, no noise", 1},
-        {"static3d_noisy.json", "static3d_noise", "static3d, moving camera, shot and read noise", 0},
-    };
-    if (scene_arg) {
-        /* Every name in --scene must be one of the suite's; drop40 also needs its .mat. */
-        char list[1024];
-        snprintf(list, sizeof list, "%s", scene_arg);
-        char *save = NULL;
-        for (char *t = strtok_r(list, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
-            int known = ns > 0 && strcmp(t, "drop40") == 0;
-            for (size_t i = 0; i < sizeof suite / sizeof suite[0]; i++)
-                known |= strcmp(t, suite[i].name) == 0 && !(quick && !suite[i].quick);
-            if (!known) {
-                fprintf(stderr,
-                        "scicap bench: --scene: unknown scene '%s'%s; the suite's scenes are: %svideo2d, "
-                        "video2d_noise, static3d, static3d_noise%s\n",
-                        t, strcmp(t, "drop40") == 0 ? " (drop40_cacti.mat not found)" : "", ns ? "drop40, " : "",
-                        quick ? " (--quick: video2d, static3d)" : "");
-                return 2;
-            }
+    sci_problem **p = NULL;
+    int k = 0;
+    sci_error err = {0};
+    if (sci_source_read(mat, &p, &k, &err) < 0) {
+        fprintf(stderr, "scicap bench: %s\n", err.msg);
+        return 1;
+    }
+    bench_scene *sc = &r->sc[r->ns];
+    snprintf(sc->name, sizeof sc->name, "drop40");
+    snprintf(sc->path, sizeof sc->path, "%s", mat);
+    snprintf(sc->what, sizeof sc->what, "drop40 benchmark, snapshot 1 (%dx%dx%d)", p[0]->mask->w, p[0]->mask->h,
+             p[0]->mask->n);
+    sc->has_camera = 0;
+    sc->voxels = (double)sci_cube_count(p[0]->mask);
+    sci_problem_array_free(p, k);
+    r->ns++;
+    return 0;
+}
+
+/* Every name in --scene must be one of the suite's; drop40 also needs its .mat. Returns 0, or 2 after a message. */
+static int bench_scenes_check(const bench_run *r)
+{
+    const bench_opts *o = r->o;
+    if (!o->scene_arg)
+        return 0;
+    char list[1024];
+    snprintf(list, sizeof list, "%s", o->scene_arg);
+    char *save = NULL;
+    for (char *t = strtok_r(list, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        int known = r->ns > 0 && strcmp(t, "drop40") == 0;
+        for (size_t i = 0; i < BENCH_SUITE_LEN; i++)
+            known |= strcmp(t, bench_suite[i].name) == 0 && !(o->quick && !bench_suite[i].quick);
+        if (!known) {
+            fprintf(stderr,
+                    "scicap bench: --scene: unknown scene '%s'%s; the suite's scenes are: %svideo2d, "
+                    "video2d_noise, static3d, static3d_noise%s\n",
+                    t, strcmp(t, "drop40") == 0 ? " (drop40_cacti.mat not found)" : "", r->ns ? "drop40, " : "",
+                    o->quick ? " (--quick: video2d, static3d)" : "");
+            return 2;
         }
     }
-    for (size_t i = 0; i < sizeof suite / sizeof suite[0]; i++) {
-        if (quick && !suite[i].quick)
+    return 0;
+}
+
+/* The suite: drop40, the check of --scene, then the simulated scenes. Returns 0 or the exit code. */
+static int bench_suite_build(bench_run *r)
+{
+    int rc = bench_suite_add_drop40(r);
+    if (rc == 0)
+        rc = bench_scenes_check(r);
+    if (rc != 0)
+        return rc;
+    for (size_t i = 0; i < BENCH_SUITE_LEN; i++) {
+        if (r->o->quick && !bench_suite[i].quick)
             continue;
         char path[2048];
-        snprintf(path, sizeof path, "%s/%s", scenes, suite[i].file);
+        snprintf(path, sizeof path, "%s/%s", r->o->scenes, bench_suite[i].file);
         fprintf(stderr, "scicap bench: simulating %s\n", path);
-        if (prepare_scene(&sc[ns], path, suite[i].name, suite[i].what, tmpdir) == 0)
-            ns++;
+        if (prepare_scene(&r->sc[r->ns], path, bench_suite[i].name, bench_suite[i].what, r->tmpdir) == 0)
+            r->ns++;
         else
             return 1;
     }
+    return 0;
+}
 
-    /* The grids. */
-    bench_point *pts = NULL;
-    int np = 0, cap = 0;
+/* The grids: one point per scene × enabled method × grid row. Returns 0, or 1 after a message. */
+static int bench_grid_build(bench_run *r)
+{
+    const bench_opts *o = r->o;
     size_t n_methods;
-    const solver_ops *const *table = solver_list(&n_methods);
+    r->table = solver_list(&n_methods);
     /* every row of the table, however many (a new method needs no edit here) */
-    const char **methods = calloc(n_methods + 1, sizeof *methods);
-    if (!methods) {
+    r->methods = calloc(n_methods + 1, sizeof *r->methods);
+    if (!r->methods) {
         fprintf(stderr, "scicap bench: out of memory\n");
         return 1;
     }
-    const int N_METHODS = (int)n_methods;
-    for (int m = 0; m < N_METHODS; m++)
-        methods[m] = table[m]->name;
+    r->n_methods = (int)n_methods;
+    for (int m = 0; m < r->n_methods; m++)
+        r->methods[m] = r->table[m]->name;
     /* Each method's grid is its own (solver_ops.bench_quick / bench_full): the classical methods over iterations ×
      * TV passes; the NeRF methods on the fast preset (rayformer 900 steps, scinerf 700: ≈ 4 min each here) with
      * fewer steps, and at 300 steps one other knob at a time — about 10 minutes per scene on 2 cores; the presets
      * balanced/best (9–30 min each) are measured by bench_nerf_recon instead, to keep this report under 30
      * minutes. A method that needs a camera runs on the scenes that have one. */
-    for (int s = 0; s < ns; s++)
-        for (int m = 0; m < N_METHODS; m++) {
-            const solver_ops *op = table[m];
-            if (!method_enabled(methods_arg, op->name) || !method_enabled(scene_arg, sc[s].name) ||
-                ((op->caps & SOLVER_NEEDS_CAMERA) && !sc[s].has_camera))
+    for (int s = 0; s < r->ns; s++)
+        for (int m = 0; m < r->n_methods; m++) {
+            const solver_ops *op = r->table[m];
+            if (!method_enabled(o->methods_arg, op->name) || !method_enabled(o->scene_arg, r->sc[s].name) ||
+                ((op->caps & SOLVER_NEEDS_CAMERA) && !r->sc[s].has_camera))
                 continue;
-            for (const char *const *g = quick ? op->bench_quick : op->bench_full; g && *g; g++) {
+            for (const char *const *g = o->quick ? op->bench_quick : op->bench_full; g && *g; g++) {
                 json_t *params = json_loads(*g, 0, NULL);
                 if (!params) {
                     fprintf(stderr, "scicap bench: %s: bad grid point %s\n", op->name, *g);
                     return 1;
                 }
-                add_point(&pts, &np, &cap, s, op->name, params);
+                add_point(&r->pts, &r->np, &r->cap, s, op->name, params);
             }
         }
+    return 0;
+}
 
-    const int nrun = np;
-    const int nkept =
-        (methods_arg || scene_arg) && !quick ? keep_previous(csv, methods_arg, scene_arg, sc, ns, &pts, &np, &cap) : 0;
-    fprintf(stderr, "scicap bench: %d points on %d scenes, %d threads each", nrun, ns, threads);
-    if (nkept)
-        fprintf(stderr, "; %d points of the other methods kept from %s", nkept, csv);
+/* Runs every new point in its own process, a progress line each; keeps the other points from the previous CSV. */
+static void bench_points_run(bench_run *r)
+{
+    const bench_opts *o = r->o;
+    r->nrun = r->np;
+    r->nkept = (o->methods_arg || o->scene_arg) && !o->quick
+                   ? keep_previous(o->csv, o->methods_arg, o->scene_arg, r->sc, r->ns, &r->pts, &r->np, &r->cap)
+                   : 0;
+    fprintf(stderr, "scicap bench: %d points on %d scenes, %d threads each", r->nrun, r->ns, o->threads);
+    if (r->nkept)
+        fprintf(stderr, "; %d points of the other methods kept from %s", r->nkept, o->csv);
     fprintf(stderr, "\n");
-    int64_t t0 = sci_clock_mono_ns();
-    int failed = 0;
-    for (int i = 0; i < nrun; i++) {
-        bench_point *p = &pts[i];
-        p->threads = threads;
-        spawn_point(self, &sc[p->scene], p, threads);
-        double el = sci_clock_s(t0, sci_clock_mono_ns());
+    r->t0 = sci_clock_mono_ns();
+    for (int i = 0; i < r->nrun; i++) {
+        bench_point *p = &r->pts[i];
+        const bench_scene *sc = &r->sc[p->scene];
+        p->threads = o->threads;
+        spawn_point(r->self, sc, p, o->threads);
+        double el = sci_clock_s(r->t0, sci_clock_mono_ns());
         if (p->ok)
             fprintf(stderr, "[%3d/%d] %-14s %-9s %-34s %7.2f dB  SSIM %.4f  %8.3f s  %6.1f MiB   (%.0f s elapsed)\n",
-                    i + 1, nrun, sc[p->scene].name, p->method, p->setting, p->psnr, p->ssim, p->wall_s, p->rss_mib, el);
+                    i + 1, r->nrun, sc->name, p->method, p->setting, p->psnr, p->ssim, p->wall_s, p->rss_mib, el);
         else {
-            fprintf(stderr, "[%3d/%d] %-14s %-9s %-34s FAILED: %s\n", i + 1, nrun, sc[p->scene].name, p->method,
+            fprintf(stderr, "[%3d/%d] %-14s %-9s %-34s FAILED: %s\n", i + 1, r->nrun, sc->name, p->method,
                     p->setting, p->error);
-            failed++;
+            r->failed++;
         }
     }
-    mark_fronts(pts, np, ns);
+    mark_fronts(r->pts, r->np, r->ns);
+}
 
-    /* CSV */
-    FILE *f = fopen(csv, "w");
+/* Every point that ran, to --csv. Returns 0, or 1 after a message. */
+static int bench_csv_write(const bench_run *r)
+{
+    FILE *f = fopen(r->o->csv, "w");
     if (!f) {
-        fprintf(stderr, "scicap bench: %s: %s\n", csv, strerror(errno));
+        fprintf(stderr, "scicap bench: %s: %s\n", r->o->csv, strerror(errno));
         return 1;
     }
     fprintf(f, "scene,method,setting,psnr_db,psnr_peak1_db,ssim,wall_s,cpu_s,peak_rss_mib,pareto,recommended,threads,"
                "voxels,camera\n");
-    for (int i = 0; i < np; i++) {
-        bench_point *p = &pts[i];
+    for (int i = 0; i < r->np; i++) {
+        const bench_point *p = &r->pts[i];
+        const bench_scene *sc = &r->sc[p->scene];
         if (!p->ok)
             continue;
-        fprintf(f, "%s,%s,%s,%.4f,%.4f,%.5f,%.6f,%.6f,%.1f,%d,%d,%d,%.0f,%d\n", sc[p->scene].name, p->method,
-                p->setting, p->psnr, p->psnr1, p->ssim, p->wall_s, p->cpu_s, p->rss_mib, p->pareto, p->recommended,
-                p->threads, sc[p->scene].voxels, sc[p->scene].has_camera);
+        fprintf(f, "%s,%s,%s,%.4f,%.4f,%.5f,%.6f,%.6f,%.1f,%d,%d,%d,%.0f,%d\n", sc->name, p->method, p->setting,
+                p->psnr, p->psnr1, p->ssim, p->wall_s, p->cpu_s, p->rss_mib, p->pareto, p->recommended, p->threads,
+                sc->voxels, sc->has_camera);
     }
     fclose(f);
+    return 0;
+}
 
-    /* Report */
+/* One scene's section of the report: its plot, then each method's front by time; writes the plot too. */
+static void bench_report_scene(const bench_run *r, FILE *md, int s)
+{
+    const bench_scene *sc = &r->sc[s];
+    fprintf(md, "#### %s\n\n![PSNR against wall time: %s](%s/psnr_time_%s.png)\n\n", sc->what, sc->name, r->o->out,
+            sc->name);
+    fprintf(md, "| method | setting | PSNR dB (peak = frame max) | SSIM | wall s | CPU s | peak MiB | |\n|---|---|---:|---:|---:|---:|---:|---|\n");
+    for (int m = 0; m < r->n_methods; m++) {
+        bench_point *sel[512];
+        int k = 0;
+        for (int i = 0; i < r->np && k < 512; i++)
+            if (r->pts[i].scene == s && r->pts[i].ok && r->pts[i].pareto && strcmp(r->pts[i].method, r->methods[m]) == 0)
+                sel[k++] = &r->pts[i];
+        qsort(sel, (size_t)k, sizeof sel[0], cmp_time);
+        for (int i = 0; i < k; i++)
+            fprintf(md, "| %s | %s | %.2f | %.4f | %.3f | %.3f | %.0f | %s |\n", sel[i]->method, sel[i]->setting,
+                    sel[i]->psnr, sel[i]->ssim, sel[i]->wall_s, sel[i]->cpu_s, sel[i]->rss_mib,
+                    sel[i]->recommended ? "**cheapest within 0.5 dB of best**" : "front");
+    }
+    fprintf(md, "\n");
+    int rc = write_plot(r->o->out, sc, s, r->pts, r->np, r->methods, r->n_methods);
+    if (rc < 0)
+        fprintf(stderr, "scicap bench: plot for %s failed (is gnuplot installed?)\n", sc->name);
+}
+
+/* <out>/report.md and the plots, then the closing line. Returns 0, or 1 after a message. */
+static int bench_report_write(const bench_run *r)
+{
+    const bench_opts *o = r->o;
     char mdpath[1200];
-    snprintf(mdpath, sizeof mdpath, "%s/report.md", out);
+    snprintf(mdpath, sizeof mdpath, "%s/report.md", o->out);
     FILE *md = fopen(mdpath, "w");
     if (!md) {
         fprintf(stderr, "scicap bench: %s: %s\n", mdpath, strerror(errno));
@@ -681,42 +768,52 @@ int cli_bench_main(int argc, char **argv)
                 "%.2f at the end, %ld cores)%s. PSNR: mean over frames, peak = per-frame max of the truth; SSIM: "
                 "Gaussian 11×11, σ 1.5; wall and CPU time: the solver's own; memory: peak RSS of the point's "
                 "process. Every point is in `bench/results.csv`.\n\n",
-            quick ? " --quick" : "", methods_arg ? " --methods " : "", methods_arg ? methods_arg : "",
-            scene_arg ? " --scene " : "", scene_arg ? scene_arg : "", nrun, sci_clock_s(t0, sci_clock_mono_ns()),
-            threads, la[0], la[1], la[2], sysconf(_SC_NPROCESSORS_ONLN),
-            nkept ? "; the other points are kept from the previous full run" : "");
-    for (int s = 0; s < ns; s++) {
-        fprintf(md, "#### %s\n\n![PSNR against wall time: %s](%s/psnr_time_%s.png)\n\n", sc[s].what, sc[s].name,
-                out, sc[s].name);
-        fprintf(md, "| method | setting | PSNR dB (peak = frame max) | SSIM | wall s | CPU s | peak MiB | |\n|---|---|---:|---:|---:|---:|---:|---|\n");
-        for (int m = 0; m < N_METHODS; m++) {
-            bench_point *sel[512];
-            int k = 0;
-            for (int i = 0; i < np && k < 512; i++)
-                if (pts[i].scene == s && pts[i].ok && pts[i].pareto && strcmp(pts[i].method, methods[m]) == 0)
-                    sel[k++] = &pts[i];
-            qsort(sel, (size_t)k, sizeof sel[0], cmp_time);
-            for (int i = 0; i < k; i++)
-                fprintf(md, "| %s | %s | %.2f | %.4f | %.3f | %.3f | %.0f | %s |\n", sel[i]->method, sel[i]->setting,
-                        sel[i]->psnr, sel[i]->ssim, sel[i]->wall_s, sel[i]->cpu_s, sel[i]->rss_mib,
-                        sel[i]->recommended ? "**cheapest within 0.5 dB of best**" : "front");
-        }
-        fprintf(md, "\n");
-        int rc = write_plot(out, &sc[s], s, pts, np, methods, N_METHODS);
-        if (rc < 0)
-            fprintf(stderr, "scicap bench: plot for %s failed (is gnuplot installed?)\n", sc[s].name);
-    }
+            o->quick ? " --quick" : "", o->methods_arg ? " --methods " : "", o->methods_arg ? o->methods_arg : "",
+            o->scene_arg ? " --scene " : "", o->scene_arg ? o->scene_arg : "", r->nrun,
+            sci_clock_s(r->t0, sci_clock_mono_ns()), o->threads, la[0], la[1], la[2], sysconf(_SC_NPROCESSORS_ONLN),
+            r->nkept ? "; the other points are kept from the previous full run" : "");
+    for (int s = 0; s < r->ns; s++)
+        bench_report_scene(r, md, s);
     fprintf(md, "Only Pareto-front points are listed (no cheaper point of the same method is as accurate).\n");
     fclose(md);
-    fprintf(stderr, "scicap bench: wrote %s, %s and the plots in %s/ (%d point(s) failed)\n", csv, mdpath, out,
-            failed);
+    fprintf(stderr, "scicap bench: wrote %s, %s and the plots in %s/ (%d point(s) failed)\n", o->csv, mdpath, o->out,
+            r->failed);
+    return 0;
+}
+
+/* Removes the temporary scenes and frees the points. */
+static void bench_run_finish(bench_run *r)
+{
     char cmd[256];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", r->tmpdir);
     if (system(cmd) != 0)
-        fprintf(stderr, "scicap bench: could not remove %s\n", tmpdir);
-    for (int i = 0; i < np; i++)
-        json_decref(pts[i].params);
-    free(pts);
-    free(methods);
-    return failed ? 1 : 0;
+        fprintf(stderr, "scicap bench: could not remove %s\n", r->tmpdir);
+    for (int i = 0; i < r->np; i++)
+        json_decref(r->pts[i].params);
+    free(r->pts);
+    free(r->methods);
+}
+
+int cli_bench_main(int argc, char **argv)
+{
+    bench_opts o = {0};
+    int rc = bench_opts_parse(&o, argc, argv);
+    if (rc >= 0)
+        return rc;
+    if (o.threads > 0)
+        omp_set_num_threads(o.threads);
+    if (o.point)
+        return run_point(o.point);
+    if (optind != argc) {
+        usage(stderr);
+        return 2;
+    }
+    bench_run r = {.o = &o};
+    if ((rc = bench_run_prepare(&r)) != 0 || (rc = bench_suite_build(&r)) != 0 || (rc = bench_grid_build(&r)) != 0)
+        return rc;
+    bench_points_run(&r);
+    if ((rc = bench_csv_write(&r)) != 0 || (rc = bench_report_write(&r)) != 0)
+        return rc;
+    bench_run_finish(&r);
+    return r.failed ? 1 : 0;
 }
