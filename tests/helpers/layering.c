@@ -47,6 +47,19 @@ static const layering_layer *layer_of(const walk *w, const char *dir, size_t len
     return NULL;
 }
 
+/* What follows `#include` on a source line (blanks skipped), or NULL when the line is no include. */
+static const char *include_operand(const char *line)
+{
+    const char *p = line + strspn(line, " \t");
+    if (*p++ != '#')
+        return NULL;
+    p += strspn(p, " \t");
+    if (strncmp(p, "include", 7) != 0)
+        return NULL;
+    p += 7;
+    return p + strspn(p, " \t");
+}
+
 static int is_source(const char *path)
 {
     const char *dot = strrchr(path, '.');
@@ -63,18 +76,9 @@ static void check_file(walk *w, const char *fpath, const char *rel, const layeri
     w->files++;
     char line[4096];
     for (int ln = 1; fgets(line, sizeof line, f); ln++) {
-        const char *p = line;
-        while (*p == ' ' || *p == '\t')
-            p++;
-        if (*p++ != '#')
+        const char *p = include_operand(line);
+        if (!p)
             continue;
-        while (*p == ' ' || *p == '\t')
-            p++;
-        if (strncmp(p, "include", 7) != 0)
-            continue;
-        p += 7;
-        while (*p == ' ' || *p == '\t')
-            p++;
         if (*p != '"')
             continue; /* <system> headers */
         const char *name = p + 1, *end = strchr(name, '"'), *slash = strchr(name, '/');
@@ -196,18 +200,9 @@ static void graph_edges(graph *g, const char *path, const char *dir, int from, c
     char line[4096], prefix[300];
     int plen = snprintf(prefix, sizeof prefix, "\"%s/", dir);
     for (int ln = 1; fgets(line, sizeof line, f); ln++) {
-        const char *p = line;
-        while (*p == ' ' || *p == '\t')
-            p++;
-        if (*p++ != '#')
+        const char *p = include_operand(line);
+        if (!p)
             continue;
-        while (*p == ' ' || *p == '\t')
-            p++;
-        if (strncmp(p, "include", 7) != 0)
-            continue;
-        p += 7;
-        while (*p == ' ' || *p == '\t')
-            p++;
         if (strncmp(p, prefix, (size_t)plen) != 0)
             continue;
         const char *name = p + plen, *end = strstr(name, ".h\"");
