@@ -187,9 +187,28 @@ static int check_run(reader *r, size_t at, int x, int y, int w, int h, uint32_t 
     return 0;
 }
 
-static int ended_early(reader *r, int y, int h)
+/* cnt literal pixels into o, all there or SCI_EFORMAT before any is read. */
+static int get_literal(reader *r, uint32_t *o, uint32_t cnt)
 {
-    return sci_error_set(r->err, SCI_EFORMAT, "image data ends after %d of %d rows", y, h);
+    if ((r->n - r->pos) / 3 < cnt)
+        return truncated(r, "literal pixels");
+    for (uint32_t i = 0; i < cnt; i++)
+        get_pixel(r, &o[i], "literal pixels");
+    return 0;
+}
+
+/* The close of a decode at row y: every row written (else SCI_EFORMAT), a missing end of image one more warning. */
+static int decode_end(reader *r, int y, int h, int done, int warn, size_t *used, int *warnings)
+{
+    if (y < h)
+        return sci_error_set(r->err, SCI_EFORMAT, "image data ends after %d of %d rows", y, h);
+    if (!done)
+        warn++; /* every row filled but no end of image */
+    if (used)
+        *used = r->pos;
+    if (warnings)
+        *warnings = warn;
+    return 0;
 }
 
 int dlpc900_erle_decode(const uint8_t *d, size_t n, int w, int h, uint32_t *px, size_t *used, int *warnings,
@@ -241,11 +260,8 @@ int dlpc900_erle_decode(const uint8_t *d, size_t n, int w, int h, uint32_t *px, 
                 if ((rc = get_count(&r, &cnt, "a literal count")) < 0 ||
                     (rc = check_run(&r, at, x, y, w, h, cnt, "literal run")) < 0)
                     return rc;
-                if ((r.n - r.pos) / 3 < cnt)
-                    return truncated(&r, "literal pixels");
-                uint32_t *o = px + (size_t)y * w + x;
-                for (uint32_t i = 0; i < cnt; i++)
-                    get_pixel(&r, &o[i], "literal pixels");
+                if ((rc = get_literal(&r, px + (size_t)y * w + x, cnt)) < 0)
+                    return rc;
                 x += (int)cnt;
             }
         }
@@ -254,15 +270,7 @@ int dlpc900_erle_decode(const uint8_t *d, size_t n, int w, int h, uint32_t *px, 
             y++;
         }
     }
-    if (y < h)
-        return ended_early(&r, y, h);
-    if (!done)
-        warn++; /* every row filled but no end of image */
-    if (used)
-        *used = r.pos;
-    if (warnings)
-        *warnings = warn;
-    return 0;
+    return decode_end(&r, y, h, done, warn, used, warnings);
 }
 
 int dlpc900_rle_decode(const uint8_t *d, size_t n, int w, int h, uint32_t *px, size_t *used, int *warnings,
@@ -302,11 +310,8 @@ int dlpc900_rle_decode(const uint8_t *d, size_t n, int w, int h, uint32_t *px, s
         } else {
             if ((rc = check_run(&r, at, x, y, w, h, c, "literal run")) < 0)
                 return rc;
-            if ((r.n - r.pos) / 3 < c)
-                return truncated(&r, "literal pixels");
-            uint32_t *o = px + (size_t)y * w + x;
-            for (int i = 0; i < c; i++)
-                get_pixel(&r, &o[i], "literal pixels");
+            if ((rc = get_literal(&r, px + (size_t)y * w + x, c)) < 0)
+                return rc;
             x += c;
         }
     }
@@ -314,15 +319,7 @@ int dlpc900_rle_decode(const uint8_t *d, size_t n, int w, int h, uint32_t *px, s
         y = h;
         warn++;
     }
-    if (y < h)
-        return ended_early(&r, y, h);
-    if (!done)
-        warn++;
-    if (used)
-        *used = r.pos;
-    if (warnings)
-        *warnings = warn;
-    return 0;
+    return decode_end(&r, y, h, done, warn, used, warnings);
 }
 
 int dlpc900_raw_decode(const uint8_t *d, size_t n, int w, int h, uint32_t *px, sci_error *err)
