@@ -252,6 +252,14 @@ static void stop_quietly(dlpc900_ctl *c)
     dlpc900_ctl_stop(c, &ignored);
 }
 
+/* A failed programming step: leave the sequencer stopped (unless the device is gone) and pass rc on. */
+static int failed_stopped(dlpc900_ctl *c, int rc)
+{
+    if (rc != -ENODEV)
+        stop_quietly(c);
+    return rc;
+}
+
 static int check_sequence(dlpc900_ctl *c, const dlpc900_sequence *s, sci_error *err)
 {
     if (s->count < 1 || s->count > 400)
@@ -367,9 +375,7 @@ int dlpc900_ctl_program(dlpc900_ctl *c, const uint32_t *const *images, int w, in
         goto fail;
     return 0;
 fail:
-    if (rc != -ENODEV)
-        stop_quietly(c);
-    return rc;
+    return failed_stopped(c, rc);
 }
 
 int dlpc900_ctl_program_lut(dlpc900_ctl *c, const dlpc900_sequence *s, sci_error *err)
@@ -380,11 +386,8 @@ int dlpc900_ctl_program_lut(dlpc900_ctl *c, const dlpc900_sequence *s, sci_error
     dlpc900_msg m;
     dlpc900_cmd_pattern_start(&m, DLPC900_STOP);
     if ((rc = simple_write(c, &m, err)) < 0 || (rc = clear_error_code(c, err)) < 0 || (rc = define_lut(c, s, err)) < 0 ||
-        (rc = check_error_code(c, "LUT programming", err)) < 0) {
-        if (rc != -ENODEV)
-            stop_quietly(c);
-        return rc;
-    }
+        (rc = check_error_code(c, "LUT programming", err)) < 0)
+        return failed_stopped(c, rc);
     return 0;
 }
 
@@ -415,7 +418,5 @@ int dlpc900_ctl_start(dlpc900_ctl *c, sci_error *err)
         goto fail;
     return 0;
 fail:
-    if (rc != -ENODEV)
-        stop_quietly(c);
-    return rc;
+    return failed_stopped(c, rc);
 }
