@@ -205,6 +205,18 @@ out:
     return rc;
 }
 
+/* The manifest of problem folder dir (which may name its problem.json): the folder into base[4096], the manifest's
+ * path into path[4200], and the parsed manifest (the caller's), or NULL with je set. */
+static json_t *manifest_load(const char *dir, char *base, char *path, json_error_t *je)
+{
+    snprintf(base, 4096, "%s", dir);
+    size_t bl = strlen(base);
+    if (bl > 13 && strcmp(base + bl - 13, "/problem.json") == 0)
+        base[bl - 13] = 0;
+    snprintf(path, 4200, "%s/problem.json", base);
+    return json_load_file(path, 0, je);
+}
+
 int sci_problem_dir_read_color(const char *dir, int *cfa, sci_cube ***truth_rgb, int *k, sci_error *err)
 {
     *cfa = SCI_CFA_NONE;
@@ -212,13 +224,8 @@ int sci_problem_dir_read_color(const char *dir, int *cfa, sci_cube ***truth_rgb,
     if (truth_rgb)
         *truth_rgb = NULL;
     char base[4096], path[4200];
-    snprintf(base, sizeof base, "%s", dir);
-    size_t bl = strlen(base);
-    if (bl > 13 && strcmp(base + bl - 13, "/problem.json") == 0)
-        base[bl - 13] = 0;
-    snprintf(path, sizeof path, "%s/problem.json", base);
     json_error_t je;
-    json_t *man = json_load_file(path, 0, &je);
+    json_t *man = manifest_load(dir, base, path, &je);
     if (!man)
         return sci_error_set(err, SCI_EFORMAT, "%s: %s", path, je.text);
     int rc = 0;
@@ -321,13 +328,8 @@ int sci_problem_dir_read_opts(const char *dir, const sci_io_limits *lim, sci_pro
     *out = NULL;
     *k = 0;
     char base[4096], path[4200];
-    snprintf(base, sizeof base, "%s", dir);
-    size_t bl = strlen(base);
-    if (bl > 13 && strcmp(base + bl - 13, "/problem.json") == 0)
-        base[bl - 13] = 0;
-    snprintf(path, sizeof path, "%s/problem.json", base);
     json_error_t je;
-    json_t *man = json_load_file(path, 0, &je);
+    json_t *man = manifest_load(dir, base, path, &je);
     if (!man) {
         if (access(path, R_OK) != 0)
             return sci_error_set(err, -errno, "%s: %s (not a scicap problem folder?)", path, strerror(errno));
