@@ -30,6 +30,30 @@ static camera *open_sim(camera_config *cfg, camera_sim_options *opt)
     return cam;
 }
 
+/* open_sim, streaming. */
+static camera *start_sim(camera_config *cfg, camera_sim_options *opt)
+{
+    camera *cam = open_sim(cfg, opt);
+    sci_error err = {0};
+    if (camera_start(cam, &err) < 0)
+        fail_msg("camera_start: %s", err.msg);
+    return cam;
+}
+
+static camera_stats stats_of(camera *cam)
+{
+    camera_stats st;
+    camera_stats_get(cam, &st);
+    return st;
+}
+
+/* The last frame handed back, then the camera closed. */
+static void finish(camera *cam, camera_frame *fr)
+{
+    camera_frame_release(fr);
+    camera_close(cam);
+}
+
 /* The defaults at w×h pixels: most tests want a small frame. */
 static camera_config sized_config(int w, int h)
 {
@@ -96,11 +120,10 @@ static void free_run_timing_and_drops(void **state)
     cfg.interval_den = 500; /* 2 ms period */
     cfg.exposure_us = 1000;
     cfg.buffer_count = CAMERA_MAX_BUFFERS; /* 64 ms of slack: a loaded test machine must not overflow the ring */
-    camera *cam = open_sim(&cfg, &opt);
+    camera *cam = start_sim(&cfg, &opt);
     camera_sim *cs = camera_sim_from(cam);
     assert_non_null(cs);
     sci_error err = {0};
-    assert_int_equal(camera_start(cam, &err), 0);
     camera_frame fr = {0};
     int64_t prev_ts = 0;
     uint32_t prev_seq = 0;
@@ -119,13 +142,11 @@ static void free_run_timing_and_drops(void **state)
         prev_ts = fr.timestamp_ns;
         prev_seq = fr.sequence;
     }
-    camera_stats st;
-    camera_stats_get(cam, &st);
+    camera_stats st = stats_of(cam);
     assert_int_equal(st.frames, 10);
     assert_int_equal(st.lost, 2);
     assert_int_equal(fr.lost_total, 2);
-    camera_frame_release(&fr);
-    camera_close(cam);
+    finish(cam, &fr);
 }
 
 static void drops_across_sequence_wrap(void **state)
@@ -133,11 +154,10 @@ static void drops_across_sequence_wrap(void **state)
     (void)state;
     camera_sim_options opt = {.first_sequence = 0xFFFFFFFDu, .unpaced = 1};
     camera_config cfg = sized_config(32, 8);
-    camera *cam = open_sim(&cfg, &opt);
+    camera *cam = start_sim(&cfg, &opt);
     camera_sim *cs = camera_sim_from(cam);
     sci_error err = {0};
     camera_frame fr = {0};
-    assert_int_equal(camera_start(cam, &err), 0);
     assert_int_equal(camera_wait_frame(cam, 0, &fr, &err), 0);
     assert_int_equal(fr.sequence, 0xFFFFFFFDu);
     camera_sim_fault(cs, CAMERA_SIM_FAULT_DROP, 3); /* FE, FF and 0 are lost */
@@ -148,8 +168,7 @@ static void drops_across_sequence_wrap(void **state)
     assert_int_equal(fr.sequence, 2u);
     assert_int_equal(fr.lost_before, 0);
     assert_int_equal(fr.lost_total, 3);
-    camera_frame_release(&fr);
-    camera_close(cam);
+    finish(cam, &fr);
 }
 
 static void ring_overflow_counts_losses(void **state)
@@ -161,10 +180,9 @@ static void ring_overflow_counts_losses(void **state)
     cfg.interval_den = 1000;
     cfg.exposure_us = 100;
     cfg.buffer_count = 2;
-    camera *cam = open_sim(&cfg, &opt);
+    camera *cam = start_sim(&cfg, &opt);
     sci_error err = {0};
     camera_frame fr = {0};
-    assert_int_equal(camera_start(cam, &err), 0);
     struct timespec ts = {0, 30 * 1000000}; /* 30 frames' time with only 2 buffers */
     nanosleep(&ts, NULL);
     assert_int_equal(camera_wait_frame(cam, 0, &fr, &err), 0);
@@ -175,8 +193,7 @@ static void ring_overflow_counts_losses(void **state)
     assert_true(c.dropped >= 20);
     /* the third frame comes after the gap (later frames may have overflowed again since, on a loaded machine) */
     assert_true(fr.lost_before >= 20 && fr.lost_before <= c.dropped);
-    camera_frame_release(&fr);
-    camera_close(cam);
+    finish(cam, &fr);
 }
 
 static void timeouts_stalls_and_corrupt_frames(void **state)
@@ -187,11 +204,10 @@ static void timeouts_stalls_and_corrupt_frames(void **state)
     cfg.exposure_us = 500;
     cfg.trigger_profile[0] = (camera_control){.name = "trigger_mode", .value = 1};
     cfg.trigger_profile_count = 1;
-    camera *cam = open_sim(&cfg, &opt);
+    camera *cam = start_sim(&cfg, &opt);
     camera_sim *cs = camera_sim_from(cam);
     sci_error err = {0};
     camera_frame fr = {0};
-    assert_int_equal(camera_start(cam, &err), 0);
     /* no trigger, no frame */
     int64_t t0 = sci_clock_mono_ns();
     assert_int_equal(camera_wait_frame(cam, 20000000, &fr, &err), -ETIMEDOUT);
@@ -212,13 +228,11 @@ static void timeouts_stalls_and_corrupt_frames(void **state)
     assert_int_equal(camera_sim_trigger(cs, sci_clock_mono_ns()), 1);
     assert_int_equal(camera_wait_frame(cam, 100000000, &fr, &err), 0);
     assert_true(fr.corrupt);
-    camera_stats st;
-    camera_stats_get(cam, &st);
+    camera_stats st = stats_of(cam);
     assert_int_equal(st.timeouts, 2);
     assert_int_equal(st.corrupt, 1);
     assert_int_equal(st.frames, 2);
-    camera_frame_release(&fr);
-    camera_close(cam);
+    finish(cam, &fr);
 }
 
 static void disconnect_and_recover(void **state)
@@ -227,11 +241,10 @@ static void disconnect_and_recover(void **state)
     camera_sim_options opt = {.unpaced = 1};
     camera_config cfg = sized_config(32, 8);
     cfg.device = "/dev/sim-cam7";
-    camera *cam = open_sim(&cfg, &opt);
+    camera *cam = start_sim(&cfg, &opt);
     camera_sim *cs = camera_sim_from(cam);
     sci_error err = {0};
     camera_frame fr = {0};
-    assert_int_equal(camera_start(cam, &err), 0);
     assert_int_equal(camera_wait_frame(cam, 0, &fr, &err), 0);
     camera_sim_fault(cs, CAMERA_SIM_FAULT_DISCONNECT, 0);
     assert_int_equal(camera_wait_frame(cam, 0, &fr, &err), -ENODEV);
@@ -242,12 +255,10 @@ static void disconnect_and_recover(void **state)
     assert_int_equal(camera_recover(cam, &err), 0);
     assert_int_equal(camera_wait_frame(cam, 0, &fr, &err), 0);
     assert_int_equal(fr.lost_before, 0); /* the count restarted with the stream; no false gap */
-    camera_stats st;
-    camera_stats_get(cam, &st);
+    camera_stats st = stats_of(cam);
     assert_int_equal(st.recoveries, 1);
     assert_int_equal(st.errors, 1);
-    camera_frame_release(&fr);
-    camera_close(cam);
+    finish(cam, &fr);
 }
 
 /* A source whose samples depend on the sequence and position: checks that what the source made is what the
@@ -271,10 +282,9 @@ static void frame_source_is_delivered_bit_exact(void **state)
         camera_sim_options opt = {.unpaced = 1, .source = seeded_source, .source_arg = &seed};
         camera_config cfg = sized_config(37, 5); /* not a multiple of 4: the last Y10P group is partial */
         cfg.pixfmt = (enum pixfmt)f;
-        camera *cam = open_sim(&cfg, &opt);
+        camera *cam = start_sim(&cfg, &opt);
         sci_error err = {0};
         camera_frame fr = {0};
-        assert_int_equal(camera_start(cam, &err), 0);
         for (int k = 0; k < 3; k++) {
             assert_int_equal(camera_wait_frame(cam, 0, &fr, &err), 0);
             assert_int_equal(fr.bits_per_sample, pixfmt_info_get((enum pixfmt)f)->bits_per_sample);
