@@ -554,82 +554,161 @@ static int op_append(loader *ld)
     return 0;
 }
 
+/* --- opcodes with no helper of their own above --------------------------------------------------------------- */
+
+static int op_proto(loader *ld)
+{
+    int rc = 0;
+    const unsigned char *q = take(ld, 1, &rc);
+    if (!q)
+        return rc;
+    if (q[0] > 5)
+        return fail(ld, "pickle protocol %u", q[0]);
+    return 0;
+}
+
+/* FRAME: a length hint, the opcodes follow inline */
+static int op_frame(loader *ld)
+{
+    int rc = 0;
+    if (!take(ld, 8, &rc))
+        return rc;
+    return 0;
+}
+
+static int op_stop(loader *ld, const cnn_pickle_obj **result)
+{
+    cnn_pickle *p = ld->p;
+    if (p->nmarks)
+        return fail(ld, "STOP with %zu MARK(s) open", p->nmarks);
+    if (p->sp != 1)
+        return fail(ld, "STOP with %zu objects on the stack, not 1", p->sp);
+    *result = p->stack[0];
+    return 1;
+}
+
+static int op_mark(loader *ld)
+{
+    cnn_pickle *p = ld->p;
+    if (p->nmarks >= p->lim.marks)
+        return fail(ld, "more than %zu open MARKs (limit)", p->lim.marks);
+    if (p->nmarks == p->marks_cap) {
+        size_t cap = p->marks_cap ? p->marks_cap * 2 : 16;
+        size_t *a = realloc(p->marks, cap * sizeof *a);
+        if (!a)
+            return nomem(ld);
+        p->marks = a;
+        p->marks_cap = cap;
+    }
+    p->marks[p->nmarks++] = p->sp;
+    return 0;
+}
+
+/* POP: an object, or the MARK itself when nothing is above it (as Python does) */
+static int op_pop(loader *ld)
+{
+    cnn_pickle *p = ld->p;
+    if (p->sp > floor_of(p)) {
+        p->sp--;
+        return 0;
+    }
+    if (!p->nmarks)
+        return fail(ld, "stack underflow");
+    p->nmarks--;
+    return 0;
+}
+
+static int op_pop_mark(loader *ld)
+{
+    size_t first = 0, count = 0;
+    int rc;
+    if ((rc = pop_mark(ld, &first, &count)) < 0)
+        return rc;
+    ld->p->sp = first;
+    return 0;
+}
+
+static int op_dup(loader *ld)
+{
+    cnn_pickle_obj *o = NULL;
+    int rc;
+    if ((rc = top(ld, &o)) < 0)
+        return rc;
+    return push(ld, o);
+}
+
+/* BININT (4 bytes, signed), BININT1 (1), BININT2 (2, unsigned): little-endian. */
+static int op_binint(loader *ld, size_t width)
+{
+    int rc = 0;
+    const unsigned char *q = take(ld, width, &rc);
+    if (!q)
+        return rc;
+    if (width == 4)
+        return push_int(ld, (int32_t)le32(q), CNN_PICKLE_INT);
+    if (width == 1)
+        return push_int(ld, q[0], CNN_PICKLE_INT);
+    return push_int(ld, q[0] | q[1] << 8, CNN_PICKLE_INT);
+}
+
+static int op_binpersid(loader *ld)
+{
+    cnn_pickle_obj *pid = NULL, *o = NULL;
+    int rc;
+    if ((rc = pop(ld, &pid)) < 0 || (rc = push_new(ld, CNN_PICKLE_PERSID, &o)) < 0)
+        return rc;
+    o->args = pid;
+    return 0;
+}
+
+/* BINPUT, LONG_BINPUT: the memo index in 1 or 4 bytes. */
+static int op_put(loader *ld, size_t width)
+{
+    size_t idx = 0;
+    int rc;
+    if ((rc = arg_index(ld, width, &idx)) < 0)
+        return rc;
+    return memo_put(ld, idx);
+}
+
+/* BINGET, LONG_BINGET: the memo index in 1 or 4 bytes. */
+static int op_get(loader *ld, size_t width)
+{
+    size_t idx = 0;
+    int rc;
+    if ((rc = arg_index(ld, width, &idx)) < 0)
+        return rc;
+    return memo_get(ld, idx);
+}
+
+static int op_unsupported(const loader *ld)
+{
+    if (ld->op >= 0x20 && ld->op < 0x7f)
+        return sci_error_set(ld->err, SCI_EFORMAT, "offset %zu: unsupported pickle opcode 0x%02x ('%c')", ld->op_off,
+                             ld->op, ld->op);
+    return sci_error_set(ld->err, SCI_EFORMAT, "offset %zu: unsupported pickle opcode 0x%02x", ld->op_off, ld->op);
+}
+
 /* One opcode at ld->pos. Returns 1 at STOP, 0 to go on, negative on error. */
 static int step(loader *ld, const cnn_pickle_obj **result)
 {
-    cnn_pickle *p = ld->p;
     cnn_pickle_obj *o = NULL;
-    size_t idx = 0;
-    int rc = 0;
     ld->op_off = ld->pos;
     ld->op = ld->buf[ld->pos++];
-    const unsigned char *q;
     switch (ld->op) {
-    case 0x80: /* PROTO */
-        if (!(q = take(ld, 1, &rc)))
-            return rc;
-        if (q[0] > 5)
-            return fail(ld, "pickle protocol %u", q[0]);
-        return 0;
-    case 0x95: /* FRAME: a length hint, the opcodes follow inline */
-        if (!(q = take(ld, 8, &rc)))
-            return rc;
-        return 0;
-    case '.': /* STOP */
-        if (p->nmarks)
-            return fail(ld, "STOP with %zu MARK(s) open", p->nmarks);
-        if (p->sp != 1)
-            return fail(ld, "STOP with %zu objects on the stack, not 1", p->sp);
-        *result = p->stack[0];
-        return 1;
-    case '(': /* MARK */
-        if (p->nmarks >= p->lim.marks)
-            return fail(ld, "more than %zu open MARKs (limit)", p->lim.marks);
-        if (p->nmarks == p->marks_cap) {
-            size_t cap = p->marks_cap ? p->marks_cap * 2 : 16;
-            size_t *a = realloc(p->marks, cap * sizeof *a);
-            if (!a)
-                return nomem(ld);
-            p->marks = a;
-            p->marks_cap = cap;
-        }
-        p->marks[p->nmarks++] = p->sp;
-        return 0;
-    case '0': /* POP: an object, or the MARK itself when nothing is above it (as Python does) */
-        if (p->sp > floor_of(p)) {
-            p->sp--;
-            return 0;
-        }
-        if (!p->nmarks)
-            return fail(ld, "stack underflow");
-        p->nmarks--;
-        return 0;
-    case '1': { /* POP_MARK */
-        size_t first = 0, count = 0;
-        if ((rc = pop_mark(ld, &first, &count)) < 0)
-            return rc;
-        p->sp = first;
-        return 0;
-    }
-    case '2': /* DUP */
-        if ((rc = top(ld, &o)) < 0)
-            return rc;
-        return push(ld, o);
+    case 0x80: return op_proto(ld);                          /* PROTO */
+    case 0x95: return op_frame(ld);                          /* FRAME */
+    case '.': return op_stop(ld, result);                    /* STOP */
+    case '(': return op_mark(ld);                            /* MARK */
+    case '0': return op_pop(ld);                             /* POP */
+    case '1': return op_pop_mark(ld);                        /* POP_MARK */
+    case '2': return op_dup(ld);                             /* DUP */
     case 'N': return push_new(ld, CNN_PICKLE_NONE, &o);
     case 0x88: return push_int(ld, 1, CNN_PICKLE_BOOL);
     case 0x89: return push_int(ld, 0, CNN_PICKLE_BOOL);
-    case 'J': /* BININT */
-        if (!(q = take(ld, 4, &rc)))
-            return rc;
-        return push_int(ld, (int32_t)le32(q), CNN_PICKLE_INT);
-    case 'K': /* BININT1 */
-        if (!(q = take(ld, 1, &rc)))
-            return rc;
-        return push_int(ld, q[0], CNN_PICKLE_INT);
-    case 'M': /* BININT2 */
-        if (!(q = take(ld, 2, &rc)))
-            return rc;
-        return push_int(ld, q[0] | q[1] << 8, CNN_PICKLE_INT);
+    case 'J': return op_binint(ld, 4);                       /* BININT */
+    case 'K': return op_binint(ld, 1);                       /* BININT1 */
+    case 'M': return op_binint(ld, 2);                       /* BININT2 */
     case 0x8a: return op_long1(ld);
     case 'G': return op_binfloat(ld);
     case 'X': return op_sized(ld, 4, 0, CNN_PICKLE_STR);     /* BINUNICODE */
@@ -656,38 +735,14 @@ static int step(loader *ld, const cnn_pickle_obj **result)
     case 'R': return op_call(ld, 0);                         /* REDUCE */
     case 0x81: return op_call(ld, 1);                        /* NEWOBJ */
     case 'b': return op_build(ld);
-    case 'Q': { /* BINPERSID */
-        cnn_pickle_obj *pid = NULL;
-        if ((rc = pop(ld, &pid)) < 0 || (rc = push_new(ld, CNN_PICKLE_PERSID, &o)) < 0)
-            return rc;
-        o->args = pid;
-        return 0;
+    case 'Q': return op_binpersid(ld);                       /* BINPERSID */
+    case 'q': return op_put(ld, 1);                          /* BINPUT */
+    case 'r': return op_put(ld, 4);                          /* LONG_BINPUT */
+    case 0x94: return memo_put(ld, ld->p->memo_count);       /* MEMOIZE */
+    case 'h': return op_get(ld, 1);                          /* BINGET */
+    case 'j': return op_get(ld, 4);                          /* LONG_BINGET */
+    default: return op_unsupported(ld);
     }
-    case 'q': /* BINPUT */
-        if ((rc = arg_index(ld, 1, &idx)) < 0)
-            return rc;
-        return memo_put(ld, idx);
-    case 'r': /* LONG_BINPUT */
-        if ((rc = arg_index(ld, 4, &idx)) < 0)
-            return rc;
-        return memo_put(ld, idx);
-    case 0x94: /* MEMOIZE */
-        return memo_put(ld, p->memo_count);
-    case 'h': /* BINGET */
-        if ((rc = arg_index(ld, 1, &idx)) < 0)
-            return rc;
-        return memo_get(ld, idx);
-    case 'j': /* LONG_BINGET */
-        if ((rc = arg_index(ld, 4, &idx)) < 0)
-            return rc;
-        return memo_get(ld, idx);
-    default:
-        break;
-    }
-    if (ld->op >= 0x20 && ld->op < 0x7f)
-        return sci_error_set(ld->err, SCI_EFORMAT, "offset %zu: unsupported pickle opcode 0x%02x ('%c')", ld->op_off,
-                             ld->op, ld->op);
-    return sci_error_set(ld->err, SCI_EFORMAT, "offset %zu: unsupported pickle opcode 0x%02x", ld->op_off, ld->op);
 }
 
 int cnn_pickle_load(cnn_pickle *p, const unsigned char *buf, size_t len, size_t *pos, const cnn_pickle_obj **out,
