@@ -167,35 +167,131 @@ static double jnum(const json_t *j, const char *key)
     return json_is_number(v) ? json_number_value(v) : NAN;
 }
 
-int main(int argc, char **argv)
+/* What one run measured, for the report. */
+typedef struct pnp_bench {
+    int threads, w, h;
+    const char *isa;       /* the instructions the peak was measured with */
+    double peak;           /* GFLOP/s */
+    double load0[3], load1[3];
+    const cnn_ffdnet *net;
+    const cnn_ffdnet_plan *plan;
+    double c_frame, flop, c_solve, c_psnr, c_rss;
+    const json_t *tj;      /* PyTorch's JSON line, or NULL */
+    double pt_frame, pt_batch, pt_solve, pt_psnr, pt_rss;
+} pnp_bench;
+
+/* --threads, --repeat, --no-torch. 0, or the exit status 2 (the usage printed for an unknown argument). */
+static int bench_args(int argc, char **argv, int *threads, int *repeat, int *torch)
 {
-    sci_runtime_env_apply(argv);
-    int threads = 2, repeat = 7, torch = 1;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--threads") && i + 1 < argc)
-            threads = atoi(argv[++i]);
+            *threads = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--repeat") && i + 1 < argc)
-            repeat = atoi(argv[++i]);
+            *repeat = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--no-torch"))
-            torch = 0;
+            *torch = 0;
         else {
             fprintf(stderr, "usage: bench_pnp_ffdnet [--threads N] [--repeat R] [--no-torch]\n");
             return 2;
         }
     }
-    if (threads < 1 || repeat < 1)
+    if (*threads < 1 || *repeat < 1)
         return 2;
+    return 0;
+}
+
+/* The median time of `repeat` denoises of the truth's first frame (after one warm-up), s; t: repeat slots. */
+static double bench_denoiser(cnn_ffdnet_plan *plan, const sci_problem *p, float *frame, double *t, int repeat)
+{
+    cnn_ffdnet_denoise(plan, p->truth->data, 25 / 255.0f, frame); /* warm-up */
+    for (int r = 0; r < repeat; r++) {
+        int64_t t0 = sci_clock_mono_ns();
+        cnn_ffdnet_denoise(plan, p->truth->data, 25 / 255.0f, frame);
+        t[r] = sci_clock_s(t0, sci_clock_mono_ns());
+    }
+    qsort(t, (size_t)repeat, sizeof *t, cmp_double);
+    return t[repeat / 2];
+}
+
+/* The C solve at PnP-SCI's recipe (the one the PyTorch script runs), into res; its time in *secs. */
+static int bench_c_solve(const sci_problem *p, const char *weights, int threads, sci_pnp_params *q,
+                         sci_result *res, double *secs)
+{
+    const solver_ops *m = &sci_pnp_ffdnet_solver;
+    sci_pnp_params_default(q);
+    /* PnP-SCI's recipe, the one the PyTorch script runs: 40 iterations over σ 50, 25, 12, 6 */
+    q->iters = 40;
+    q->sigma = (solver_values){4, {50, 25, 12, 6}};
+    snprintf(q->weights, sizeof q->weights, "%s", weights);
+    q->threads = threads;
+    q->ssim_every = 0;
+    int64_t s0 = sci_clock_mono_ns();
+    int rc = solver_run(m, p, q, NULL, res);
+    *secs = sci_clock_s(s0, sci_clock_mono_ns());
+    return rc;
+}
+
+/* The PyTorch side on the problem exported to a temporary folder (removed after): its JSON line, or NULL. */
+static json_t *bench_torch(const sci_problem *p, const char *weights, const sci_pnp_params *q, int threads,
+                           int repeat)
+{
+    json_t *tj = NULL;
+    char dir[] = "/tmp/bench_pnp_ffdnet.XXXXXX";
+    if (mkdtemp(dir)) {
+        if (export_problem(dir, p, weights, q) == 0)
+            tj = run_torch(dir, threads, repeat);
+        char cmd[256];
+        snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+        if (system(cmd) != 0)
+            fprintf(stderr, "bench_pnp_ffdnet: could not remove %s\n", dir);
+    }
+    return tj;
+}
+
+static void bench_report(FILE *f, const pnp_bench *b)
+{
+    const double c_frame = b->c_frame, flop = b->flop, peak = b->peak;
+    const double pt_frame = b->pt_frame, pt_batch = b->pt_batch;
+    fprintf(f, "\nMeasured by `make bench` (bench/bench_pnp_ffdnet.c with bench/ffdnet_torch.py): drop40 snapshot "
+               "1 (256×256×8), grey FFDNet (15 layers, 64 features, %.2f G multiply-adds a frame), %d threads "
+               "for both; the machine's single-precision peak measured by %s chains: %.0f GFLOP/s.\n\n",
+            cnn_ffdnet_macs(b->net, b->w, b->h) / 1e9, b->threads, b->isa, peak);
+    fprintf(f, "| | C (%s) | PyTorch-CPU %s | C faster by |\n|---|---:|---:|---:|\n", cnn_ffdnet_plan_kernel(b->plan),
+            b->tj ? json_string_value(json_object_get(b->tj, "torch")) : "(not run)");
+    fprintf(f, "| denoiser, s per 256×256 frame | %.4f | %.4f | %.2f× |\n", c_frame, pt_frame, pt_frame / c_frame);
+    fprintf(f, "| denoiser, s per frame in a batch of 8 | %.4f | %.4f | %.2f× |\n", c_frame, pt_batch,
+            pt_batch / c_frame);
+    fprintf(f, "| GFLOP/s (direct-convolution equivalent) | %.0f | %.0f | |\n", flop / c_frame / 1e9,
+            flop / fmin(pt_frame, pt_batch) / 1e9);
+    fprintf(f, "| fraction of the measured peak | %.0f %% | %.0f %% | |\n", 100 * flop / c_frame / 1e9 / peak,
+            100 * flop / fmin(pt_frame, pt_batch) / 1e9 / peak);
+    fprintf(f, "| whole solve (40 iterations), s | %.2f | %.2f | %.2f× |\n", b->c_solve, b->pt_solve,
+            b->pt_solve / b->c_solve);
+    fprintf(f, "| PSNR, dB (peak = frame max) | %.2f | %.2f | |\n", b->c_psnr, b->pt_psnr);
+    fprintf(f, "| peak RSS of the process, MiB | %.0f | %.0f | |\n", b->c_rss, b->pt_rss);
+    fprintf(f, "\nLoad average %.2f %.2f %.2f at the start, %.2f %.2f %.2f at the end (2 cores). The C "
+               "convolution is Winograd F(4×4, 3×3): 4× fewer multiplications than the direct convolution "
+               "PyTorch runs, so its direct-equivalent rate can exceed the peak.\n",
+            b->load0[0], b->load0[1], b->load0[2], b->load1[0], b->load1[1], b->load1[2]);
+}
+
+int main(int argc, char **argv)
+{
+    sci_runtime_env_apply(argv);
+    int threads = 2, repeat = 7, torch = 1;
+    int rc = bench_args(argc, argv, &threads, &repeat, &torch);
+    if (rc != 0)
+        return rc;
     omp_set_num_threads(threads);
     const char *data = getenv("SCICAP_DATA");
     char mat[1024], weights[1024];
     snprintf(mat, sizeof mat, "%s/drop40_cacti.mat", data ? data : "../shared/data");
     snprintf(weights, sizeof weights, "%s/ffdnet/net_gray.pth", data ? data : "../shared/data");
-    double load0[3] = {0}, load1[3] = {0};
-    getloadavg(load0, 3);
+    pnp_bench b = {.threads = threads};
+    getloadavg(b.load0, 3);
 
-    const char *isa;
-    const double peak = peak_gflops(threads, &isa);
-    printf("single-precision peak (%s, %d threads): %.1f GFLOP/s\n", isa, threads, peak);
+    b.peak = peak_gflops(threads, &b.isa);
+    printf("single-precision peak (%s, %d threads): %.1f GFLOP/s\n", b.isa, threads, b.peak);
 
     sci_problem **probs = NULL;
     int k = 0;
@@ -212,88 +308,42 @@ int main(int argc, char **argv)
         fprintf(stderr, "bench_pnp_ffdnet: %s\n", err.msg);
         return 1;
     }
+    b.net = net, b.plan = plan, b.w = w, b.h = h;
     const size_t fs = (size_t)w * h;
     float *frame = malloc(fs * sizeof *frame);
     double *t = malloc((size_t)repeat * sizeof *t);
-    cnn_ffdnet_denoise(plan, p->truth->data, 25 / 255.0f, frame); /* warm-up */
-    for (int r = 0; r < repeat; r++) {
-        int64_t t0 = sci_clock_mono_ns();
-        cnn_ffdnet_denoise(plan, p->truth->data, 25 / 255.0f, frame);
-        t[r] = sci_clock_s(t0, sci_clock_mono_ns());
-    }
-    qsort(t, (size_t)repeat, sizeof *t, cmp_double);
-    const double c_frame = t[repeat / 2], flop = 2 * cnn_ffdnet_macs(net, w, h);
+    b.c_frame = bench_denoiser(plan, p, frame, t, repeat);
+    b.flop = 2 * cnn_ffdnet_macs(net, w, h);
     printf("C denoiser (%s): %.4f s per %dx%d frame, %.1f GFLOP/s direct-equivalent (%.0f %% of peak)\n",
-           cnn_ffdnet_plan_kernel(plan), c_frame, w, h, flop / c_frame / 1e9, 100 * flop / c_frame / 1e9 / peak);
+           cnn_ffdnet_plan_kernel(plan), b.c_frame, w, h, b.flop / b.c_frame / 1e9,
+           100 * b.flop / b.c_frame / 1e9 / b.peak);
 
-    const solver_ops *m = &sci_pnp_ffdnet_solver;
     sci_pnp_params q;
-    sci_pnp_params_default(&q);
-    /* PnP-SCI's recipe, the one the PyTorch script runs: 40 iterations over σ 50, 25, 12, 6 */
-    q.iters = 40;
-    q.sigma = (solver_values){4, {50, 25, 12, 6}};
-    snprintf(q.weights, sizeof q.weights, "%s", weights);
-    q.threads = threads;
-    q.ssim_every = 0;
     sci_result res = {0};
-    int64_t s0 = sci_clock_mono_ns();
-    int rc = solver_run(m, p, &q, NULL, &res);
-    const double c_solve = sci_clock_s(s0, sci_clock_mono_ns());
-    if (rc < 0) {
+    if (bench_c_solve(p, weights, threads, &q, &res, &b.c_solve) < 0) {
         fprintf(stderr, "bench_pnp_ffdnet: %s\n", res.error.msg);
         return 1;
     }
-    const double c_psnr = res.trace.e[res.trace.len - 1].psnr;
-    const double c_rss = sci_clock_peak_rss_bytes() / 1048576.0;
-    printf("C solve: %.2f s, PSNR %.2f dB (peak = frame max), peak RSS %.0f MiB\n", c_solve, c_psnr, c_rss);
+    b.c_psnr = res.trace.e[res.trace.len - 1].psnr;
+    b.c_rss = sci_clock_peak_rss_bytes() / 1048576.0;
+    printf("C solve: %.2f s, PSNR %.2f dB (peak = frame max), peak RSS %.0f MiB\n", b.c_solve, b.c_psnr, b.c_rss);
 
-    json_t *tj = NULL;
-    char dir[] = "/tmp/bench_pnp_ffdnet.XXXXXX";
-    if (torch && mkdtemp(dir)) {
-        if (export_problem(dir, p, weights, &q) == 0)
-            tj = run_torch(dir, threads, repeat);
-        char cmd[256];
-        snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-        if (system(cmd) != 0)
-            fprintf(stderr, "bench_pnp_ffdnet: could not remove %s\n", dir);
-    }
-    const double pt_frame = jnum(tj, "denoise_frame_s"), pt_batch = jnum(tj, "denoise_batch_frame_s");
-    const double pt_solve = jnum(tj, "solve_s"), pt_psnr = jnum(tj, "psnr"), pt_rss = jnum(tj, "peak_rss_mib");
-    getloadavg(load1, 3);
+    json_t *tj = torch ? bench_torch(p, weights, &q, threads, repeat) : NULL;
+    b.tj = tj;
+    b.pt_frame = jnum(tj, "denoise_frame_s"), b.pt_batch = jnum(tj, "denoise_batch_frame_s");
+    b.pt_solve = jnum(tj, "solve_s"), b.pt_psnr = jnum(tj, "psnr"), b.pt_rss = jnum(tj, "peak_rss_mib");
+    getloadavg(b.load1, 3);
     if (tj)
         printf("PyTorch %s: %.4f s per frame (%.4f in a batch of %d), solve %.2f s, PSNR %.2f dB, peak RSS %.0f MiB\n",
-               json_string_value(json_object_get(tj, "torch")), pt_frame, pt_batch, p->mask->n, pt_solve, pt_psnr,
-               pt_rss);
+               json_string_value(json_object_get(tj, "torch")), b.pt_frame, b.pt_batch, p->mask->n, b.pt_solve,
+               b.pt_psnr, b.pt_rss);
 
     FILE *md = fopen("bench/results/pnp_ffdnet.md", "w");
-    FILE *outs[2] = {stdout, md};
-    for (int o = 0; o < 2; o++) {
-        FILE *f = outs[o];
-        if (!f)
-            continue;
-        fprintf(f, "\nMeasured by `make bench` (bench/bench_pnp_ffdnet.c with bench/ffdnet_torch.py): drop40 snapshot "
-                   "1 (256×256×8), grey FFDNet (15 layers, 64 features, %.2f G multiply-adds a frame), %d threads "
-                   "for both; the machine's single-precision peak measured by %s chains: %.0f GFLOP/s.\n\n",
-                cnn_ffdnet_macs(net, w, h) / 1e9, threads, isa, peak);
-        fprintf(f, "| | C (%s) | PyTorch-CPU %s | C faster by |\n|---|---:|---:|---:|\n", cnn_ffdnet_plan_kernel(plan),
-                tj ? json_string_value(json_object_get(tj, "torch")) : "(not run)");
-        fprintf(f, "| denoiser, s per 256×256 frame | %.4f | %.4f | %.2f× |\n", c_frame, pt_frame, pt_frame / c_frame);
-        fprintf(f, "| denoiser, s per frame in a batch of 8 | %.4f | %.4f | %.2f× |\n", c_frame, pt_batch,
-                pt_batch / c_frame);
-        fprintf(f, "| GFLOP/s (direct-convolution equivalent) | %.0f | %.0f | |\n", flop / c_frame / 1e9,
-                flop / fmin(pt_frame, pt_batch) / 1e9);
-        fprintf(f, "| fraction of the measured peak | %.0f %% | %.0f %% | |\n", 100 * flop / c_frame / 1e9 / peak,
-                100 * flop / fmin(pt_frame, pt_batch) / 1e9 / peak);
-        fprintf(f, "| whole solve (40 iterations), s | %.2f | %.2f | %.2f× |\n", c_solve, pt_solve, pt_solve / c_solve);
-        fprintf(f, "| PSNR, dB (peak = frame max) | %.2f | %.2f | |\n", c_psnr, pt_psnr);
-        fprintf(f, "| peak RSS of the process, MiB | %.0f | %.0f | |\n", c_rss, pt_rss);
-        fprintf(f, "\nLoad average %.2f %.2f %.2f at the start, %.2f %.2f %.2f at the end (2 cores). The C "
-                   "convolution is Winograd F(4×4, 3×3): 4× fewer multiplications than the direct convolution "
-                   "PyTorch runs, so its direct-equivalent rate can exceed the peak.\n",
-                load0[0], load0[1], load0[2], load1[0], load1[1], load1[2]);
-    }
-    if (md)
+    bench_report(stdout, &b);
+    if (md) {
+        bench_report(md, &b);
         fclose(md);
+    }
     json_decref(tj);
     sci_result_free_contents(&res);
     free(frame);
