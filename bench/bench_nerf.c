@@ -340,6 +340,140 @@ static float *falloc(size_t n, sci_rng *rng, double lo, double hi)
     return p;
 }
 
+/* What the RayFormer step measured, for the report. */
+typedef struct step_result {
+    int N;          /* points per step */
+    double best, median; /* s per step */
+    double mib;     /* peak RSS after the step, MiB */
+    size_t np;      /* parameters */
+} step_result;
+
+/* The RayFormer training step (fwd + render + loss + bwd + Adam) at 65,536 points; its row added. 0, or -1 with the
+ * error printed. */
+static int bench_train(const nerf_rayformer_config *cfg, sci_rng *rng, step_result *out)
+{
+    train tr = {.patches = 4, .poses = 8, .R = 64, .L = 32};
+    sci_error err = {0};
+    if (nerf_rayformer_new(&tr.net, cfg, &err) < 0) return fprintf(stderr, "%s\n", err.msg), -1;
+    const int Pn = tr.patches * tr.poses, rays = Pn * tr.R, N = rays * tr.L;
+    size_t np = nerf_rayformer_param_count(tr.net);
+    int64_t rss0 = sci_clock_peak_rss_bytes();
+    tr.P = falloc(np, NULL, 0, 0), tr.G = falloc(np, NULL, 0, 0);
+    nerf_rayformer_init(tr.net, tr.P, 1);
+    if (nerf_rayformer_ws_new(&tr.ws, tr.net, Pn, NT, &err) < 0) return fprintf(stderr, "%s\n", err.msg), -1;
+    nerf_adam_config ac = {.beta1 = 0.9, .beta2 = 0.99, .eps = 1e-15, .weight_decay = 0};
+    if (nerf_adam_new(&tr.adam, np, &ac, &err) < 0) return fprintf(stderr, "%s\n", err.msg), -1;
+    tr.pos = falloc(3 * (size_t)N, rng, -1, 1), tr.dir = falloc(3 * (size_t)rays, NULL, 0, 0);
+    for (int r = 0; r < rays; r++) tr.dir[3 * r + 2] = -1.0f;
+    tr.sigma = falloc(N, NULL, 0, 0), tr.rgb = falloc(3 * (size_t)N, NULL, 0, 0), tr.dsig = falloc(N, NULL, 0, 0);
+    tr.drgb = falloc(3 * (size_t)N, NULL, 0, 0), tr.delta = falloc(N, rng, 0.02, 0.04);
+    tr.color = falloc(3 * (size_t)rays, NULL, 0, 0), tr.dcolor = falloc(3 * (size_t)rays, NULL, 0, 0);
+    tr.Y = falloc(3 * (size_t)tr.patches * tr.R, rng, 0, 4), tr.M = falloc((size_t)tr.poses * tr.patches * tr.R, rng, 0, 1);
+    double cr, med;
+    double s = time_it(run_train, &tr, 15, &cr, &med);
+    int64_t rss = sci_clock_peak_rss_bytes();
+    double mib = (double)rss / (1 << 20);
+    printf("RayFormer 2 blocks, width 32, %d points/step: best %.1f ms/step, median %.1f ms, peak RSS %.0f MiB "
+           "(%.0f MiB before the network), workspace %.0f MiB, %zu parameters\n",
+           N, s * 1e3, med * 1e3, mib, (double)rss0 / (1 << 20), (double)nerf_rayformer_ws_bytes(tr.ws) / (1 << 20),
+           np);
+    add_row("RayFormer step (fwd+render+loss+bwd+Adam)", N, s, med, (double)(rss - rss0) / N, cr);
+    *out = (step_result){.N = N, .best = s, .median = med, .mib = mib, .np = np};
+    nerf_rayformer_ws_free(tr.ws);
+    nerf_adam_free(tr.adam);
+    nerf_rayformer_free(tr.net);
+    free(tr.P), free(tr.G), free(tr.pos), free(tr.dir), free(tr.sigma), free(tr.rgb), free(tr.dsig), free(tr.drgb);
+    free(tr.delta), free(tr.color), free(tr.dcolor), free(tr.Y), free(tr.M);
+    return 0;
+}
+
+/* The per-point blocks: linear, layernorm, GELU, trunc_exp, encodings; k's buffers allocated here. */
+static void bench_blocks_pointwise(blk *k, int reps, sci_rng *rng)
+{
+    double cr, med, s;
+    size_t big = (size_t)NPTS * 96;
+    k->x = falloc(big, rng, -1, 1), k->y = falloc(big, NULL, 0, 0), k->dy = falloc(big, rng, -1, 1);
+    k->dx = falloc(big, NULL, 0, 0), k->W = falloc(64 * 1024, rng, -0.2, 0.2), k->b = falloc(1024, rng, -0.1, 0.1);
+    for (int t = 0; t < NT; t++) k->gW[t] = falloc(64 * 1024, NULL, 0, 0), k->gb[t] = falloc(1024, NULL, 0, 0);
+    k->xhat = falloc((size_t)NPTS * 32, NULL, 0, 0), k->rstd = falloc(NPTS, NULL, 0, 0);
+    s = time_it(run_linear, k, reps, &cr, &med);
+    add_row("linear 32→32 (sgemm)", NPTS, s, med, 4.0 * (32 + 32), cr);
+    s = time_it(run_layernorm, k, reps, &cr, &med);
+    add_row("layernorm 32", NPTS, s, med, 4.0 * (32 + 1), cr);
+    s = time_it(run_gelu, k, reps, &cr, &med);
+    add_row("GELU ×32 channels (forward, backward)", NPTS, s, med, 4.0 * 32, cr);
+    s = time_it(run_gelu_fused, k, reps, &cr, &med);
+    add_row("GELU ×32 channels (value + derivative, 1 pass)", NPTS, s, med, 4.0 * 64, cr);
+    s = time_it(run_trunc_exp, k, reps, &cr, &med);
+    add_row("trunc_exp", NPTS, s, med, 4.0, cr);
+    for (size_t i = 0; i < (size_t)NPTS * 3; i++) k->x[i] = (float)sci_rng_uniform(rng);
+    s = time_it(run_posenc, k, reps, &cr, &med);
+    add_row("frequency encoding 3→63", NPTS, s, med, 4.0 * 63, cr);
+    s = time_it(run_sh, k, reps, &cr, &med);
+    add_row("SH degree 4 (16)", NPTS, s, med, 4.0 * 16, cr);
+}
+
+/* The hash grid (at RayFormer's grid settings), the I²R-MSA core and the whole transformer block, on k's buffers
+ * from bench_blocks_pointwise. */
+static void bench_blocks_network(blk *k, const nerf_hashgrid_config *grid, int reps, sci_rng *rng)
+{
+    double cr, med, s;
+    sci_error err = {0};
+    size_t big = (size_t)NPTS * 96;
+    nerf_hashgrid_config hc = *grid;
+    nerf_hashgrid_new(&k->grid, &hc, &err);
+    k->np = nerf_hashgrid_param_count(k->grid);
+    k->table = falloc(k->np, rng, -1e-4, 1e-4);
+    for (int t = 0; t < NT; t++) k->gtab[t] = falloc(k->np, NULL, 0, 0);
+    s = time_it(run_hash, k, reps, &cr, &med);
+    add_row("hash grid 16×2, T=2^16", NPTS, s, med, 4.0 * (3 + 32), cr);
+    k->att = (nerf_i2r_shape){.C = 32, .heads = 2, .L = 32, .R = 64};
+    k->qkv = falloc(big, rng, -2, 2), k->dqkv = falloc(big, NULL, 0, 0), k->lse = falloc((size_t)NPTS * 4, NULL, 0, 0);
+    const nerf_block_shape scr_shape = {.att = k->att, .hidden = 64, .inter_gate = 1};
+    for (int t = 0; t < NT; t++) k->scr[t] = falloc(nerf_block_scratch_floats(&scr_shape, 2048), NULL, 0, 0);
+    s = time_it(run_attention, k, reps, &cr, &med);
+    add_row("I²R-MSA core (2 heads/path, L=32, R=64)", NPTS, s, med, 4.0 * (96 + 32 + 4), cr);
+    k->bs = (nerf_block_shape){.att = k->att, .hidden = 64, .inter_gate = 1}; /* as RayFormer's default: gated */
+    free(k->W);
+    k->W = falloc(nerf_block_param_count(&k->bs), NULL, 0, 0);
+    nerf_block_init(&k->bs, k->W, 2, rng);
+    for (int t = 0; t < NT; t++) free(k->gW[t]), k->gW[t] = falloc(nerf_block_param_count(&k->bs), NULL, 0, 0);
+    k->sv_mem = falloc((size_t)NPTS * nerf_block_saved_floats(&k->bs), NULL, 0, 0);
+    nerf_block_saved_bind(&k->bs, NPTS, k->sv_mem, &k->sv);
+    s = time_it(run_block, k, reps, &cr, &med);
+    add_row("I²R transformer block (C=32, FFN 64, gated inter-ray path)", NPTS, s, med,
+            4.0 * nerf_block_saved_floats(&k->bs), cr);
+}
+
+/* Volume rendering of NPTS / 32 rays, on k's buffers. */
+static void bench_render(blk *k, int reps, sci_rng *rng)
+{
+    double cr, med, s;
+    rnd rd = {.r = {.n_rays = NPTS / 32, .L = 32, .sigma = k->x, .rgb = k->dy, .delta = k->b, .t_stop = 1e-4f}};
+    float *delta = falloc(NPTS, rng, 0.01, 0.05);
+    rd.r.delta = delta;
+    for (size_t i = 0; i < (size_t)NPTS; i++) k->x[i] = (float)(5 * sci_rng_uniform(rng));
+    rd.color = falloc((size_t)NPTS / 32 * 3, NULL, 0, 0), rd.dc = falloc((size_t)NPTS / 32 * 3, rng, -1, 1);
+    rd.ds = k->y, rd.drgb = k->dx;
+    s = time_it(run_render, &rd, reps, &cr, &med);
+    add_row("volume rendering (32 samples/ray)", NPTS, s, med, 0.0, cr);
+}
+
+static void bench_report(FILE *f, const step_result *st, int64_t rss_all, const char *load0, const char *load1)
+{
+    fprintf(f, "| forward + backward, %d threads | Mpoints/s best | median | bytes/point | CPU/wall |\n"
+               "|---|---:|---:|---:|---:|\n", NT);
+    for (int i = 0; i < n_rows; i++)
+        fprintf(f, "| %s | %.3f | %.3f | %.0f | %.2f |\n", rows[i].name, rows[i].best * 1e-6,
+                rows[i].median * 1e-6, rows[i].bytes_per_pt, rows[i].cpu_ratio);
+    fprintf(f, "\nRayFormer step: %d points (4 patches × 64 pixels × 8 poses × 32 samples), best %.1f ms, median "
+               "%.1f ms; peak RSS %.0f MiB during the step (whole run %.0f MiB), %zu parameters. bytes/point: "
+               "peak RSS growth of the step per point for the step, saved activations + workspace for the MLP "
+               "fields, inputs + outputs for the blocks. Load average %s at the start, %s at the end (2 cores, "
+               "shared with other jobs).\n",
+            st->N, st->best * 1e3, st->median * 1e3, st->mib, (double)rss_all / (1 << 20), st->np, load0, load1);
+}
+
 int main(void)
 {
     sci_rng rng;
@@ -351,39 +485,10 @@ int main(void)
     printf("nerf blocks, %d points per call, %d threads; load average %s\n", NPTS, NT, load0);
 
     /* whole network first, so that peak RSS is its own */
-    train tr = {.patches = 4, .poses = 8, .R = 64, .L = 32};
     nerf_rayformer_config cfg = nerf_rayformer_config_default();
-    sci_error err = {0};
-    if (nerf_rayformer_new(&tr.net, &cfg, &err) < 0) return fprintf(stderr, "%s\n", err.msg), 1;
-    const int Pn = tr.patches * tr.poses, rays = Pn * tr.R, N = rays * tr.L;
-    size_t np = nerf_rayformer_param_count(tr.net);
-    int64_t rss0 = sci_clock_peak_rss_bytes();
-    tr.P = falloc(np, NULL, 0, 0), tr.G = falloc(np, NULL, 0, 0);
-    nerf_rayformer_init(tr.net, tr.P, 1);
-    if (nerf_rayformer_ws_new(&tr.ws, tr.net, Pn, NT, &err) < 0) return fprintf(stderr, "%s\n", err.msg), 1;
-    nerf_adam_config ac = {.beta1 = 0.9, .beta2 = 0.99, .eps = 1e-15, .weight_decay = 0};
-    if (nerf_adam_new(&tr.adam, np, &ac, &err) < 0) return fprintf(stderr, "%s\n", err.msg), 1;
-    tr.pos = falloc(3 * (size_t)N, &rng, -1, 1), tr.dir = falloc(3 * (size_t)rays, NULL, 0, 0);
-    for (int r = 0; r < rays; r++) tr.dir[3 * r + 2] = -1.0f;
-    tr.sigma = falloc(N, NULL, 0, 0), tr.rgb = falloc(3 * (size_t)N, NULL, 0, 0), tr.dsig = falloc(N, NULL, 0, 0);
-    tr.drgb = falloc(3 * (size_t)N, NULL, 0, 0), tr.delta = falloc(N, &rng, 0.02, 0.04);
-    tr.color = falloc(3 * (size_t)rays, NULL, 0, 0), tr.dcolor = falloc(3 * (size_t)rays, NULL, 0, 0);
-    tr.Y = falloc(3 * (size_t)tr.patches * tr.R, &rng, 0, 4), tr.M = falloc((size_t)tr.poses * tr.patches * tr.R, &rng, 0, 1);
-    double cr, med;
-    double s = time_it(run_train, &tr, 15, &cr, &med);
-    int64_t rss = sci_clock_peak_rss_bytes();
-    double mib = (double)rss / (1 << 20);
-    printf("RayFormer 2 blocks, width 32, %d points/step: best %.1f ms/step, median %.1f ms, peak RSS %.0f MiB "
-           "(%.0f MiB before the network), workspace %.0f MiB, %zu parameters\n",
-           N, s * 1e3, med * 1e3, mib, (double)rss0 / (1 << 20), (double)nerf_rayformer_ws_bytes(tr.ws) / (1 << 20),
-           np);
-    add_row("RayFormer step (fwd+render+loss+bwd+Adam)", N, s, med, (double)(rss - rss0) / N, cr);
-    const double step_best = s, step_med = med;
-    nerf_rayformer_ws_free(tr.ws);
-    nerf_adam_free(tr.adam);
-    nerf_rayformer_free(tr.net);
-    free(tr.P), free(tr.G), free(tr.pos), free(tr.dir), free(tr.sigma), free(tr.rgb), free(tr.dsig), free(tr.drgb);
-    free(tr.delta), free(tr.color), free(tr.dcolor), free(tr.Y), free(tr.M);
+    step_result st;
+    if (bench_train(&cfg, &rng, &st) < 0)
+        return 1;
 
     /* the SCINeRF-style field: the paper's network and the hash variant */
     nerf_mlp_config mc = nerf_mlp_config_scinerf();
@@ -393,73 +498,15 @@ int main(void)
 
     /* per-block */
     blk k = {0};
-    size_t big = (size_t)NPTS * 96;
-    k.x = falloc(big, &rng, -1, 1), k.y = falloc(big, NULL, 0, 0), k.dy = falloc(big, &rng, -1, 1);
-    k.dx = falloc(big, NULL, 0, 0), k.W = falloc(64 * 1024, &rng, -0.2, 0.2), k.b = falloc(1024, &rng, -0.1, 0.1);
-    for (int t = 0; t < NT; t++) k.gW[t] = falloc(64 * 1024, NULL, 0, 0), k.gb[t] = falloc(1024, NULL, 0, 0);
-    k.xhat = falloc((size_t)NPTS * 32, NULL, 0, 0), k.rstd = falloc(NPTS, NULL, 0, 0);
-    s = time_it(run_linear, &k, reps, &cr, &med);
-    add_row("linear 32→32 (sgemm)", NPTS, s, med, 4.0 * (32 + 32), cr);
-    s = time_it(run_layernorm, &k, reps, &cr, &med);
-    add_row("layernorm 32", NPTS, s, med, 4.0 * (32 + 1), cr);
-    s = time_it(run_gelu, &k, reps, &cr, &med);
-    add_row("GELU ×32 channels (forward, backward)", NPTS, s, med, 4.0 * 32, cr);
-    s = time_it(run_gelu_fused, &k, reps, &cr, &med);
-    add_row("GELU ×32 channels (value + derivative, 1 pass)", NPTS, s, med, 4.0 * 64, cr);
-    s = time_it(run_trunc_exp, &k, reps, &cr, &med);
-    add_row("trunc_exp", NPTS, s, med, 4.0, cr);
-    for (size_t i = 0; i < (size_t)NPTS * 3; i++) k.x[i] = (float)sci_rng_uniform(&rng);
-    s = time_it(run_posenc, &k, reps, &cr, &med);
-    add_row("frequency encoding 3→63", NPTS, s, med, 4.0 * 63, cr);
-    s = time_it(run_sh, &k, reps, &cr, &med);
-    add_row("SH degree 4 (16)", NPTS, s, med, 4.0 * 16, cr);
-    nerf_hashgrid_config hc = cfg.grid;
-    nerf_hashgrid_new(&k.grid, &hc, &err);
-    k.np = nerf_hashgrid_param_count(k.grid);
-    k.table = falloc(k.np, &rng, -1e-4, 1e-4);
-    for (int t = 0; t < NT; t++) k.gtab[t] = falloc(k.np, NULL, 0, 0);
-    s = time_it(run_hash, &k, reps, &cr, &med);
-    add_row("hash grid 16×2, T=2^16", NPTS, s, med, 4.0 * (3 + 32), cr);
-    k.att = (nerf_i2r_shape){.C = 32, .heads = 2, .L = 32, .R = 64};
-    k.qkv = falloc(big, &rng, -2, 2), k.dqkv = falloc(big, NULL, 0, 0), k.lse = falloc((size_t)NPTS * 4, NULL, 0, 0);
-    const nerf_block_shape scr_shape = {.att = k.att, .hidden = 64, .inter_gate = 1};
-    for (int t = 0; t < NT; t++) k.scr[t] = falloc(nerf_block_scratch_floats(&scr_shape, 2048), NULL, 0, 0);
-    s = time_it(run_attention, &k, reps, &cr, &med);
-    add_row("I²R-MSA core (2 heads/path, L=32, R=64)", NPTS, s, med, 4.0 * (96 + 32 + 4), cr);
-    k.bs = (nerf_block_shape){.att = k.att, .hidden = 64, .inter_gate = 1}; /* as RayFormer's default: gated */
-    free(k.W);
-    k.W = falloc(nerf_block_param_count(&k.bs), NULL, 0, 0);
-    nerf_block_init(&k.bs, k.W, 2, &rng);
-    for (int t = 0; t < NT; t++) free(k.gW[t]), k.gW[t] = falloc(nerf_block_param_count(&k.bs), NULL, 0, 0);
-    k.sv_mem = falloc((size_t)NPTS * nerf_block_saved_floats(&k.bs), NULL, 0, 0);
-    nerf_block_saved_bind(&k.bs, NPTS, k.sv_mem, &k.sv);
-    s = time_it(run_block, &k, reps, &cr, &med);
-    add_row("I²R transformer block (C=32, FFN 64, gated inter-ray path)", NPTS, s, med,
-            4.0 * nerf_block_saved_floats(&k.bs), cr);
-    rnd rd = {.r = {.n_rays = NPTS / 32, .L = 32, .sigma = k.x, .rgb = k.dy, .delta = k.b, .t_stop = 1e-4f}};
-    float *delta = falloc(NPTS, &rng, 0.01, 0.05);
-    rd.r.delta = delta;
-    for (size_t i = 0; i < (size_t)NPTS; i++) k.x[i] = (float)(5 * sci_rng_uniform(&rng));
-    rd.color = falloc((size_t)NPTS / 32 * 3, NULL, 0, 0), rd.dc = falloc((size_t)NPTS / 32 * 3, &rng, -1, 1);
-    rd.ds = k.y, rd.drgb = k.dx;
-    s = time_it(run_render, &rd, reps, &cr, &med);
-    add_row("volume rendering (32 samples/ray)", NPTS, s, med, 0.0, cr);
+    bench_blocks_pointwise(&k, reps, &rng);
+    bench_blocks_network(&k, &cfg.grid, reps, &rng);
+    bench_render(&k, reps, &rng);
     bench_loadavg(load1, sizeof load1);
     int64_t rss_all = sci_clock_peak_rss_bytes();
 
     FILE *f = fopen("bench/results/nerf.md", "w");
     if (f) {
-        fprintf(f, "| forward + backward, %d threads | Mpoints/s best | median | bytes/point | CPU/wall |\n"
-                   "|---|---:|---:|---:|---:|\n", NT);
-        for (int i = 0; i < n_rows; i++)
-            fprintf(f, "| %s | %.3f | %.3f | %.0f | %.2f |\n", rows[i].name, rows[i].best * 1e-6,
-                    rows[i].median * 1e-6, rows[i].bytes_per_pt, rows[i].cpu_ratio);
-        fprintf(f, "\nRayFormer step: %d points (4 patches × 64 pixels × 8 poses × 32 samples), best %.1f ms, median "
-                   "%.1f ms; peak RSS %.0f MiB during the step (whole run %.0f MiB), %zu parameters. bytes/point: "
-                   "peak RSS growth of the step per point for the step, saved activations + workspace for the MLP "
-                   "fields, inputs + outputs for the blocks. Load average %s at the start, %s at the end (2 cores, "
-                   "shared with other jobs).\n",
-                N, step_best * 1e3, step_med * 1e3, mib, (double)rss_all / (1 << 20), np, load0, load1);
+        bench_report(f, &st, rss_all, load0, load1);
         fclose(f);
     }
     printf("peak RSS of the whole run %.0f MiB; load average %s → %s\n", (double)rss_all / (1 << 20), load0, load1);
