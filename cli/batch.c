@@ -193,142 +193,184 @@ static void finish_slot(batch *b, slot *s, int status)
     s->pid = 0;
 }
 
+/* One local run's bookkeeping, shared by batch_run_local's steps. todo and slots are owned. err is one buffer for
+ * the whole run: a start that fails names its message when one is there. */
+typedef struct batch_local {
+    batch *b;
+    int parallel, quiet, threads;
+    int *todo, ntodo, finished; /* the jobs to run, in order; how many had finished before */
+    slot *slots;                /* parallel of them */
+    int64_t t0, stop_ns;
+    int next, running, ran, failed;
+    double ran_s;               /* the finished jobs' seconds, for the estimate */
+    sci_error err;
+} batch_local;
+
+/* Starts the next job of todo in a free slot (a failure to start counts as ran and failed). */
+static void batch_local_start_next(batch_local *L)
+{
+    batch *b = L->b;
+    slot *s = NULL;
+    for (int k = 0; k < L->parallel && !s; k++)
+        if (!L->slots[k].pid)
+            s = &L->slots[k];
+    batch_job *j = &b->jobs[L->todo[L->next]];
+    char logp[PATH_MAX + 300], rel[300];
+    snprintf(rel, sizeof rel, "logs/%s.log", j->name);
+    int fds[2] = {-1, -1}, logfd = -1;
+    if (batch_path(b, logp, sizeof logp, rel, &L->err) == 0)
+        logfd = open(logp, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (logfd < 0 || pipe2(fds, O_CLOEXEC) != 0) {
+        fprintf(stderr, "scicap batch: %s: %s\n", j->name, L->err.msg[0] ? L->err.msg : strerror(errno));
+        if (logfd >= 0)
+            close(logfd);
+        j->state = BATCH_FAILED;
+        snprintf(j->error, sizeof j->error, "could not start: %s", strerror(errno));
+        L->next++, L->ran++, L->failed++;
+        return;
+    }
+    batch_job_clean_staging(b, j);
+    memset(s, 0, sizeof *s);
+    s->job = L->todo[L->next++];
+    s->t0_ns = sci_clock_mono_ns();
+    int pid = batch_job_spawn(b, j, logfd, fds[1], L->threads);
+    close(logfd);
+    close(fds[1]);
+    if (pid < 0) {
+        close(fds[0]);
+        j->state = BATCH_FAILED;
+        snprintf(j->error, sizeof j->error, "could not start: %s", strerror(-pid));
+        fprintf(stderr, "scicap batch: %s: %s\n", j->name, j->error);
+        L->ran++, L->failed++;
+        return;
+    }
+    s->pid = pid, s->errfd = fds[0], s->idx = L->finished + L->ran + L->running + 1;
+    j->state = BATCH_RUNNING;
+    j->attempts++;
+    L->running++;
+    if (!L->quiet)
+        fprintf(stderr, "[%d/%d %s] started: %s\n", s->idx, b->njobs, j->name, j->input);
+    batch_state_save(b, &L->err);
+}
+
+/* After a stop signal, passes SIGTERM on to each child still running once its grace time is over. */
+static void batch_local_pass_stop(batch_local *L)
+{
+    if (!L->stop_ns)
+        L->stop_ns = sci_clock_mono_ns();
+    for (int k = 0; k < L->parallel; k++)
+        if (L->slots[k].pid && !L->slots[k].signaled && sci_clock_mono_ns() - L->stop_ns > STOP_GRACE_NS) {
+            kill(L->slots[k].pid, SIGTERM);
+            L->slots[k].signaled = 1;
+        }
+}
+
+/* Waits up to 0.5 s for the children's stderr and reads what came; closes each at EOF. */
+static void batch_local_read(batch_local *L)
+{
+    struct pollfd pf[64];
+    int np = 0, map[64];
+    for (int k = 0; k < L->parallel && np < 64; k++)
+        if (L->slots[k].pid && L->slots[k].errfd >= 0)
+            pf[np] = (struct pollfd){.fd = L->slots[k].errfd, .events = POLLIN}, map[np++] = k;
+    if (np)
+        poll(pf, (nfds_t)np, 500);
+    else
+        usleep(50000);
+    for (int p = 0; p < np; p++)
+        if (pf[p].revents) {
+            slot *s = &L->slots[map[p]];
+            if (!slot_read(s, L->b, L->quiet)) {
+                close(s->errfd);
+                s->errfd = -1;
+            }
+        }
+}
+
+/* Reaps each child whose stderr is closed and has ended: its result, the saved state and the overall line. */
+static void batch_local_reap(batch_local *L)
+{
+    batch *b = L->b;
+    for (int k = 0; k < L->parallel; k++) {
+        slot *s = &L->slots[k];
+        int status;
+        if (!s->pid || s->errfd >= 0 || waitpid(s->pid, &status, WNOHANG) != s->pid)
+            continue;
+        L->running--;
+        if (stop_signal) {
+            b->jobs[s->job].state = BATCH_PENDING; /* interrupted: runs again next time */
+            s->pid = 0;
+            continue;
+        }
+        L->ran++;
+        finish_slot(b, s, status);
+        L->ran_s += b->jobs[s->job].seconds;
+        L->failed += b->jobs[s->job].state == BATCH_FAILED;
+        batch_state_save(b, &L->err);
+        char el[32], eta[32];
+        fmt_duration(el, sizeof el, sci_clock_s(L->t0, sci_clock_mono_ns()));
+        fmt_duration(eta, sizeof eta, L->ran ? L->ran_s / L->ran * (L->ntodo - L->ran) / L->parallel : 0);
+        fprintf(stderr, "batch: %d/%d finished: %d done, %d failed; %d running; %s elapsed%s%s\n",
+                L->finished + L->ran, b->njobs, L->finished + L->ran - L->failed, L->failed, L->running, el,
+                L->ntodo - L->ran > 0 ? ", about " : "", L->ntodo - L->ran > 0 ? eta : "");
+    }
+}
+
+/* The jobs not finished into L->todo, and the opening line. */
+static void batch_local_plan(batch_local *L)
+{
+    batch *b = L->b;
+    for (int i = 0; i < b->njobs; i++)
+        if (batch_job_finished(b, &b->jobs[i]))
+            L->finished++;
+        else
+            L->todo[L->ntodo++] = i;
+    fprintf(stderr, "batch: %d job(s), %d already done, %d to run", b->njobs, L->finished, L->ntodo);
+    if (L->parallel > 1)
+        fprintf(stderr, ", %d at once with %d thread(s) each", L->parallel, L->threads);
+    fprintf(stderr, "\n");
+}
+
 int batch_run_local(batch *b, int parallel, int quiet)
 {
-    sci_error err = {0};
+    batch_local L = {.b = b, .quiet = quiet};
     if (parallel < 1)
         parallel = 1;
+    L.parallel = parallel;
     long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    const int threads = parallel > 1 ? (int)(cores / parallel > 0 ? cores / parallel : 1) : 0;
-    int *todo = malloc((size_t)(b->njobs > 0 ? b->njobs : 1) * sizeof *todo), ntodo = 0, finished = 0;
-    slot *slots = calloc((size_t)parallel, sizeof *slots);
-    if (!todo || !slots) {
-        free(todo), free(slots);
+    L.threads = parallel > 1 ? (int)(cores / parallel > 0 ? cores / parallel : 1) : 0;
+    L.todo = malloc((size_t)(b->njobs > 0 ? b->njobs : 1) * sizeof *L.todo);
+    L.slots = calloc((size_t)parallel, sizeof *L.slots);
+    if (!L.todo || !L.slots) {
+        free(L.todo), free(L.slots);
         fprintf(stderr, "scicap batch: out of memory\n");
         return 1;
     }
-    for (int i = 0; i < b->njobs; i++)
-        if (batch_job_finished(b, &b->jobs[i]))
-            finished++;
-        else
-            todo[ntodo++] = i;
-    fprintf(stderr, "batch: %d job(s), %d already done, %d to run", b->njobs, finished, ntodo);
-    if (parallel > 1)
-        fprintf(stderr, ", %d at once with %d thread(s) each", parallel, threads);
-    fprintf(stderr, "\n");
+    batch_local_plan(&L);
     struct sigaction sa = {.sa_handler = on_signal}, old_int, old_term, old_hup, old_quit;
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, &old_int);
     sigaction(SIGTERM, &sa, &old_term);
     sigaction(SIGHUP, &sa, &old_hup); /* a closed terminal or Ctrl-\ stops the jobs as Ctrl-C does */
     sigaction(SIGQUIT, &sa, &old_quit);
-    const int64_t t0 = sci_clock_mono_ns();
-    int64_t stop_ns = 0;
-    int next = 0, running = 0, ran = 0, failed = 0;
-    double ran_s = 0;
-    while (next < ntodo || running) {
-        while (!stop_signal && next < ntodo && running < parallel) {
-            slot *s = NULL;
-            for (int k = 0; k < parallel && !s; k++)
-                if (!slots[k].pid)
-                    s = &slots[k];
-            batch_job *j = &b->jobs[todo[next]];
-            char logp[PATH_MAX + 300], rel[300];
-            snprintf(rel, sizeof rel, "logs/%s.log", j->name);
-            int fds[2] = {-1, -1}, logfd = -1;
-            if (batch_path(b, logp, sizeof logp, rel, &err) == 0)
-                logfd = open(logp, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-            if (logfd < 0 || pipe2(fds, O_CLOEXEC) != 0) {
-                fprintf(stderr, "scicap batch: %s: %s\n", j->name, err.msg[0] ? err.msg : strerror(errno));
-                if (logfd >= 0)
-                    close(logfd);
-                j->state = BATCH_FAILED;
-                snprintf(j->error, sizeof j->error, "could not start: %s", strerror(errno));
-                next++, ran++, failed++;
-                continue;
-            }
-            batch_job_clean_staging(b, j);
-            memset(s, 0, sizeof *s);
-            s->job = todo[next++];
-            s->t0_ns = sci_clock_mono_ns();
-            int pid = batch_job_spawn(b, j, logfd, fds[1], threads);
-            close(logfd);
-            close(fds[1]);
-            if (pid < 0) {
-                close(fds[0]);
-                j->state = BATCH_FAILED;
-                snprintf(j->error, sizeof j->error, "could not start: %s", strerror(-pid));
-                fprintf(stderr, "scicap batch: %s: %s\n", j->name, j->error);
-                ran++, failed++;
-                continue;
-            }
-            s->pid = pid, s->errfd = fds[0], s->idx = finished + ran + running + 1;
-            j->state = BATCH_RUNNING;
-            j->attempts++;
-            running++;
-            if (!quiet)
-                fprintf(stderr, "[%d/%d %s] started: %s\n", s->idx, b->njobs, j->name, j->input);
-            batch_state_save(b, &err);
-        }
-        if (stop_signal && running) {
-            if (!stop_ns)
-                stop_ns = sci_clock_mono_ns();
-            for (int k = 0; k < parallel; k++)
-                if (slots[k].pid && !slots[k].signaled && sci_clock_mono_ns() - stop_ns > STOP_GRACE_NS) {
-                    kill(slots[k].pid, SIGTERM);
-                    slots[k].signaled = 1;
-                }
-        }
-        if (!running)
+    L.t0 = sci_clock_mono_ns();
+    while (L.next < L.ntodo || L.running) {
+        while (!stop_signal && L.next < L.ntodo && L.running < parallel)
+            batch_local_start_next(&L);
+        if (stop_signal && L.running)
+            batch_local_pass_stop(&L);
+        if (!L.running)
             break;
-        struct pollfd pf[64];
-        int np = 0, map[64];
-        for (int k = 0; k < parallel && np < 64; k++)
-            if (slots[k].pid && slots[k].errfd >= 0)
-                pf[np] = (struct pollfd){.fd = slots[k].errfd, .events = POLLIN}, map[np++] = k;
-        if (np)
-            poll(pf, (nfds_t)np, 500);
-        else
-            usleep(50000);
-        for (int p = 0; p < np; p++)
-            if (pf[p].revents) {
-                slot *s = &slots[map[p]];
-                if (!slot_read(s, b, quiet)) {
-                    close(s->errfd);
-                    s->errfd = -1;
-                }
-            }
-        for (int k = 0; k < parallel; k++) {
-            slot *s = &slots[k];
-            int status;
-            if (!s->pid || s->errfd >= 0 || waitpid(s->pid, &status, WNOHANG) != s->pid)
-                continue;
-            running--;
-            if (stop_signal) {
-                b->jobs[s->job].state = BATCH_PENDING; /* interrupted: runs again next time */
-                s->pid = 0;
-                continue;
-            }
-            ran++;
-            finish_slot(b, s, status);
-            ran_s += b->jobs[s->job].seconds;
-            failed += b->jobs[s->job].state == BATCH_FAILED;
-            batch_state_save(b, &err);
-            char el[32], eta[32];
-            fmt_duration(el, sizeof el, sci_clock_s(t0, sci_clock_mono_ns()));
-            fmt_duration(eta, sizeof eta, ran ? ran_s / ran * (ntodo - ran) / parallel : 0);
-            fprintf(stderr, "batch: %d/%d finished: %d done, %d failed; %d running; %s elapsed%s%s\n",
-                    finished + ran, b->njobs, finished + ran - failed, failed, running, el,
-                    ntodo - ran > 0 ? ", about " : "", ntodo - ran > 0 ? eta : "");
-        }
+        batch_local_read(&L);
+        batch_local_reap(&L);
     }
     sigaction(SIGINT, &old_int, NULL);
     sigaction(SIGTERM, &old_term, NULL);
     sigaction(SIGHUP, &old_hup, NULL);
     sigaction(SIGQUIT, &old_quit, NULL);
-    batch_state_save(b, &err);
-    free(todo);
-    free(slots);
+    batch_state_save(b, &L.err);
+    free(L.todo);
+    free(L.slots);
     batch_print_summary(b);
     if (stop_signal) {
         fprintf(stderr, "scicap batch: interrupted; the state is in %s/%s (run again to go on)\n", b->outdir,
@@ -540,14 +582,18 @@ static int batch_init(batch *b, const char *out)
     return 0;
 }
 
-int cli_batch_main(int argc, char **argv)
+/* scicap batch's command line, as parsed. The recon options are argv after dashdash. */
+typedef struct batch_cli {
+    int dashdash;  /* index of "--" in argv, argc without one */
+    const char *out, *method, *preset, *store, *task;
+    int quiet, slurm, status;
+    long parallel;
+    batch_slurm_opts so;
+} batch_cli;
+
+/* Parses argv up to "--" into o. Returns -1 to go on, else the exit code (0 after --help, 2 on a bad option). */
+static int batch_cli_parse(batch_cli *o, int argc, char **argv)
 {
-    int dashdash = argc;
-    for (int i = 1; i < argc; i++)
-        if (strcmp(argv[i], "--") == 0) {
-            dashdash = i;
-            break;
-        }
     enum { O_PRESET = 256, O_STORE, O_SLURM, O_STATUS, O_CPUS, O_MEM, O_TIME, O_PARTITION, O_LIMIT, O_RESULTS,
            O_DRY, O_TASK };
     static const struct option longopts[] = {
@@ -561,113 +607,135 @@ int cli_batch_main(int argc, char **argv)
         {"dry-run", no_argument, 0, O_DRY},         {"task", required_argument, 0, O_TASK},
         {"help", no_argument, 0, 'h'},              {0, 0, 0, 0},
     };
-    const char *out = NULL, *method = NULL, *preset = NULL, *store = NULL, *task = NULL;
-    int quiet = 0, slurm = 0, status = 0, c;
-    long parallel = 1, v;
-    batch_slurm_opts so = {0};
+    o->dashdash = argc;
+    for (int i = 1; i < argc; i++)
+        if (strcmp(argv[i], "--") == 0) {
+            o->dashdash = i;
+            break;
+        }
+    o->parallel = 1;
+    int c;
+    long v;
     optind = 1;
-    while ((c = getopt_long(dashdash, argv, "o:m:P:qh", longopts, NULL)) != -1) {
+    while ((c = getopt_long(o->dashdash, argv, "o:m:P:qh", longopts, NULL)) != -1) {
         switch (c) {
-        case 'o': out = optarg; break;
-        case 'm': method = optarg; break;
-        case O_PRESET: preset = optarg; break;
+        case 'o': o->out = optarg; break;
+        case 'm': o->method = optarg; break;
+        case O_PRESET: o->preset = optarg; break;
         case 'P':
-            if (parse_long(optarg, "--parallel", 1, 256, &parallel) < 0)
+            if (parse_long(optarg, "--parallel", 1, 256, &o->parallel) < 0)
                 return 2;
             break;
-        case O_STORE: store = optarg; break;
-        case 'q': quiet = 1; break;
-        case O_SLURM: slurm = 1; break;
-        case O_STATUS: status = 1; break;
+        case O_STORE: o->store = optarg; break;
+        case 'q': o->quiet = 1; break;
+        case O_SLURM: o->slurm = 1; break;
+        case O_STATUS: o->status = 1; break;
         case O_CPUS:
             if (parse_long(optarg, "--cpus", 1, 1024, &v) < 0)
                 return 2;
-            so.cpus = (int)v;
+            o->so.cpus = (int)v;
             break;
         case O_MEM:
-            if (parse_long(optarg, "--mem", 16, 1L << 30, &so.mem_mib) < 0)
+            if (parse_long(optarg, "--mem", 16, 1L << 30, &o->so.mem_mib) < 0)
                 return 2;
             break;
         case O_TIME:
-            if (parse_long(optarg, "--time", 1, 1L << 24, &so.time_min) < 0)
+            if (parse_long(optarg, "--time", 1, 1L << 24, &o->so.time_min) < 0)
                 return 2;
             break;
-        case O_PARTITION: so.partition = optarg; break;
+        case O_PARTITION: o->so.partition = optarg; break;
         case O_LIMIT:
             if (parse_long(optarg, "--array-limit", 1, 1L << 20, &v) < 0)
                 return 2;
-            so.max_parallel = (int)v;
+            o->so.max_parallel = (int)v;
             break;
-        case O_RESULTS: so.results = optarg; break;
-        case O_DRY: so.dry_run = 1; break;
-        case O_TASK: task = optarg; break;
+        case O_RESULTS: o->so.results = optarg; break;
+        case O_DRY: o->so.dry_run = 1; break;
+        case O_TASK: o->task = optarg; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
     }
+    return -1;
+}
+
+/* The recon options: the ones given (method and preset first), else the ones the batch was started with.
+ * loaded: batch_state_load's result (0: a batch was there). Returns 0, or 1 after a message. */
+static int batch_cli_set_recon_args(const batch_cli *o, batch *b, int loaded, int argc, char **argv, sci_error *err)
+{
+    int nrargs = argc - o->dashdash - (o->dashdash < argc);
+    if (!o->method && !o->preset && nrargs <= 0)
+        return 0;
+    char **a = calloc((size_t)nrargs + 5, sizeof *a);
+    int n = 0;
+    if (!a)
+        return 1;
+    if (o->method)
+        a[n++] = (char *)"--method", a[n++] = (char *)o->method;
+    if (o->preset)
+        a[n++] = (char *)"--preset", a[n++] = (char *)o->preset;
+    for (int i = 0; i < nrargs; i++)
+        a[n++] = argv[o->dashdash + 1 + i];
+    if (loaded == 0 && b->nrecon_args)
+        fprintf(stderr, "scicap batch: the options differ from the batch's first run? the jobs still to run "
+                        "use the ones given now\n");
+    int rc = batch_set_recon_args(b, a, n, err);
+    free(a);
+    if (rc < 0) {
+        fprintf(stderr, "scicap batch: %s\n", err->msg);
+        return 1;
+    }
+    return 0;
+}
+
+/* --status and --task on a loaded batch. loaded: batch_state_load's result (1: none there). */
+static int batch_cli_status_or_task(const batch_cli *o, batch *b, int loaded)
+{
+    if (loaded == 1) {
+        fprintf(stderr, "scicap batch: %s holds no batch (%s/state.json)\n", b->outdir, BATCH_STATE_DIR);
+        return 2;
+    }
+    batch_state_merge_tasks(b);
+    return o->task ? batch_task_run(b, o->task) : batch_slurm_status(b);
+}
+
+int cli_batch_main(int argc, char **argv)
+{
+    batch_cli o = {0};
+    int rc = batch_cli_parse(&o, argc, argv);
+    if (rc >= 0)
+        return rc;
     char **inputs = argv + optind;
-    int ninputs = dashdash - optind;
-    if ((status || task) && !out && ninputs == 1) /* --status OUTDIR, --task NAME OUTDIR */
-        out = inputs[0], ninputs = 0;
-    if (!out) {
+    int ninputs = o.dashdash - optind;
+    if ((o.status || o.task) && !o.out && ninputs == 1) /* --status OUTDIR, --task NAME OUTDIR */
+        o.out = inputs[0], ninputs = 0;
+    if (!o.out) {
         fprintf(stderr, "scicap batch: -o OUTDIR is required\n");
         usage(stderr);
         return 2;
     }
     batch b;
-    if ((status || task) && access(out, F_OK) != 0) {
-        fprintf(stderr, "scicap batch: %s: no such batch folder\n", out);
+    if ((o.status || o.task) && access(o.out, F_OK) != 0) {
+        fprintf(stderr, "scicap batch: %s: no such batch folder\n", o.out);
         return 2;
     }
-    if (!status && !task && batch_check_inputs(inputs, ninputs, store, "scicap batch") != 0)
+    if (!o.status && !o.task && batch_check_inputs(inputs, ninputs, o.store, "scicap batch") != 0)
         return 2;
-    if (batch_init(&b, out) < 0)
+    if (batch_init(&b, o.out) < 0)
         return 1;
     sci_error err = {0};
-    int rc = batch_state_load(&b, &err);
+    rc = batch_state_load(&b, &err);
     if (rc < 0) {
         fprintf(stderr, "scicap batch: %s\n", err.msg);
         batch_free(&b);
         return 1;
     }
-    if (status || task) {
-        if (rc == 1) {
-            fprintf(stderr, "scicap batch: %s holds no batch (%s/state.json)\n", b.outdir, BATCH_STATE_DIR);
-            batch_free(&b);
-            return 2;
-        }
-        batch_state_merge_tasks(&b);
-        rc = task ? batch_task_run(&b, task) : batch_slurm_status(&b);
-        batch_free(&b);
-        return rc;
-    }
-    /* The recon options: the ones given (method and preset first), else the ones the batch was started with. */
-    int nrargs = argc - dashdash - (dashdash < argc);
-    if (method || preset || nrargs > 0) {
-        char **a = calloc((size_t)nrargs + 5, sizeof *a);
-        int n = 0;
-        if (!a) {
-            batch_free(&b);
-            return 1;
-        }
-        if (method)
-            a[n++] = (char *)"--method", a[n++] = (char *)method;
-        if (preset)
-            a[n++] = (char *)"--preset", a[n++] = (char *)preset;
-        for (int i = 0; i < nrargs; i++)
-            a[n++] = argv[dashdash + 1 + i];
-        if (rc == 0 && b.nrecon_args)
-            fprintf(stderr, "scicap batch: the options differ from the batch's first run? the jobs still to run "
-                            "use the ones given now\n");
-        rc = batch_set_recon_args(&b, a, n, &err);
-        free(a);
-        if (rc < 0) {
-            fprintf(stderr, "scicap batch: %s\n", err.msg);
-            batch_free(&b);
-            return 1;
-        }
-    }
-    rc = batch_main_run(&b, inputs, ninputs, store, (int)parallel, quiet, slurm, &so);
+    if (o.status || o.task)
+        rc = batch_cli_status_or_task(&o, &b, rc);
+    else if (batch_cli_set_recon_args(&o, &b, rc, argc, argv, &err) != 0)
+        rc = 1;
+    else
+        rc = batch_main_run(&b, inputs, ninputs, o.store, (int)o.parallel, o.quiet, o.slurm, &o.so);
     batch_free(&b);
     return rc;
 }
