@@ -146,88 +146,99 @@ static int squeue_states(const batch *b, char (*states)[24])
     return rc == 0 ? listed : -1;
 }
 
-int batch_slurm_submit(batch *b, const batch_slurm_opts *o, sci_error *err)
+/* One submission's plan: the jobs to submit and the resources each task asks for. todo is owned. */
+typedef struct slurm_plan {
+    int *todo, ntodo;           /* indexes of the jobs neither finished nor queued */
+    int done, inq;              /* finished; queued or running */
+    int cpus;
+    long mem, tmin;             /* MiB, minutes */
+    char how[PATH_MAX + 256];   /* where mem and tmin came from, for the script and the message */
+    char path[PATH_MAX + 100];  /* the script */
+} slurm_plan;
+
+/* The jobs neither finished nor queued (squeue) into p->todo. Returns 0 or -ENOMEM. */
+static int batch_slurm_plan_jobs(const batch *b, slurm_plan *p, sci_error *err)
 {
     char (*queued)[24] = calloc((size_t)(b->njobs ? b->njobs : 1), sizeof *queued);
-    int *todo = calloc((size_t)(b->njobs ? b->njobs : 1), sizeof *todo), ntodo = 0, done = 0, inq = 0;
-    if (!queued || !todo) {
-        free(queued), free(todo);
+    p->todo = calloc((size_t)(b->njobs ? b->njobs : 1), sizeof *p->todo);
+    if (!queued || !p->todo) {
+        free(queued), free(p->todo);
+        p->todo = NULL;
         return sci_error_set(err, -ENOMEM, "out of memory");
     }
     squeue_states(b, queued);
     for (int i = 0; i < b->njobs; i++) {
         if (batch_job_finished(b, &b->jobs[i]))
-            done++;
+            p->done++;
         else if (queued[i][0])
-            inq++;
+            p->inq++;
         else
-            todo[ntodo++] = i;
+            p->todo[p->ntodo++] = i;
     }
     free(queued);
-    if (ntodo == 0) {
-        printf("slurm: nothing to submit: %d job(s) done, %d queued or running (scicap batch --status %s)\n", done,
-               inq, b->outdir);
-        free(todo);
-        return 0;
-    }
-    /* Resources: the method's measurements, scaled to the largest input of this submission. */
+    return 0;
+}
+
+/* Resources: the options given, else the method's measurements scaled to the largest input of this submission,
+ * else defaults. */
+static void batch_slurm_plan_resources(const batch *b, const batch_slurm_opts *o, slurm_plan *p)
+{
     /* no --method: scicap recon's default, the table's first row */
     const char *method = recon_opt(b, "--method", "-m", solver_list(NULL)[0]->name), *preset = recon_opt(b, "--preset", NULL, NULL);
     estimate e;
     estimate_read(b, o ? o->results : NULL, method, preset, &e);
     double voxels = 0;
-    for (int t = 0; t < ntodo; t++) {
+    for (int t = 0; t < p->ntodo; t++) {
         long long w, h, n, k;
         sci_error perr = {0};
-        if (sci_source_probe(b->jobs[todo[t]].input, NULL, &w, &h, &n, &k, &perr) == 0 && w > 0 && h > 0)
+        if (sci_source_probe(b->jobs[p->todo[t]].input, NULL, &w, &h, &n, &k, &perr) == 0 && w > 0 && h > 0)
             voxels = fmax(voxels, (double)w * (double)h * (double)(n > 0 ? n : 1) * (double)(k > 0 ? k : 1));
     }
-    const int cpus = o && o->cpus ? o->cpus : 2;
-    long mem = o && o->mem_mib ? o->mem_mib : 0, tmin = o && o->time_min ? o->time_min : 0;
-    char how[PATH_MAX + 256];
+    p->cpus = o && o->cpus ? o->cpus : 2;
+    p->mem = o && o->mem_mib ? o->mem_mib : 0, p->tmin = o && o->time_min ? o->time_min : 0;
     if (e.rows) {
-        if (!mem)
-            mem = (long)ceil(fmax(512, 1.5 * e.rss_mib * fmax(1, voxels / e.rss_voxels)));
-        if (!tmin)
-            tmin = (long)ceil(fmax(5, 4 * e.s_per_voxel * voxels / 60));
-        snprintf(how, sizeof how, "from %d row(s) of %s%s%s in %s: peak RSS %.0f MiB, %.3g s per voxel; inputs up "
-                 "to %.0f voxels", e.rows, method, preset ? " preset " : "", preset ? preset : "", e.from, e.rss_mib,
+        if (!p->mem)
+            p->mem = (long)ceil(fmax(512, 1.5 * e.rss_mib * fmax(1, voxels / e.rss_voxels)));
+        if (!p->tmin)
+            p->tmin = (long)ceil(fmax(5, 4 * e.s_per_voxel * voxels / 60));
+        snprintf(p->how, sizeof p->how, "from %d row(s) of %s%s%s in %s: peak RSS %.0f MiB, %.3g s per voxel; inputs "
+                 "up to %.0f voxels", e.rows, method, preset ? " preset " : "", preset ? preset : "", e.from, e.rss_mib,
                  e.s_per_voxel, voxels);
     } else {
-        mem = mem ? mem : 2048;
-        tmin = tmin ? tmin : 120;
-        snprintf(how, sizeof how, "no measurement of %s found (bench/results.csv): defaults", method);
+        p->mem = p->mem ? p->mem : 2048;
+        p->tmin = p->tmin ? p->tmin : 120;
+        snprintf(p->how, sizeof p->how, "no measurement of %s found (bench/results.csv): defaults", method);
     }
-    /* The script: one task per job, named in a case so a task never depends on another's index. */
-    int seq = 1;
-    char rel[64], path[PATH_MAX + 100];
-    for (;; seq++) {
+}
+
+/* The script, as the first free .batch/slurm-N.sh: one task per job, named in a case so a task never depends on
+ * another's index. Returns 0 or -errno with err filled. */
+static int batch_slurm_script_write(const batch *b, const batch_slurm_opts *o, slurm_plan *p, sci_error *err)
+{
+    char rel[64];
+    for (int seq = 1;; seq++) {
         snprintf(rel, sizeof rel, "slurm-%d.sh", seq);
-        int rc = batch_path(b, path, sizeof path, rel, err);
-        if (rc < 0) {
-            free(todo);
+        int rc = batch_path(b, p->path, sizeof p->path, rel, err);
+        if (rc < 0)
             return rc;
-        }
-        if (access(path, F_OK) != 0)
+        if (access(p->path, F_OK) != 0)
             break;
     }
-    FILE *f = fopen(path, "w");
-    if (!f) {
-        free(todo);
-        return sci_error_set(err, -errno, "%s: %s", path, strerror(errno));
-    }
-    fprintf(f, "#!/bin/sh\n# scicap batch --slurm: %d task(s) of %s\n# resources: %s\n", ntodo, b->outdir, how);
-    fprintf(f, "#SBATCH --job-name=scicap-batch\n#SBATCH --array=0-%d", ntodo - 1);
+    FILE *f = fopen(p->path, "w");
+    if (!f)
+        return sci_error_set(err, -errno, "%s: %s", p->path, strerror(errno));
+    fprintf(f, "#!/bin/sh\n# scicap batch --slurm: %d task(s) of %s\n# resources: %s\n", p->ntodo, b->outdir, p->how);
+    fprintf(f, "#SBATCH --job-name=scicap-batch\n#SBATCH --array=0-%d", p->ntodo - 1);
     if (o && o->max_parallel)
         fprintf(f, "%%%d", o->max_parallel);
-    fprintf(f, "\n#SBATCH --cpus-per-task=%d\n#SBATCH --mem=%ld\n#SBATCH --time=%ld\n", cpus, mem, tmin);
+    fprintf(f, "\n#SBATCH --cpus-per-task=%d\n#SBATCH --mem=%ld\n#SBATCH --time=%ld\n", p->cpus, p->mem, p->tmin);
     fprintf(f, "#SBATCH --output=%s/%s/logs/slurm-%%A_%%a.log\n", b->outdir, BATCH_STATE_DIR);
     if (o && o->partition)
         fprintf(f, "#SBATCH --partition=%s\n", o->partition);
     fprintf(f, "export OMP_NUM_THREADS=\"${SLURM_CPUS_PER_TASK:-1}\"\ncase \"$SLURM_ARRAY_TASK_ID\" in\n");
-    for (int t = 0; t < ntodo; t++) {
+    for (int t = 0; t < p->ntodo; t++) {
         fprintf(f, "%d) name=", t);
-        sh_quote(f, b->jobs[todo[t]].name);
+        sh_quote(f, b->jobs[p->todo[t]].name);
         fprintf(f, " ;;\n");
     }
     fprintf(f, "*) echo \"scicap batch: no job for task $SLURM_ARRAY_TASK_ID\" >&2; exit 2 ;;\nesac\nexec ");
@@ -235,44 +246,70 @@ int batch_slurm_submit(batch *b, const batch_slurm_opts *o, sci_error *err)
     fprintf(f, " batch --task \"$name\" ");
     sh_quote(f, b->outdir);
     fprintf(f, "\n");
-    if (fclose(f) != 0) {
-        free(todo);
-        return sci_error_set(err, -EIO, "%s: write failed", path);
+    if (fclose(f) != 0)
+        return sci_error_set(err, -EIO, "%s: write failed", p->path);
+    return 0;
+}
+
+/* sbatch the script; id gets the array job's id. Returns 0 or -EIO with err filled. */
+static int batch_slurm_sbatch(const slurm_plan *p, char *id, size_t idn, sci_error *err)
+{
+    char cmd[PATH_MAX + 64];
+    snprintf(cmd, sizeof cmd, "sbatch --parsable '%s'", p->path);
+    FILE *pp = popen(cmd, "r");
+    id[0] = 0;
+    if (!pp || !fgets(id, (int)idn, pp)) {
+        if (pp)
+            pclose(pp);
+        return sci_error_set(err, -EIO, "sbatch %s failed (is Slurm there? its message is above)", p->path);
     }
-    if (o && o->dry_run) {
-        printf("slurm: wrote %s (%d task(s); not submitted: --dry-run)\n", path, ntodo);
-        free(todo);
+    int prc = pclose(pp);
+    id[strcspn(id, ";\n")] = 0; /* "123" or "123;cluster" */
+    if (prc != 0 || !id[0])
+        return sci_error_set(err, -EIO, "sbatch %s failed (exit %d)", p->path, WEXITSTATUS(prc));
+    return 0;
+}
+
+int batch_slurm_submit(batch *b, const batch_slurm_opts *o, sci_error *err)
+{
+    slurm_plan p = {0};
+    int rc = batch_slurm_plan_jobs(b, &p, err);
+    if (rc < 0)
+        return rc;
+    if (p.ntodo == 0) {
+        printf("slurm: nothing to submit: %d job(s) done, %d queued or running (scicap batch --status %s)\n", p.done,
+               p.inq, b->outdir);
+        free(p.todo);
         return 0;
     }
-    char cmd[PATH_MAX + 64];
-    snprintf(cmd, sizeof cmd, "sbatch --parsable '%s'", path);
-    FILE *p = popen(cmd, "r");
+    batch_slurm_plan_resources(b, o, &p);
     char id[128] = "";
-    if (!p || !fgets(id, sizeof id, p)) {
-        if (p)
-            pclose(p);
-        free(todo);
-        return sci_error_set(err, -EIO, "sbatch %s failed (is Slurm there? its message is above)", path);
+    if ((rc = batch_slurm_script_write(b, o, &p, err)) < 0) {
+        free(p.todo);
+        return rc;
     }
-    int prc = pclose(p);
-    id[strcspn(id, ";\n")] = 0; /* "123" or "123;cluster" */
-    if (prc != 0 || !id[0]) {
-        free(todo);
-        return sci_error_set(err, -EIO, "sbatch %s failed (exit %d)", path, WEXITSTATUS(prc));
+    if (o && o->dry_run) {
+        printf("slurm: wrote %s (%d task(s); not submitted: --dry-run)\n", p.path, p.ntodo);
+        free(p.todo);
+        return 0;
+    }
+    if ((rc = batch_slurm_sbatch(&p, id, sizeof id, err)) < 0) {
+        free(p.todo);
+        return rc;
     }
     snprintf(b->slurm_job, sizeof b->slurm_job, "%s", id);
-    for (int t = 0; t < ntodo; t++) {
-        batch_job *j = &b->jobs[todo[t]];
+    for (int t = 0; t < p.ntodo; t++) {
+        batch_job *j = &b->jobs[p.todo[t]];
         snprintf(j->slurm_task, sizeof j->slurm_task, "%s_%d", id, t);
         j->state = BATCH_SUBMITTED;
         j->error[0] = 0;
         j->attempts++;
     }
-    free(todo);
-    int rc = batch_state_save(b, err);
+    free(p.todo);
+    rc = batch_state_save(b, err);
     printf("slurm: submitted array job %s: %d task(s) (%d done, %d already queued or running); each %d CPU(s), "
-           "%ld MiB, %ld min (%s)\nslurm: script %s; follow with: scicap batch --status %s\n", id, ntodo, done, inq,
-           cpus, mem, tmin, how, path, b->outdir);
+           "%ld MiB, %ld min (%s)\nslurm: script %s; follow with: scicap batch --status %s\n", id, p.ntodo, p.done,
+           p.inq, p.cpus, p.mem, p.tmin, p.how, p.path, b->outdir);
     return rc;
 }
 
