@@ -243,9 +243,10 @@ static int parse_uint(const char *opt, const char *s, unsigned long max, unsigne
     return 0;
 }
 
-int cli_dmd_main(int argc, char **argv)
+/* Parses the options before the first command into o. Returns -1 to go on, else the exit code (0 after --help, 2
+ * on a bad option). */
+static int cli_dmd_opts_parse(opts *o, int argc, char **argv)
 {
-    opts o = {.timeout_ms = 1000, .timing = {.exposure_us = 1000, .trigger = DMD_TRIGGER_INTERNAL}, .seed = 1};
     unsigned long v;
     /* "+": options end at the first command word (commands take their own arguments, e.g. upload FILE). */
     enum { D_EMULATE = 300, D_SERIAL, D_EXPOSURE, D_DARK, D_PASSES, D_TIMEOUT, D_SEED, D_TRIGGER };
@@ -263,38 +264,38 @@ int cli_dmd_main(int argc, char **argv)
         snprintf(a, sizeof a, "--%s", dmd_opts[li].name);
         switch (oc) {
         case 'h': usage(stdout); return 0;
-        case D_EMULATE: o.emulate = 1; break;
-        case D_SERIAL: o.serial = optarg; break;
+        case D_EMULATE: o->emulate = 1; break;
+        case D_SERIAL: o->serial = optarg; break;
         case D_EXPOSURE:
             if (parse_uint(a, optarg, 16777215, &v) < 0)
                 return 2;
-            o.timing.exposure_us = (uint32_t)v;
+            o->timing.exposure_us = (uint32_t)v;
             break;
         case D_DARK:
             if (parse_uint(a, optarg, 16777215, &v) < 0)
                 return 2;
-            o.timing.dark_us = (uint32_t)v;
+            o->timing.dark_us = (uint32_t)v;
             break;
         case D_PASSES:
             if (parse_uint(a, optarg, 1000000, &v) < 0)
                 return 2;
-            o.timing.passes = (uint32_t)v;
+            o->timing.passes = (uint32_t)v;
             break;
         case D_TIMEOUT:
             if (parse_uint(a, optarg, 60000, &v) < 0 || v == 0)
                 return 2;
-            o.timeout_ms = (int)v;
+            o->timeout_ms = (int)v;
             break;
         case D_SEED:
             if (parse_uint(a, optarg, 0xFFFFFFFFul, &v) < 0)
                 return 2;
-            o.seed = v;
+            o->seed = v;
             break;
         case D_TRIGGER:
             if (!strcmp(optarg, "internal"))
-                o.timing.trigger = DMD_TRIGGER_INTERNAL;
+                o->timing.trigger = DMD_TRIGGER_INTERNAL;
             else if (!strcmp(optarg, "external"))
-                o.timing.trigger = DMD_TRIGGER_EXTERNAL;
+                o->timing.trigger = DMD_TRIGGER_EXTERNAL;
             else {
                 fprintf(stderr, "scicap dmd: --trigger is internal or external (got \"%s\")\n", optarg);
                 return 2;
@@ -303,13 +304,13 @@ int cli_dmd_main(int argc, char **argv)
         default: fprintf(stderr, "scicap dmd: see --help\n"); return 2;
         }
     }
-    const int first_cmd = optind;
-    if (first_cmd == argc) {
-        usage(stderr);
-        return 2;
-    }
-    /* Check the command line before touching a device. */
-    for (int i = first_cmd; i < argc; i++) {
+    return -1;
+}
+
+/* Checks the commands argv[first..argc) before a device is touched. Returns 0, or 2 after a message. */
+static int cli_dmd_commands_check(int argc, char **argv, int first)
+{
+    for (int i = first; i < argc; i++) {
         const char *c = argv[i];
         if (!strcmp(c, "upload") || !strcmp(c, "generate")) {
             if (i + 1 >= argc) {
@@ -322,6 +323,67 @@ int cli_dmd_main(int argc, char **argv)
             return 2;
         }
     }
+    return 0;
+}
+
+/* upload FILE or generate KIND:N, sized to the device. Returns 0 or -errno with err filled. */
+static int cli_dmd_upload(dmd *dev, const char *c, const char *arg, uint64_t seed, sci_error *err)
+{
+    sci_cube *masks = NULL;
+    dmd_identity id;
+    int rc;
+    if ((rc = dmd_identify(dev, &id, err)) == 0)
+        rc = !strcmp(c, "upload") ? read_masks(arg, &masks, err)
+                                  : generate_masks(arg, id.width, id.height, seed, &masks, err);
+    if (rc == 0) {
+        rc = dmd_upload(dev, masks, err);
+        if (rc == 0)
+            printf("uploaded %d masks (%d×%d)\n", masks->n, masks->w, masks->h);
+    }
+    sci_cube_free(masks);
+    return rc;
+}
+
+/* Runs argv[*i] (and its argument, moving *i past it) on the open device. Returns the command's result (< 0:
+ * -errno with err filled); *listed_bad is set when listing the USB devices failed (its message is printed). */
+static int cli_dmd_command_run(dmd *dev, dlpc900_emu *emu, const opts *o, char **argv, int *i, int *listed_bad,
+                               sci_error *err)
+{
+    const char *c = argv[*i];
+    int rc = 0;
+    if (!strcmp(c, "list")) {
+        if (o->emulate)
+            printf("1 DLPC900 (emulated): serial %s\n", dlpc900_emu_serial(emu));
+        else if (cmd_list())
+            *listed_bad = 1;
+    } else if (!strcmp(c, "status")) {
+        print_status(dev);
+    } else if (!strcmp(c, "start")) {
+        if ((rc = dmd_start(dev, err)) == 0)
+            printf("started\n");
+    } else if (!strcmp(c, "stop")) {
+        if ((rc = dmd_stop(dev, err)) == 0)
+            printf("stopped\n");
+    } else {
+        rc = cli_dmd_upload(dev, c, argv[*i + 1], o->seed, err);
+        ++*i;
+    }
+    return rc;
+}
+
+int cli_dmd_main(int argc, char **argv)
+{
+    opts o = {.timeout_ms = 1000, .timing = {.exposure_us = 1000, .trigger = DMD_TRIGGER_INTERNAL}, .seed = 1};
+    int rc = cli_dmd_opts_parse(&o, argc, argv);
+    if (rc >= 0)
+        return rc;
+    const int first_cmd = optind;
+    if (first_cmd == argc) {
+        usage(stderr);
+        return 2;
+    }
+    if (cli_dmd_commands_check(argc, argv, first_cmd) != 0)
+        return 2;
     if (argc - first_cmd == 1 && !strcmp(argv[first_cmd], "list") && !o.emulate)
         return cmd_list();
 
@@ -341,35 +403,10 @@ int cli_dmd_main(int argc, char **argv)
     if (dmd_open(&dev, &dmd_dlpc900_ops, &cfg, &err) < 0 || dmd_set_timing(dev, &o.timing, &err) < 0)
         goto fail;
     for (int i = first_cmd; i < argc; i++) {
-        const char *c = argv[i];
-        int rc = 0;
-        if (!strcmp(c, "list")) {
-            if (o.emulate)
-                printf("1 DLPC900 (emulated): serial %s\n", dlpc900_emu_serial(emu));
-            else if (cmd_list())
-                goto out;
-        } else if (!strcmp(c, "status")) {
-            print_status(dev);
-        } else if (!strcmp(c, "start")) {
-            if ((rc = dmd_start(dev, &err)) == 0)
-                printf("started\n");
-        } else if (!strcmp(c, "stop")) {
-            if ((rc = dmd_stop(dev, &err)) == 0)
-                printf("stopped\n");
-        } else {
-            sci_cube *masks = NULL;
-            dmd_identity id;
-            if ((rc = dmd_identify(dev, &id, &err)) == 0)
-                rc = !strcmp(c, "upload") ? read_masks(argv[i + 1], &masks, &err)
-                                          : generate_masks(argv[i + 1], id.width, id.height, o.seed, &masks, &err);
-            i++;
-            if (rc == 0) {
-                rc = dmd_upload(dev, masks, &err);
-                if (rc == 0)
-                    printf("uploaded %d masks (%d×%d)\n", masks->n, masks->w, masks->h);
-            }
-            sci_cube_free(masks);
-        }
+        int listed_bad = 0;
+        rc = cli_dmd_command_run(dev, emu, &o, argv, &i, &listed_bad, &err);
+        if (listed_bad)
+            goto out;
         if (rc < 0)
             goto fail;
     }
