@@ -314,6 +314,222 @@ static void submit(scicapd *d, scicapd_client *c, const json_t *id, scicapd_job 
     reply(d, c, scicapd_reply_ok(id, json_pack("{s:I, s:s}", "job", (json_int_t)j->id, "state", "queued")));
 }
 
+/* ---- request dispatch (checks 5-6, then one handler per command) ---- */
+
+/* Check 5's results: the typed arguments of whichever command the request names. */
+typedef struct request_args {
+    scicapd_capture_args cap;
+    scicapd_calib_args cal;
+    scicapd_recon_args rec;
+    scicapd_simulate_args sim;
+    scicapd_import_args *imp; /* owned here until an import job takes it; NULL otherwise */
+    uint64_t job_id;
+    long limit;
+} request_args;
+
+/* Answers one checked request on the event-loop thread: a reply or an error, always with r->id. */
+typedef void (*request_handler)(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a);
+
+/* Check 5: the command's arguments into a, or < 0 with the reason in err. Import takes the descriptors the
+ * client passed with the line. */
+static int request_args_parse(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a,
+                              sci_error *err)
+{
+    switch (r->cmd) {
+    case SCICAPD_CMD_CAPTURE: return scicapd_args_capture(r, d->cfg, &a->cap, err);
+    case SCICAPD_CMD_CALIBRATE: return scicapd_args_calibrate(r, d->cfg, &a->cal, err);
+    case SCICAPD_CMD_RECONSTRUCT: return scicapd_args_reconstruct(r, d->cfg, &a->rec, err);
+    case SCICAPD_CMD_CANCEL: return scicapd_args_cancel(r, &a->job_id, err);
+    case SCICAPD_CMD_SIMULATE: return scicapd_args_simulate(r, &a->sim, err);
+    case SCICAPD_CMD_CAPTURES: return scicapd_args_captures(r, &a->limit, err);
+    case SCICAPD_CMD_IMPORT: {
+        int fds[SCICAPD_CLIENT_MAX_FDS];
+        int n = scicapd_client_take_fds(c, fds, SCICAPD_CLIENT_MAX_FDS);
+        return scicapd_args_import(r, d->cfg, fds, n, &a->imp, err);
+    }
+    default: return scicapd_args_none(r, err);
+    }
+}
+
+/* Check 6 (permission), then whether a stopping daemon still takes the command: 1 if it may run, else 0 with
+ * the client answered. */
+static int request_allowed(scicapd *d, scicapd_client *c, const scicapd_request *r, const request_args *a)
+{
+    if (scicapd_cmd_is_admin(r->cmd) && !is_admin(d, c)) {
+        char msg[200];
+        snprintf(msg, sizeof msg, "\"%s\" needs root, the daemon's user or group \"%s\" (peer uid %d)",
+                 scicapd_cmd_name(r->cmd), d->cfg->admin_group, (int)c->uid);
+        sci_log_write(d->log, SCI_LOG_WARNING, "client %llu: %s", (unsigned long long)c->id, msg);
+        reply_err(d, c, r->id, SCICAPD_E_PERMISSION, msg);
+        return 0;
+    }
+    if (a->imp && a->imp->allow_large && !is_admin(d, c)) { /* the limits protect the disk everyone shares */
+        char msg[200];
+        snprintf(msg, sizeof msg, "allow_large needs root, the daemon's user or group \"%s\" (peer uid %d)",
+                 d->cfg->admin_group, (int)c->uid);
+        reply_err(d, c, r->id, SCICAPD_E_PERMISSION, msg);
+        return 0;
+    }
+    if (atomic_load(&d->stopping) && r->cmd != SCICAPD_CMD_STATUS && r->cmd != SCICAPD_CMD_JOBS) {
+        reply_err(d, c, r->id, SCICAPD_E_SHUTTING_DOWN, "the daemon is stopping");
+        return 0;
+    }
+    return 1;
+}
+
+static void handle_status(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    reply(d, c, scicapd_reply_ok(r->id, status_json(d)));
+}
+
+static void handle_devices(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    reply(d, c, scicapd_reply_ok(r->id, scicapd_acquire_devices_json(d->acq)));
+}
+
+/* A user sees their own jobs; admins see everyone's. */
+static void handle_jobs(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    reply(d, c, scicapd_reply_ok(r->id, json_pack("{s:o}", "jobs",
+                                                  scicapd_jobs_json(d->jobs, c->uid, is_admin(d, c)))));
+}
+
+/* Every user sees the stored captures: any of them may be reconstructed. */
+static void handle_captures(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    sci_error err = {0};
+    json_t *list = scicapd_catalog_list(scicapd_store_root(d->store), a->limit, &err);
+    if (list)
+        reply(d, c, scicapd_reply_ok(r->id, list));
+    else
+        reply_err(d, c, r->id, SCICAPD_E_FAILED, err.msg);
+}
+
+static void handle_watch(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    c->watching = 1;
+    reply(d, c, scicapd_reply_ok(r->id, json_pack("{s:b}", "watching", 1)));
+}
+
+/* Capture and calibrate: a job on the acquisition queue. */
+static void handle_acquire(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    scicapd_job *j = NULL;
+    if (scicapd_jobs_create(d->jobs, r->cmd == SCICAPD_CMD_CAPTURE ? SCICAPD_JOB_CAPTURE : SCICAPD_JOB_CALIBRATE,
+                            c->id, c->uid, r->id, &j) < 0) {
+        reply_err(d, c, r->id, SCICAPD_E_FAILED, "out of memory");
+        return;
+    }
+    j->capture = a->cap;
+    j->calib = a->cal;
+    submit(d, c, r->id, j, d->acq_q, "capture");
+}
+
+/* Read, stored and reconstructed on a worker: the loop never waits for files. */
+static void handle_import(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    scicapd_job *j = NULL;
+    if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_IMPORT, c->id, c->uid, r->id, &j) < 0) {
+        reply_err(d, c, r->id, SCICAPD_E_FAILED, "out of memory");
+        return;
+    }
+    j->import = a->imp;
+    a->imp = NULL;
+    submit(d, c, r->id, j, d->recon_q, "reconstruction");
+}
+
+static void handle_reconstruct(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    sci_error err = {0};
+    char dir[1100];
+    if (scicapd_store_capture_dir(d->store, a->rec.capture_id, dir, sizeof dir, &err) < 0) {
+        reply_err(d, c, r->id, SCICAPD_E_NOT_FOUND, err.msg);
+        return;
+    }
+    scicapd_recon_request q = {.client = c->id, .owner = c->uid, .request_id = r->id,
+                               .capture_id = a->rec.capture_id, .spec = a->rec.spec,
+                               .mode = SCICAPD_ENQUEUE_REFUSE};
+    scicapd_recon_submit_env env = recon_env(d);
+    json_t *queued = NULL;
+    int rc = scicapd_recon_submit(&env, &q, &queued, NULL, &err);
+    if (rc < 0)
+        reply_err(d, c, r->id, rc == SCI_EBUSY ? SCICAPD_E_BUSY : rc == -EPIPE ? SCICAPD_E_SHUTTING_DOWN
+                                                                                : SCICAPD_E_FAILED, err.msg);
+    else
+        reply(d, c, scicapd_reply_ok(r->id, queued));
+}
+
+static void handle_cancel(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    scicapd_job *t = scicapd_jobs_find(d->jobs, a->job_id);
+    if (!t) {
+        char msg[64];
+        snprintf(msg, sizeof msg, "no job %llu", (unsigned long long)a->job_id);
+        reply_err(d, c, r->id, SCICAPD_E_NOT_FOUND, msg);
+        return;
+    }
+    if (t->owner != c->uid && !is_admin(d, c)) {
+        char msg[160];
+        snprintf(msg, sizeof msg, "job %llu belongs to uid %d; only its owner, root or group \"%s\" may cancel it",
+                 (unsigned long long)a->job_id, (int)t->owner, d->cfg->admin_group);
+        sci_log_write(d->log, SCI_LOG_WARNING, "client %llu (uid %d): %s", (unsigned long long)c->id, (int)c->uid,
+                      msg);
+        reply_err(d, c, r->id, SCICAPD_E_PERMISSION, msg);
+        scicapd_job_unref(d->jobs, t);
+        return;
+    }
+    int none = 0; /* a shutdown's mark, if already set, stays */
+    atomic_compare_exchange_strong(&t->cancel, &none, SCICAPD_CANCEL_USER);
+    reply(d, c, scicapd_reply_ok(r->id, json_pack("{s:I, s:s}", "job", (json_int_t)t->id, "state",
+                                                  scicapd_job_state_name(scicapd_job_state_get(d->jobs, t)))));
+    scicapd_job_unref(d->jobs, t);
+}
+
+static void handle_reload(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    sci_error err = {0};
+    json_t *restart = NULL;
+    if (reload(d, &restart, &err) < 0)
+        reply_err(d, c, r->id, SCICAPD_E_FAILED, err.msg);
+    else
+        reply(d, c, scicapd_reply_ok(r->id, json_pack("{s:s, s:o}", "config", d->cfg->path[0] ? d->cfg->path : "",
+                                                      "restart_needed", restart)));
+}
+
+static void handle_shutdown(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    sci_log_write(d->log, SCI_LOG_NOTICE, "shutdown requested by client %llu (pid %d uid %d)",
+                  (unsigned long long)c->id, (int)c->pid, (int)c->uid);
+    reply(d, c, scicapd_reply_ok(r->id, NULL));
+    scicapd_request_stop(d);
+}
+
+static void handle_simulate(scicapd *d, scicapd_client *c, const scicapd_request *r, request_args *a)
+{
+    sci_error err = {0};
+    if (scicapd_acquire_fault(d->acq, &a->sim, &err) < 0)
+        reply_err(d, c, r->id, err.code == -ENOTSUP ? SCICAPD_E_UNSUPPORTED : SCICAPD_E_BUSY, err.msg);
+    else
+        reply(d, c, scicapd_reply_ok(r->id, NULL));
+}
+
+/* Every command's handler, by command (daemon/protocol.h). */
+static const request_handler request_handlers[SCICAPD_CMD_COUNT] = {
+    [SCICAPD_CMD_STATUS] = handle_status,
+    [SCICAPD_CMD_DEVICES] = handle_devices,
+    [SCICAPD_CMD_CAPTURE] = handle_acquire,
+    [SCICAPD_CMD_CALIBRATE] = handle_acquire,
+    [SCICAPD_CMD_RECONSTRUCT] = handle_reconstruct,
+    [SCICAPD_CMD_JOBS] = handle_jobs,
+    [SCICAPD_CMD_CANCEL] = handle_cancel,
+    [SCICAPD_CMD_WATCH] = handle_watch,
+    [SCICAPD_CMD_RELOAD] = handle_reload,
+    [SCICAPD_CMD_SHUTDOWN] = handle_shutdown,
+    [SCICAPD_CMD_SIMULATE] = handle_simulate,
+    [SCICAPD_CMD_IMPORT] = handle_import,
+    [SCICAPD_CMD_CAPTURES] = handle_captures,
+};
+
 static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
 {
     scicapd *d = user;
@@ -326,163 +542,12 @@ static void on_line(void *user, scicapd_client *c, const char *line, size_t len)
         scicapd_request_clear(&r);
         return;
     }
-    /* check 5: arguments */
-    scicapd_capture_args cap;
-    scicapd_calib_args cal;
-    scicapd_recon_args rec;
-    scicapd_simulate_args sim;
-    scicapd_import_args *imp = NULL;
-    uint64_t job_id = 0;
-    long limit = 0;
-    int rc;
-    switch (r.cmd) {
-    case SCICAPD_CMD_CAPTURE: rc = scicapd_args_capture(&r, d->cfg, &cap, &err); break;
-    case SCICAPD_CMD_CALIBRATE: rc = scicapd_args_calibrate(&r, d->cfg, &cal, &err); break;
-    case SCICAPD_CMD_RECONSTRUCT: rc = scicapd_args_reconstruct(&r, d->cfg, &rec, &err); break;
-    case SCICAPD_CMD_CANCEL: rc = scicapd_args_cancel(&r, &job_id, &err); break;
-    case SCICAPD_CMD_SIMULATE: rc = scicapd_args_simulate(&r, &sim, &err); break;
-    case SCICAPD_CMD_CAPTURES: rc = scicapd_args_captures(&r, &limit, &err); break;
-    case SCICAPD_CMD_IMPORT: {
-        int fds[SCICAPD_CLIENT_MAX_FDS];
-        int n = scicapd_client_take_fds(c, fds, SCICAPD_CLIENT_MAX_FDS);
-        rc = scicapd_args_import(&r, d->cfg, fds, n, &imp, &err);
-        break;
-    }
-    default: rc = scicapd_args_none(&r, &err); break;
-    }
-    if (rc < 0) {
+    request_args a = {0};
+    if (request_args_parse(d, c, &r, &a, &err) < 0) /* check 5 */
         reply_err(d, c, r.id, SCICAPD_E_BAD_ARGUMENTS, err.msg);
-        goto out;
-    }
-    /* check 6: permission */
-    if (scicapd_cmd_is_admin(r.cmd) && !is_admin(d, c)) {
-        char msg[200];
-        snprintf(msg, sizeof msg, "\"%s\" needs root, the daemon's user or group \"%s\" (peer uid %d)",
-                 scicapd_cmd_name(r.cmd), d->cfg->admin_group, (int)c->uid);
-        sci_log_write(d->log, SCI_LOG_WARNING, "client %llu: %s", (unsigned long long)c->id, msg);
-        reply_err(d, c, r.id, SCICAPD_E_PERMISSION, msg);
-        goto out;
-    }
-    if (imp && imp->allow_large && !is_admin(d, c)) { /* the limits protect the disk everyone shares */
-        char msg[200];
-        snprintf(msg, sizeof msg, "allow_large needs root, the daemon's user or group \"%s\" (peer uid %d)",
-                 d->cfg->admin_group, (int)c->uid);
-        reply_err(d, c, r.id, SCICAPD_E_PERMISSION, msg);
-        goto out;
-    }
-    if (atomic_load(&d->stopping) && r.cmd != SCICAPD_CMD_STATUS && r.cmd != SCICAPD_CMD_JOBS) {
-        reply_err(d, c, r.id, SCICAPD_E_SHUTTING_DOWN, "the daemon is stopping");
-        goto out;
-    }
-    scicapd_job *j = NULL;
-    switch (r.cmd) {
-    case SCICAPD_CMD_STATUS: reply(d, c, scicapd_reply_ok(r.id, status_json(d))); break;
-    case SCICAPD_CMD_DEVICES: reply(d, c, scicapd_reply_ok(r.id, scicapd_acquire_devices_json(d->acq))); break;
-    case SCICAPD_CMD_JOBS: /* a user sees their own jobs; admins see everyone's */
-        reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:o}", "jobs",
-                                                     scicapd_jobs_json(d->jobs, c->uid, is_admin(d, c)))));
-        break;
-    case SCICAPD_CMD_CAPTURES: { /* every user sees the stored captures: any of them may be reconstructed */
-        json_t *list = scicapd_catalog_list(scicapd_store_root(d->store), limit, &err);
-        if (list)
-            reply(d, c, scicapd_reply_ok(r.id, list));
-        else
-            reply_err(d, c, r.id, SCICAPD_E_FAILED, err.msg);
-        break;
-    }
-    case SCICAPD_CMD_WATCH:
-        c->watching = 1;
-        reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:b}", "watching", 1)));
-        break;
-    case SCICAPD_CMD_CAPTURE:
-    case SCICAPD_CMD_CALIBRATE:
-        if (scicapd_jobs_create(d->jobs, r.cmd == SCICAPD_CMD_CAPTURE ? SCICAPD_JOB_CAPTURE : SCICAPD_JOB_CALIBRATE,
-                                c->id, c->uid, r.id, &j) < 0) {
-            reply_err(d, c, r.id, SCICAPD_E_FAILED, "out of memory");
-            break;
-        }
-        j->capture = cap;
-        j->calib = cal;
-        submit(d, c, r.id, j, d->acq_q, "capture");
-        break;
-    case SCICAPD_CMD_IMPORT: /* read, stored and reconstructed on a worker: the loop never waits for files */
-        if (scicapd_jobs_create(d->jobs, SCICAPD_JOB_IMPORT, c->id, c->uid, r.id, &j) < 0) {
-            reply_err(d, c, r.id, SCICAPD_E_FAILED, "out of memory");
-            break;
-        }
-        j->import = imp;
-        imp = NULL;
-        submit(d, c, r.id, j, d->recon_q, "reconstruction");
-        break;
-    case SCICAPD_CMD_RECONSTRUCT: {
-        char dir[1100];
-        if (scicapd_store_capture_dir(d->store, rec.capture_id, dir, sizeof dir, &err) < 0) {
-            reply_err(d, c, r.id, SCICAPD_E_NOT_FOUND, err.msg);
-            break;
-        }
-        scicapd_recon_request q = {.client = c->id, .owner = c->uid, .request_id = r.id,
-                                   .capture_id = rec.capture_id, .spec = rec.spec,
-                                   .mode = SCICAPD_ENQUEUE_REFUSE};
-        scicapd_recon_submit_env env = recon_env(d);
-        json_t *queued = NULL;
-        int rc2 = scicapd_recon_submit(&env, &q, &queued, NULL, &err);
-        if (rc2 < 0)
-            reply_err(d, c, r.id, rc2 == SCI_EBUSY ? SCICAPD_E_BUSY : rc2 == -EPIPE ? SCICAPD_E_SHUTTING_DOWN
-                                                                                      : SCICAPD_E_FAILED, err.msg);
-        else
-            reply(d, c, scicapd_reply_ok(r.id, queued));
-        break;
-    }
-    case SCICAPD_CMD_CANCEL: {
-        scicapd_job *t = scicapd_jobs_find(d->jobs, job_id);
-        if (!t) {
-            char msg[64];
-            snprintf(msg, sizeof msg, "no job %llu", (unsigned long long)job_id);
-            reply_err(d, c, r.id, SCICAPD_E_NOT_FOUND, msg);
-            break;
-        }
-        if (t->owner != c->uid && !is_admin(d, c)) {
-            char msg[160];
-            snprintf(msg, sizeof msg, "job %llu belongs to uid %d; only its owner, root or group \"%s\" may cancel it",
-                     (unsigned long long)job_id, (int)t->owner, d->cfg->admin_group);
-            sci_log_write(d->log, SCI_LOG_WARNING, "client %llu (uid %d): %s", (unsigned long long)c->id, (int)c->uid,
-                          msg);
-            reply_err(d, c, r.id, SCICAPD_E_PERMISSION, msg);
-            scicapd_job_unref(d->jobs, t);
-            break;
-        }
-        int none = 0; /* a shutdown's mark, if already set, stays */
-        atomic_compare_exchange_strong(&t->cancel, &none, SCICAPD_CANCEL_USER);
-        reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:I, s:s}", "job", (json_int_t)t->id, "state",
-                                                     scicapd_job_state_name(scicapd_job_state_get(d->jobs, t)))));
-        scicapd_job_unref(d->jobs, t);
-        break;
-    }
-    case SCICAPD_CMD_RELOAD: {
-        json_t *restart = NULL;
-        if (reload(d, &restart, &err) < 0)
-            reply_err(d, c, r.id, SCICAPD_E_FAILED, err.msg);
-        else
-            reply(d, c, scicapd_reply_ok(r.id, json_pack("{s:s, s:o}", "config", d->cfg->path[0] ? d->cfg->path : "",
-                                                         "restart_needed", restart)));
-        break;
-    }
-    case SCICAPD_CMD_SHUTDOWN:
-        sci_log_write(d->log, SCI_LOG_NOTICE, "shutdown requested by client %llu (pid %d uid %d)",
-                      (unsigned long long)c->id, (int)c->pid, (int)c->uid);
-        reply(d, c, scicapd_reply_ok(r.id, NULL));
-        scicapd_request_stop(d);
-        break;
-    case SCICAPD_CMD_SIMULATE:
-        if (scicapd_acquire_fault(d->acq, &sim, &err) < 0)
-            reply_err(d, c, r.id, err.code == -ENOTSUP ? SCICAPD_E_UNSUPPORTED : SCICAPD_E_BUSY, err.msg);
-        else
-            reply(d, c, scicapd_reply_ok(r.id, NULL));
-        break;
-    case SCICAPD_CMD_COUNT: break;
-    }
-out:
-    scicapd_import_args_free(imp);
+    else if (request_allowed(d, c, &r, &a) && (unsigned)r.cmd < SCICAPD_CMD_COUNT && request_handlers[r.cmd])
+        request_handlers[r.cmd](d, c, &r, &a);
+    scicapd_import_args_free(a.imp);
     scicapd_request_clear(&r);
 }
 
