@@ -177,124 +177,143 @@ static int wait_for_room(scicapd_workers *w, scicapd_job *j, int attempt, const 
     return atomic_load(&j->cancel) || atomic_load(&w->stop) ? SCI_ECANCELED : 0;
 }
 
-static void run(scicapd_workers *w, scicapd_job *j)
+/* A job's start: the newest checkpoint its earlier run left (a method with checkpoints and a resumed job) into
+ * *resume (malloc'ed, the caller frees; NULL when none or unreadable: the run starts over), the job running and
+ * "recon.started" posted. */
+static void run_start(scicapd_workers *w, scicapd_job *j, int ckpt, void **resume, size_t *resume_bytes)
 {
     const scicapd_recon_args *ra = &j->recon;
     const char *method = ra->spec.method->name;
     sci_error err = {0};
-    char dir[1100], out[1300];
-    sci_problem **pp = NULL;
-    int k = 0, rc;
-    sci_result r = {0};
-    int64_t t0 = sci_clock_mono_ns();
-    /* a method with checkpoints continues from the newest one its job left (a resumed job) */
-    const int ckpt = (ra->spec.method->caps & SOLVER_CHECKPOINTS) && j->persisted[0];
-    void *resume = NULL;
-    size_t resume_bytes = 0;
-    if (ckpt && scicapd_reconq_checkpoint_load(w->env.store, j, &resume, &resume_bytes, &err) < 0) {
+    if (ckpt && scicapd_reconq_checkpoint_load(w->env.store, j, resume, resume_bytes, &err) < 0)
         sci_log_write(w->env.log, SCI_LOG_WARNING, "job %llu: %s; starting over", (unsigned long long)j->id,
                       err.msg);
-        err.msg[0] = '\0';
-    }
-    if (resume)
+    if (*resume)
         sci_log_write(w->env.log, SCI_LOG_NOTICE, "job %llu: %s of %s goes on from its checkpoint (%zu bytes)",
-                      (unsigned long long)j->id, method, ra->capture_id, resume_bytes);
+                      (unsigned long long)j->id, method, ra->capture_id, *resume_bytes);
     scicapd_job_set_state(w->env.jobs, j, SCICAPD_JOB_RUNNING, NULL);
     json_t *started = json_pack("{s:s, s:s}", "capture", ra->capture_id, "method", method);
-    if (resume)
-        json_object_set_new(started, "resume_bytes", json_integer((json_int_t)resume_bytes));
+    if (*resume)
+        json_object_set_new(started, "resume_bytes", json_integer((json_int_t)*resume_bytes));
     post(w, j, "recon.started", started);
+}
+
+/* The capture's folder into dir and its snapshots into *pp (*k of them; the caller frees both, also on error):
+ * handed over by the writer that stored it (the same values, not read back) or read from the folder. */
+static int run_read(scicapd_workers *w, scicapd_job *j, char *dir, size_t ndir, sci_problem ***pp, int *k,
+                    sci_error *err)
+{
+    int rc;
+    if ((rc = scicapd_store_capture_dir(w->env.store, j->recon.capture_id, dir, ndir, err)) < 0)
+        return rc;
+    if (j->problem) {
+        if (!(*pp = malloc(sizeof **pp)))
+            return sci_error_set(err, -ENOMEM, "out of memory");
+        (*pp)[0] = j->problem;
+        j->problem = NULL;
+        *k = 1;
+    } else if ((rc = sci_problem_dir_read(dir, pp, k, err)) < 0) {
+        return rc;
+    }
+    if (*k < 1)
+        return sci_error_set(err, SCI_EFORMAT, "%s: no snapshot", dir);
+    return 0;
+}
+
+/* The daemon's metric cadence for a method that compares with a truth (methods without these knobs keep their
+ * own trace). PSNR against the truth on every 10th iteration (and the last) rather than each: progress events go
+ * out every 100 ms at most, and two PSNRs per iteration cost as much as half a fast GAP-TV iteration. SSIM (a
+ * Gaussian-window pass over every frame, ~25 ms for 256×256×8: a third of a fast GAP-TV solve) only on the last
+ * iteration: result.json has it per frame, and the default every 10th iteration tripled it. */
+static void run_settings_metrics(const solver_ops *m, void *settings, int iters)
+{
+    if (m->caps & SOLVER_NEEDS_CAMERA)
+        return;
+    sci_error err = {0};
+    json_t *every = json_pack("{s:i, s:i}", "metrics_every", iters >= 20 ? iters / 10 : 1, "ssim_every", 0);
+    solver_settings_set(m, settings, "metrics_every", json_object_get(every, "metrics_every"), NULL,
+                        "metrics_every", &err);
+    solver_settings_set(m, settings, "ssim_every", json_object_get(every, "ssim_every"), NULL, "ssim_every", &err);
+    json_decref(every);
+}
+
+/* The solve: the job's method on p into *r with progress events, the job's cancel flag and, for a method with
+ * checkpoints (ckpt), its checkpoints kept and resume continued from. Sets ctx->iters and *solve_s (wall time);
+ * returns solver_run's code, with the reason in err on failure (SCI_ECANCELED: canceled). */
+static int run_solve(scicapd_workers *w, scicapd_job *j, run_ctx *ctx, const sci_problem *p, int ckpt,
+                     const void *resume, size_t resume_bytes, sci_result *r, double *solve_s, sci_error *err)
+{
+    const solver_ops *m = j->recon.spec.method;
+    int64_t ts = sci_clock_mono_ns();
     scicapd_span sp;
     scicapd_span_begin(&sp);
-    if ((rc = scicapd_store_capture_dir(w->env.store, ra->capture_id, dir, sizeof dir, &err)) < 0)
-        goto done;
-    if (j->problem) { /* handed over by the writer that stored it: the same values, not read back */
-        if (!(pp = malloc(sizeof *pp))) {
-            rc = sci_error_set(&err, -ENOMEM, "out of memory");
-            goto done;
-        }
-        pp[0] = j->problem;
-        j->problem = NULL;
-        k = 1;
-    } else if ((rc = sci_problem_dir_read(dir, &pp, &k, &err)) < 0) {
-        goto done;
-    }
-    if (k < 1) {
-        rc = sci_error_set(&err, SCI_EFORMAT, "%s: no snapshot", dir);
-        goto done;
-    }
-    scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_READ, &sp);
-    run_ctx ctx = {.w = w, .job = j, .t0_ns = sci_clock_mono_ns()};
-    int64_t ts = sci_clock_mono_ns();
-    scicapd_span_begin(&sp);
-    /* PSNR against the truth on every 10th iteration (and the last) rather than each: progress events go out
-     * every 100 ms at most, and two PSNRs per iteration cost as much as half a fast GAP-TV iteration */
     _Alignas(max_align_t) unsigned char settings[SCICAPD_SETTINGS_MAX];
-    memcpy(settings, ra->spec.settings, sizeof settings);
-    ctx.iters = solver_settings_iters(ra->spec.method, settings);
-    /* SSIM (a Gaussian-window pass over every frame, ~25 ms for 256×256×8: a third of a fast GAP-TV solve) only
-     * on the last iteration: result.json has it per frame, and the default every 10th iteration tripled it */
-    if (!(ra->spec.method->caps & SOLVER_NEEDS_CAMERA)) {
-        json_t *every = json_pack("{s:i, s:i}", "metrics_every", ctx.iters >= 20 ? ctx.iters / 10 : 1, "ssim_every", 0);
-        solver_settings_set(ra->spec.method, settings, "metrics_every", json_object_get(every, "metrics_every"),
-                            NULL, "metrics_every", &err);
-        solver_settings_set(ra->spec.method, settings, "ssim_every", json_object_get(every, "ssim_every"), NULL,
-                            "ssim_every", &err);
-        json_decref(every);
-        memset(&err, 0, sizeof err); /* a method without these knobs keeps its own trace */
-    }
+    memcpy(settings, j->recon.spec.settings, sizeof settings);
+    ctx->iters = solver_settings_iters(m, settings);
+    run_settings_metrics(m, settings, ctx->iters);
     /* the job's cancel flag reaches the solver itself: a method whose iterations take seconds (desci's block
      * matching) stops inside one instead of at the next progress call */
-    solver_io io = {.progress = on_progress, .user = &ctx, .cancel = &j->cancel};
+    solver_io io = {.progress = on_progress, .user = ctx, .cancel = &j->cancel};
     if (ckpt) {
         io.checkpoint_fn = on_checkpoint;
-        io.checkpoint_user = &ctx;
+        io.checkpoint_user = ctx;
         io.checkpoint_every = w->env.checkpoint_every;
         io.resume = resume;
         io.resume_bytes = resume_bytes;
     }
-    rc = solver_run(ra->spec.method, pp[0], settings, &io, &r);
+    int rc = solver_run(m, p, settings, &io, r);
     /* a checkpoint that does not fit this run (damaged, another version, or the last step's, taken just before a
      * crash): the run starts over rather than fail */
     if (rc < 0 && rc != SCI_ECANCELED && resume) {
         sci_log_write(w->env.log, SCI_LOG_WARNING, "job %llu: checkpoint not used (%s); starting over",
-                      (unsigned long long)j->id, r.error.msg);
-        sci_result_free_contents(&r);
-        memset(&r, 0, sizeof r);
+                      (unsigned long long)j->id, r->error.msg);
+        sci_result_free_contents(r);
+        memset(r, 0, sizeof *r);
         io.resume = NULL;
         io.resume_bytes = 0;
-        rc = solver_run(ra->spec.method, pp[0], settings, &io, &r);
+        rc = solver_run(m, p, settings, &io, r);
     }
-    double solve_s = sci_clock_s(ts, sci_clock_mono_ns());
+    *solve_s = sci_clock_s(ts, sci_clock_mono_ns());
     scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_SOLVE, &sp);
-    if (rc < 0) {
-        if (rc == SCI_ECANCELED)
-            sci_error_set(&err, rc, "canceled after %d iterations", r.iters_done);
-        else
-            sci_error_set(&err, rc, "%s", r.error.msg[0] ? r.error.msg : sci_strerror(rc));
-        goto done;
-    }
+    if (rc == SCI_ECANCELED)
+        sci_error_set(err, rc, "canceled after %d iterations", r->iters_done);
+    else if (rc < 0)
+        sci_error_set(err, rc, "%s", r->error.msg[0] ? r->error.msg : sci_strerror(rc));
+    return rc;
+}
+
+/* The result written (publish: its folder name into folder, its path into out). No room: the result waits in
+ * memory and its entry in the queue until there is (a full disk is a person's to fix, and the solve need not be
+ * run again); any other write error, or a cancel while waiting, fails the job. */
+static int run_write(scicapd_workers *w, scicapd_job *j, const char *dir, const sci_problem *p,
+                     const sci_result *r, char *folder, size_t nf, char *out, size_t no, sci_error *err)
+{
+    scicapd_span sp;
     scicapd_span_begin(&sp);
-    char folder[96];
-    /* no room: the result waits in memory and its entry in the queue until there is (a full disk is a person's
-     * to fix, and the solve need not be run again); any other write error fails the job */
-    int rdir_new = 0;
-    for (int attempt = 0;
-         (rc = publish(w, j, dir, pp[0], &r, folder, sizeof folder, out, sizeof out, &rdir_new, &err)) < 0;
-         attempt++) {
-        if (!no_room(w, &r, rc, &err))
-            goto done;
-        if ((rc = wait_for_room(w, j, attempt, &err)) < 0) {
-            sci_error_set(&err, rc, "canceled while waiting for room to write it");
-            goto done;
+    int rc, rdir_new = 0;
+    for (int attempt = 0; (rc = publish(w, j, dir, p, r, folder, nf, out, no, &rdir_new, err)) < 0; attempt++) {
+        if (!no_room(w, r, rc, err))
+            return rc;
+        if ((rc = wait_for_room(w, j, attempt, err)) < 0) {
+            sci_error_set(err, rc, "canceled while waiting for room to write it");
+            return rc;
         }
-        memset(&err, 0, sizeof err);
+        memset(err, 0, sizeof *err);
     }
     scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_WRITE, &sp);
-    const sci_trace_entry *last = r.trace.len ? &r.trace.e[r.trace.len - 1] : NULL;
+    return 0;
+}
+
+/* A written result: the job done, its queue entry dropped and "recon.done" posted with the result's figures. */
+static void run_done(scicapd_workers *w, scicapd_job *j, const run_ctx *ctx, const sci_result *r, const char *out,
+                     const char *folder, double solve_s, int64_t t0_ns)
+{
+    const scicapd_recon_args *ra = &j->recon;
+    const char *method = ra->spec.method->name;
+    const sci_trace_entry *last = r->trace.len ? &r->trace.e[r->trace.len - 1] : NULL;
     json_t *d = json_pack("{s:s, s:s, s:s, s:s, s:i, s:f, s:f}", "capture", ra->capture_id, "method", method, "dir",
-                          out, "folder", folder, "iters", r.iters_done, "solve_s", solve_s, "total_s",
-                          sci_clock_s(t0, sci_clock_mono_ns()));
+                          out, "folder", folder, "iters", r->iters_done, "solve_s", solve_s, "total_s",
+                          sci_clock_s(t0_ns, sci_clock_mono_ns()));
     json_t *budget = scicapd_recon_budget_json(&ra->spec);
     if (budget)
         json_object_set_new(d, "budget", budget);
@@ -305,7 +324,7 @@ static void run(scicapd_workers *w, scicapd_job *j)
         json_object_set_new(d, "psnr_peak1", json_real(last->psnr_peak1));
         if (isfinite(last->ssim))
             json_object_set_new(d, "ssim", json_real(last->ssim));
-        scicapd_job_set_progress(w->env.jobs, j, r.iters_done, ctx.iters, last->psnr);
+        scicapd_job_set_progress(w->env.jobs, j, r->iters_done, ctx->iters, last->psnr);
     }
     json_object_set_new(d, "owner", json_integer((json_int_t)j->owner));
     scicapd_job_add_output(w->env.jobs, j, out);
@@ -314,18 +333,53 @@ static void run(scicapd_workers *w, scicapd_job *j)
                   ra->capture_id, solve_s);
     scicapd_reconq_drop(w->env.store, j); /* before the event: a client that sees it sees the queue without it */
     post(w, j, "recon.done", d);
+}
+
+/* A job that failed or was canceled (rc < 0): its queue entry dropped unless the daemon's stop interrupted it
+ * (then kept for the next start), its state set and "recon.canceled" or "recon.failed" posted. */
+static void run_fail(scicapd_workers *w, scicapd_job *j, int rc, const sci_result *r, sci_error *err)
+{
+    int canceled = rc == SCI_ECANCELED;
+    if (canceled && stopped_by_daemon(w, j))
+        snprintf(err->msg, sizeof err->msg, "daemon stopping after %d iterations; resumed at the next start",
+                 r->iters_done);
+    else
+        scicapd_reconq_drop(w->env.store, j);
+    scicapd_job_set_state(w->env.jobs, j, canceled ? SCICAPD_JOB_CANCELED : SCICAPD_JOB_FAILED, err->msg);
+    post(w, j, canceled ? "recon.canceled" : "recon.failed",
+         json_pack("{s:s, s:s, s:s}", "capture", j->recon.capture_id, "method", j->recon.spec.method->name, "error",
+                   err->msg));
+}
+
+/* One reconstruction: start, read, solve, write, then done or failed. */
+static void run(scicapd_workers *w, scicapd_job *j)
+{
+    sci_error err = {0};
+    char dir[1100], out[1300], folder[96];
+    sci_problem **pp = NULL;
+    int k = 0, rc;
+    sci_result r = {0};
+    double solve_s = 0;
+    int64_t t0 = sci_clock_mono_ns();
+    /* a method with checkpoints continues from the newest one its job left (a resumed job) */
+    const int ckpt = (j->recon.spec.method->caps & SOLVER_CHECKPOINTS) && j->persisted[0];
+    void *resume = NULL;
+    size_t resume_bytes = 0;
+    run_start(w, j, ckpt, &resume, &resume_bytes);
+    scicapd_span sp;
+    scicapd_span_begin(&sp);
+    if ((rc = run_read(w, j, dir, sizeof dir, &pp, &k, &err)) < 0)
+        goto done;
+    scicapd_timing_add(w->env.timing, SCICAPD_STAGE_RECON_READ, &sp);
+    run_ctx ctx = {.w = w, .job = j, .t0_ns = sci_clock_mono_ns()};
+    if ((rc = run_solve(w, j, &ctx, pp[0], ckpt, resume, resume_bytes, &r, &solve_s, &err)) < 0)
+        goto done;
+    if ((rc = run_write(w, j, dir, pp[0], &r, folder, sizeof folder, out, sizeof out, &err)) < 0)
+        goto done;
+    run_done(w, j, &ctx, &r, out, folder, solve_s, t0);
 done:
-    if (rc < 0) {
-        int canceled = rc == SCI_ECANCELED;
-        if (canceled && stopped_by_daemon(w, j))
-            snprintf(err.msg, sizeof err.msg, "daemon stopping after %d iterations; resumed at the next start",
-                     r.iters_done);
-        else
-            scicapd_reconq_drop(w->env.store, j);
-        scicapd_job_set_state(w->env.jobs, j, canceled ? SCICAPD_JOB_CANCELED : SCICAPD_JOB_FAILED, err.msg);
-        post(w, j, canceled ? "recon.canceled" : "recon.failed",
-             json_pack("{s:s, s:s, s:s}", "capture", ra->capture_id, "method", method, "error", err.msg));
-    }
+    if (rc < 0)
+        run_fail(w, j, rc, &r, &err);
     sci_result_free_contents(&r);
     sci_problem_array_free(pp, k);
     free(resume);
