@@ -84,7 +84,22 @@ static int64_t seq_length_ns(const sync_timeline *tl)
     return sync_timeline_end_ns(tl) - tl->start_ns;
 }
 
-int capture_snapshot_take(camera *cam, trigger *trig, const capture_params *p, capture_snapshot *out, sci_error *err)
+/* The times one snapshot waits for, fixed before it starts (ns). */
+typedef struct snapshot_times {
+    int64_t seq_ns;     /* the DMD sequence's length */
+    int64_t settle_ns;  /* margin after the sequence (and after the frame) for the last edges */
+    int64_t timeout_ns; /* from the start to the frame's deadline */
+} snapshot_times;
+
+/* Where the frame's exposure lay: the strobe pulse nearest its estimated start, else the estimate. */
+typedef struct snapshot_window {
+    int64_t a_ns, b_ns;
+    int measured; /* 1 when a and b are the strobe's edges */
+} snapshot_window;
+
+/* The parameters checked and out's identities and counters set; the camera must be streaming. */
+static int snapshot_check(camera *cam, trigger *trig, const capture_params *p, capture_snapshot *out,
+                          sci_error *err)
 {
     if (!p->timeline || p->timeline->count < 1 || p->timeline->count > SYNC_MAX_PATTERNS)
         return sci_error_set(err, -EINVAL, "capture: the DMD timeline is missing or has %d patterns",
@@ -98,155 +113,189 @@ int capture_snapshot_take(camera *cam, trigger *trig, const capture_params *p, c
     out->mode = p->mode;
     out->stale_frames = 0;
     out->dmd_edges = out->strobe_edges = 0;
-    trigger_stats ts0, ts1;
-    trigger_stats_get(trig, &ts0);
+    return 0;
+}
 
-    int64_t exposure_ns = (int64_t)camera_exposure_us(cam) * 1000;
-    int64_t seq_ns = seq_length_ns(p->timeline);
-    int64_t settle = p->settle_ns > 0 ? p->settle_ns : 1000000;
-    int64_t timeout = p->frame_timeout_ns > 0 ? p->frame_timeout_ns
-                                              : exposure_ns + seq_ns + p->dmd_latency_ns + p->readout_ns + 1000000000LL;
-    const char *cam_name = out->camera_id.path;
-
-    /* 1. What is already queued was exposed before this snapshot. */
+/* Phase 1: what is already queued was exposed before this snapshot (counted as stale), and old edges go. */
+static int snapshot_drain(camera *cam, trigger *trig, capture_snapshot *out, sci_error *err)
+{
     int rc = 0;
     while (out->stale_frames < 4 * CAMERA_MAX_BUFFERS && (rc = camera_wait_frame(cam, 0, &out->frame, err)) == 0)
         out->stale_frames++;
     if (rc < 0 && rc != -ETIMEDOUT)
         return rc;
-    if ((rc = trigger_flush(trig, err)) < 0)
-        return rc;
+    return trigger_flush(trig, err);
+}
 
-    edge_log log = {.cap = CAPTURE_MAX_EVENTS};
-    log.ev = malloc(sizeof *log.ev * (size_t)log.cap);
-    if (!log.ev)
-        return sci_error_set(err, -ENOMEM, "capture: out of memory");
-
-    /* 2. Start. */
-    int64_t t0 = 0;
+/* Phase 2: the start as the sync mode has it, its time into *t0 (monotonic ns). */
+static int snapshot_start(trigger *trig, const capture_params *p, int64_t *t0, sci_error *err)
+{
     switch (p->mode) {
-    case SYNC_MODE_HOST_MASTER: rc = trigger_pulse(trig, p->pulse_width_us ? p->pulse_width_us : 10, &t0, err); break;
+    case SYNC_MODE_HOST_MASTER: return trigger_pulse(trig, p->pulse_width_us ? p->pulse_width_us : 10, t0, err);
     case SYNC_MODE_DMD_MASTER:
         if (p->dmd) {
-            t0 = sci_clock_mono_ns();
-            rc = dmd_start(p->dmd, err);
-        } else
-            rc = trigger_pulse(trig, p->pulse_width_us ? p->pulse_width_us : 10, &t0, err);
-        break;
-    default: t0 = sci_clock_mono_ns(); rc = 0; break;
+            *t0 = sci_clock_mono_ns();
+            return dmd_start(p->dmd, err);
+        }
+        return trigger_pulse(trig, p->pulse_width_us ? p->pulse_width_us : 10, t0, err);
+    default: *t0 = sci_clock_mono_ns(); return 0;
     }
-    if (rc < 0)
-        goto out;
-    out->start_ns = t0;
+}
 
-    /* 3. The frame that belongs to this start. */
-    int64_t deadline = t0 + timeout;
-    int have_frame = 0;
+/* Phase 3: the frame that belongs to the start at t0, by deadline_ns, into out->frame (*have_frame = 1); earlier
+ * frames are counted as stale. No frame by the deadline is not an error here (0, *have_frame = 0). */
+static int snapshot_wait_frame(camera *cam, const capture_params *p, int64_t t0, int64_t deadline_ns,
+                               capture_snapshot *out, int *have_frame, sci_error *err)
+{
     for (;;) {
         int64_t now = sci_clock_mono_ns();
-        rc = camera_wait_frame(cam, deadline > now ? deadline - now : 0, &out->frame, err);
+        int rc = camera_wait_frame(cam, deadline_ns > now ? deadline_ns - now : 0, &out->frame, err);
         if (rc == -ETIMEDOUT)
-            break;
+            return 0;
         if (rc < 0)
-            goto out;
+            return rc;
         int64_t a, b;
         estimate_window(&out->frame, p->readout_ns, &a, &b);
         /* camera master: the exposure must begin after the call (its strobe starts our DMD sequence);
          * otherwise the frame must at least end after the start. */
         int stale = p->mode == SYNC_MODE_CAMERA_MASTER ? a < t0 : b <= t0;
         if (!stale) {
-            have_frame = 1;
-            break;
+            *have_frame = 1;
+            return 0;
         }
         out->stale_frames++;
     }
+}
 
-    /* 4. Edges until the sequence must be over. */
-    int64_t until = t0 + p->dmd_latency_ns + seq_ns + settle;
-    if (have_frame && out->frame.timestamp_ns + settle > until)
-        until = out->frame.timestamp_ns + settle;
+/* Phase 4's end: when the sequence must be over (monotonic ns), and the frame's timestamp plus settle time. */
+static int64_t snapshot_edges_until_ns(const capture_params *p, const snapshot_times *tm,
+                                       const capture_snapshot *out, int have_frame, int64_t t0)
+{
+    int64_t until = t0 + p->dmd_latency_ns + tm->seq_ns + tm->settle_ns;
+    if (have_frame && out->frame.timestamp_ns + tm->settle_ns > until)
+        until = out->frame.timestamp_ns + tm->settle_ns;
     if (have_frame && p->mode == SYNC_MODE_CAMERA_MASTER) {
         int64_t a, b;
         estimate_window(&out->frame, p->readout_ns, &a, &b);
-        until = a + p->dmd_latency_ns + seq_ns + settle;
-        if (out->frame.timestamp_ns + settle > until)
-            until = out->frame.timestamp_ns + settle;
+        until = a + p->dmd_latency_ns + tm->seq_ns + tm->settle_ns;
+        if (out->frame.timestamp_ns + tm->settle_ns > until)
+            until = out->frame.timestamp_ns + tm->settle_ns;
     }
-    int rc2 = collect_until(trig, &log, until, err);
-    if (rc2 < 0) {
-        rc = rc2;
-        goto out;
-    }
+    return until;
+}
 
-    /* 5. The exposure window: the strobe pulse nearest the frame's estimated start, else the estimate. */
-    int64_t win_a = 0, win_b = 0;
-    int measured = 0;
-    if (have_frame) {
-        estimate_window(&out->frame, p->readout_ns, &win_a, &win_b);
-        int64_t best_d = INT64_MAX;
-        int best = -1;
-        for (int i = 0; i < log.n; i++) {
-            if (log.ev[i].role != TRIGGER_ROLE_STROBE || !log.ev[i].rising)
-                continue;
-            int64_t d = log.ev[i].timestamp_ns - win_a;
-            d = d < 0 ? -d : d;
-            if (d < best_d) {
-                best_d = d;
-                best = i;
-            }
+/* Phase 5: frame f's exposure window from the logged strobe pulses, else its estimate. */
+static snapshot_window snapshot_window_find(const capture_params *p, const edge_log *log, const camera_frame *f)
+{
+    snapshot_window w = {0};
+    estimate_window(f, p->readout_ns, &w.a_ns, &w.b_ns);
+    int64_t best_d = INT64_MAX;
+    int best = -1;
+    for (int i = 0; i < log->n; i++) {
+        if (log->ev[i].role != TRIGGER_ROLE_STROBE || !log->ev[i].rising)
+            continue;
+        int64_t d = log->ev[i].timestamp_ns - w.a_ns;
+        d = d < 0 ? -d : d;
+        if (d < best_d) {
+            best_d = d;
+            best = i;
         }
-        if (best >= 0)
-            for (int j = best + 1; j < log.n; j++)
-                if (log.ev[j].role == TRIGGER_ROLE_STROBE && !log.ev[j].rising) {
-                    win_a = log.ev[best].timestamp_ns;
-                    win_b = log.ev[j].timestamp_ns;
-                    measured = 1;
-                    break;
-                }
     }
-    for (int i = 0; i < log.n; i++)
-        if (log.ev[i].rising)
-            *(log.ev[i].role == TRIGGER_ROLE_DMD ? &out->dmd_edges : &out->strobe_edges) += 1;
+    if (best >= 0)
+        for (int j = best + 1; j < log->n; j++)
+            if (log->ev[j].role == TRIGGER_ROLE_STROBE && !log->ev[j].rising) {
+                w.a_ns = log->ev[best].timestamp_ns;
+                w.b_ns = log->ev[j].timestamp_ns;
+                w.measured = 1;
+                break;
+            }
+    return w;
+}
 
-    /* 6. Place the plan in time and compare. */
+/* Phase 6: the plan placed in time (from t0, or from the exposure's start in camera master) and compared with
+ * the DMD edges of this sequence and the window into out->report. No frame: -ETIMEDOUT with the diagnosis. */
+static int snapshot_compare(const capture_params *p, const snapshot_times *tm, const edge_log *log,
+                            int have_frame, int64_t t0, const snapshot_window *w, capture_snapshot *out,
+                            sci_error *err)
+{
     out->plan = *p->timeline;
     int64_t origin = t0;
     if (p->mode == SYNC_MODE_CAMERA_MASTER && have_frame)
-        origin = win_a; /* the strobe (or the estimated exposure start) started the DMD */
+        origin = w->a_ns; /* the strobe (or the estimated exposure start) started the DMD */
     out->plan.start_ns = origin + p->dmd_latency_ns;
     /* DMD edges that belong to this sequence: between the start and the planned end plus one settle time
      * (in camera master the next frame's strobe starts the next sequence). */
-    int64_t lo = origin, hi = sync_timeline_end_ns(&out->plan) + settle;
-    int64_t *edges = malloc(sizeof *edges * (size_t)(log.n ? log.n : 1));
-    if (!edges) {
-        rc = sci_error_set(err, -ENOMEM, "capture: out of memory");
-        goto out;
-    }
+    int64_t lo = origin, hi = sync_timeline_end_ns(&out->plan) + tm->settle_ns;
+    int64_t *edges = malloc(sizeof *edges * (size_t)(log->n ? log->n : 1));
+    if (!edges)
+        return sci_error_set(err, -ENOMEM, "capture: out of memory");
     int ne = 0;
-    for (int i = 0; i < log.n; i++)
-        if (log.ev[i].role == TRIGGER_ROLE_DMD && log.ev[i].rising && log.ev[i].timestamp_ns >= lo &&
-            log.ev[i].timestamp_ns <= hi)
-            edges[ne++] = log.ev[i].timestamp_ns;
-    sync_observation obs = {.dmd_edges_ns = edges, .dmd_edge_count = ne, .exposure_start_ns = win_a,
-                            .exposure_end_ns = win_b > win_a ? win_b : win_a + 1, .exposure_measured = measured};
+    for (int i = 0; i < log->n; i++)
+        if (log->ev[i].role == TRIGGER_ROLE_DMD && log->ev[i].rising && log->ev[i].timestamp_ns >= lo &&
+            log->ev[i].timestamp_ns <= hi)
+            edges[ne++] = log->ev[i].timestamp_ns;
+    sync_observation obs = {.dmd_edges_ns = edges, .dmd_edge_count = ne, .exposure_start_ns = w->a_ns,
+                            .exposure_end_ns = w->b_ns > w->a_ns ? w->b_ns : w->a_ns + 1,
+                            .exposure_measured = w->measured};
     sci_error serr = {0};
-    rc2 = sync_report_compute(&out->plan, have_frame ? &obs : NULL, &p->tolerance, &out->report, &serr);
-    if (rc2 < 0 && have_frame) { /* only a degenerate window can fail here */
-        free(edges);
-        rc = sci_error_set(err, rc2, "capture: %s", serr.msg);
-        goto out;
-    }
+    int rc = sync_report_compute(&out->plan, have_frame ? &obs : NULL, &p->tolerance, &out->report, &serr);
+    free(edges);
+    if (rc < 0 && have_frame) /* only a degenerate window can fail here */
+        return sci_error_set(err, rc, "capture: %s", serr.msg);
     if (!have_frame) {
         out->report.edges_seen = ne; /* what the DMD did, for the diagnosis */
-        free(edges);
-        rc = sci_error_set(err, -ETIMEDOUT, "capture: camera %s (%s) gave no frame within %.1f ms of the %s start "
-                           "(missed trigger?); DMD edges seen: %d, strobe edges: %d", cam_name, out->camera_id.card,
-                           (double)timeout * 1e-6, sync_mode_name(p->mode), out->dmd_edges, out->strobe_edges);
-        goto out;
+        return sci_error_set(err, -ETIMEDOUT, "capture: camera %s (%s) gave no frame within %.1f ms of the %s start "
+                             "(missed trigger?); DMD edges seen: %d, strobe edges: %d", out->camera_id.path,
+                             out->camera_id.card, (double)tm->timeout_ns * 1e-6, sync_mode_name(p->mode),
+                             out->dmd_edges, out->strobe_edges);
     }
-    free(edges);
-    rc = 0;
-out:
+    return 0;
+}
+
+/* Phases 2-6 with the edge log allocated. */
+static int snapshot_run(camera *cam, trigger *trig, const capture_params *p, const snapshot_times *tm,
+                        edge_log *log, capture_snapshot *out, sci_error *err)
+{
+    int64_t t0 = 0;
+    int rc = snapshot_start(trig, p, &t0, err);
+    if (rc < 0)
+        return rc;
+    out->start_ns = t0;
+    int have_frame = 0;
+    if ((rc = snapshot_wait_frame(cam, p, t0, t0 + tm->timeout_ns, out, &have_frame, err)) < 0)
+        return rc;
+    /* phase 4: edges until the sequence must be over */
+    if ((rc = collect_until(trig, log, snapshot_edges_until_ns(p, tm, out, have_frame, t0), err)) < 0)
+        return rc;
+    snapshot_window w = {0};
+    if (have_frame)
+        w = snapshot_window_find(p, log, &out->frame);
+    for (int i = 0; i < log->n; i++)
+        if (log->ev[i].rising)
+            *(log->ev[i].role == TRIGGER_ROLE_DMD ? &out->dmd_edges : &out->strobe_edges) += 1;
+    return snapshot_compare(p, tm, log, have_frame, t0, &w, out, err);
+}
+
+int capture_snapshot_take(camera *cam, trigger *trig, const capture_params *p, capture_snapshot *out, sci_error *err)
+{
+    int rc = snapshot_check(cam, trig, p, out, err);
+    if (rc < 0)
+        return rc;
+    trigger_stats ts0, ts1;
+    trigger_stats_get(trig, &ts0);
+    int64_t exposure_ns = (int64_t)camera_exposure_us(cam) * 1000;
+    snapshot_times tm = {.seq_ns = seq_length_ns(p->timeline)};
+    tm.settle_ns = p->settle_ns > 0 ? p->settle_ns : 1000000;
+    tm.timeout_ns = p->frame_timeout_ns > 0
+                        ? p->frame_timeout_ns
+                        : exposure_ns + tm.seq_ns + p->dmd_latency_ns + p->readout_ns + 1000000000LL;
+    if ((rc = snapshot_drain(cam, trig, out, err)) < 0)
+        return rc;
+    edge_log log = {.cap = CAPTURE_MAX_EVENTS};
+    log.ev = malloc(sizeof *log.ev * (size_t)log.cap);
+    if (!log.ev)
+        return sci_error_set(err, -ENOMEM, "capture: out of memory");
+    rc = snapshot_run(cam, trig, p, &tm, &log, out, err);
     trigger_stats_get(trig, &ts1);
     out->lost_events = ts1.lost_events - ts0.lost_events + (uint64_t)log.overflow;
     free(log.ev);
