@@ -125,11 +125,16 @@ static int parse_ull(const char *s, const char *opt, unsigned long long hi, unsi
     return 0;
 }
 
-int cli_sim_main(int argc, char **argv)
+/* scicap sim's command line, as parsed. */
+typedef struct sim_opts {
+    const char *out;
+    int force, quiet, use_default, have_seed, have_k, bench;
+    unsigned long long seed, snapshots, threads;
+} sim_opts;
+
+/* Parses the options into o. Returns -1 to go on, else the exit code (0 after --help, 2 on a bad option). */
+static int sim_opts_parse(sim_opts *o, int argc, char **argv)
 {
-    const char *out = NULL;
-    int force = 0, quiet = 0, use_default = 0, have_seed = 0, have_k = 0, bench = 0;
-    unsigned long long seed = 0, snapshots = 0, threads = 0;
     enum { OPT_SEED = 256, OPT_SNAPSHOTS, OPT_DEFAULT, OPT_BENCH };
     static const struct option longopts[] = {
         {"output", required_argument, 0, 'o'},     {"force", no_argument, 0, 'f'},
@@ -143,45 +148,92 @@ int cli_sim_main(int argc, char **argv)
     int c;
     while ((c = getopt_long(argc, argv, "o:fj:qh", longopts, NULL)) != -1) {
         switch (c) {
-        case 'o': out = optarg; break;
-        case 'f': force = 1; break;
-        case 'q': quiet = 1; break;
-        case OPT_DEFAULT: use_default = 1; break;
-        case OPT_BENCH: bench = 1; break;
+        case 'o': o->out = optarg; break;
+        case 'f': o->force = 1; break;
+        case 'q': o->quiet = 1; break;
+        case OPT_DEFAULT: o->use_default = 1; break;
+        case OPT_BENCH: o->bench = 1; break;
         case OPT_SEED:
-            if (parse_ull(optarg, "--seed", 1ULL << 53, &seed) < 0)
+            if (parse_ull(optarg, "--seed", 1ULL << 53, &o->seed) < 0)
                 return 2;
-            have_seed = 1;
+            o->have_seed = 1;
             break;
         case OPT_SNAPSHOTS:
-            if (parse_ull(optarg, "--snapshots", 1024, &snapshots) < 0 || snapshots < 1) {
-                if (snapshots < 1)
+            if (parse_ull(optarg, "--snapshots", 1024, &o->snapshots) < 0 || o->snapshots < 1) {
+                if (o->snapshots < 1)
                     fprintf(stderr, "scicap sim: --snapshots must be at least 1\n");
                 return 2;
             }
-            have_k = 1;
+            o->have_k = 1;
             break;
         case 'j':
-            if (parse_ull(optarg, "--threads", 1024, &threads) < 0 || threads < 1)
+            if (parse_ull(optarg, "--threads", 1024, &o->threads) < 0 || o->threads < 1)
                 return 2;
             break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
     }
-    int nargs = argc - optind;
-    if ((use_default && nargs != 0) || (!use_default && nargs != 1)) {
-        fprintf(stderr, "scicap sim: %s\n", use_default ? "--default takes no scene file"
-                                                        : "give exactly one scene file (or --default)");
+    return -1;
+}
+
+/* One scene file, or none with --default, and an output folder. Returns 0, or 2 after a message. */
+static int sim_opts_check(const sim_opts *o, int nargs)
+{
+    if ((o->use_default && nargs != 0) || (!o->use_default && nargs != 1)) {
+        fprintf(stderr, "scicap sim: %s\n", o->use_default ? "--default takes no scene file"
+                                                           : "give exactly one scene file (or --default)");
         usage(stderr);
         return 2;
     }
-    if (!out) {
+    if (!o->out) {
         fprintf(stderr, "scicap sim: an output folder is required (-o DIR)\n");
         return 2;
     }
-    if (threads)
-        omp_set_num_threads((int)threads);
+    return 0;
+}
+
+/* Colour: the problems are the raw mosaic; the RGB truth goes beside them for colour PSNR and previews. *rgb gets
+ * k cubes (the caller frees them, also on failure). Returns 0 or -errno with err filled. */
+static int sim_write_color(const sim_opts *o, const sim_scene *sc, sci_problem **p, int k, json_t *record,
+                           sci_cube ***rgb, sci_error *err)
+{
+    int rc;
+    if (!(*rgb = calloc((size_t)k, sizeof **rgb)))
+        return sci_error_set(err, -ENOMEM, "out of memory for the RGB truth");
+    for (int j = 0; j < k; j++)
+        if ((rc = sci_cube_new(&(*rgb)[j], sc->w, sc->h, 3 * sc->n, err)) < 0 ||
+            (rc = sim_render_truth_rgb(sc, j, (*rgb)[j], err)) < 0)
+            return rc;
+    const sci_problem_color col = {.cfa = sc->cfa, .truth_rgb = *rgb};
+    return sci_problem_dir_write_color(o->out, p, k, record, &col, o->force, 1, err);
+}
+
+/* The closing line on stdout: what was written, the effects listed, the time since t0_ns. */
+static void sim_report_print(const sim_opts *o, const sim_scene *sc, int k, int64_t t0_ns)
+{
+    printf("wrote %s: %s%s%s, %dx%dx%d, %d snapshot(s), effects:", o->out, sim_scene_kind_name(sc->kind),
+           sc->cfa ? ", colour, Bayer " : "", sc->cfa ? sci_cfa_name((sci_cfa)sc->cfa) : "", sc->w, sc->h, sc->n, k);
+    int any = 0;
+    for (int e = 0; e < SIM_FX_COUNT; e++)
+        if (sim_fx_listed(&sc->fx, e)) {
+            printf(" %s", sim_fx_name(e));
+            any = 1;
+        }
+    printf("%s%s (%.2f s)\n", any ? "" : " none", o->bench ? ", measured on the simulated bench" : "",
+           sci_clock_s(t0_ns, sci_clock_mono_ns()));
+}
+
+int cli_sim_main(int argc, char **argv)
+{
+    sim_opts o = {0};
+    int rc = sim_opts_parse(&o, argc, argv);
+    if (rc >= 0)
+        return rc;
+    if (sim_opts_check(&o, argc - optind) != 0)
+        return 2;
+    if (o.threads)
+        omp_set_num_threads((int)o.threads);
 
     sci_error err = {0};
     sim_scene *sc = NULL;
@@ -189,21 +241,21 @@ int cli_sim_main(int argc, char **argv)
     json_t *record = NULL;
     sci_cube **rgb = NULL;
     int k = 0, status = 1;
-    const char *path = use_default ? NULL : argv[optind];
-    int rc = load_scene(use_default, path, have_seed, seed, have_k, snapshots, &sc, &err);
+    const char *path = o.use_default ? NULL : argv[optind];
+    rc = load_scene(o.use_default, path, o.have_seed, o.seed, o.have_k, o.snapshots, &sc, &err);
     if (rc < 0)
         goto fail;
-    if (bench && sc->cfa) {
+    if (o.bench && sc->cfa) {
         rc = sci_error_set(&err, -EINVAL, "--bench: the simulated bench's camera is grey; %s has a colour sensor",
                            sc->name);
         goto fail;
     }
-    if (!force && access(out, F_OK) == 0) {
-        rc = sci_error_set(&err, -EEXIST, "%s exists (use --force to replace it)", out);
+    if (!o.force && access(o.out, F_OK) == 0) {
+        rc = sci_error_set(&err, -EEXIST, "%s exists (use --force to replace it)", o.out);
         goto fail;
     }
-    progress pr = {quiet, sci_clock_mono_ns()};
-    if (!quiet)
+    progress pr = {o.quiet, sci_clock_mono_ns()};
+    if (!o.quiet)
         fprintf(stderr, "scicap sim: %s: %s %dx%d, %d frames x %d snapshot(s), supersample %d, seed %llu\n",
                 sc->name, sim_scene_kind_name(sc->kind), sc->w, sc->h, sc->n, sc->snapshots, sc->supersample,
                 (unsigned long long)sc->seed);
@@ -214,38 +266,19 @@ int cli_sim_main(int argc, char **argv)
         rc = sci_error_set(&err, -ENOMEM, "out of memory for the scene record");
         goto fail;
     }
-    if (bench) {
+    if (o.bench) {
         sim_scene *again; /* the bench keeps a scene of its own */
-        if ((rc = load_scene(use_default, path, have_seed, seed, have_k, snapshots, &again, &err)) < 0 ||
+        if ((rc = load_scene(o.use_default, path, o.have_seed, o.seed, o.have_k, o.snapshots, &again, &err)) < 0 ||
             (rc = measure_on_bench(again, p, k, record, &err)) < 0)
             goto fail;
     }
-    if (sc->cfa) {
-        /* Colour: the problems are the raw mosaic; the RGB truth goes beside them for colour PSNR and previews. */
-        if (!(rgb = calloc((size_t)k, sizeof *rgb))) {
-            rc = sci_error_set(&err, -ENOMEM, "out of memory for the RGB truth");
-            goto fail;
-        }
-        for (int j = 0; j < k; j++)
-            if ((rc = sci_cube_new(&rgb[j], sc->w, sc->h, 3 * sc->n, &err)) < 0 ||
-                (rc = sim_render_truth_rgb(sc, j, rgb[j], &err)) < 0)
-                goto fail;
-        const sci_problem_color col = {.cfa = sc->cfa, .truth_rgb = rgb};
-        if ((rc = sci_problem_dir_write_color(out, p, k, record, &col, force, 1, &err)) < 0)
-            goto fail;
-    } else if ((rc = sci_problem_dir_write(out, p, k, record, force, &err)) < 0) {
+    if (sc->cfa)
+        rc = sim_write_color(&o, sc, p, k, record, &rgb, &err);
+    else
+        rc = sci_problem_dir_write(o.out, p, k, record, o.force, &err);
+    if (rc < 0)
         goto fail;
-    }
-    printf("wrote %s: %s%s%s, %dx%dx%d, %d snapshot(s), effects:", out, sim_scene_kind_name(sc->kind),
-           sc->cfa ? ", colour, Bayer " : "", sc->cfa ? sci_cfa_name((sci_cfa)sc->cfa) : "", sc->w, sc->h, sc->n, k);
-    int any = 0;
-    for (int e = 0; e < SIM_FX_COUNT; e++)
-        if (sim_fx_listed(&sc->fx, e)) {
-            printf(" %s", sim_fx_name(e));
-            any = 1;
-        }
-    printf("%s%s (%.2f s)\n", any ? "" : " none", bench ? ", measured on the simulated bench" : "",
-           sci_clock_s(pr.t0_ns, sci_clock_mono_ns()));
+    sim_report_print(&o, sc, k, pr.t0_ns);
     status = 0;
     goto done;
 fail:
