@@ -1,4 +1,5 @@
 #include "recon/metrics.h"
+#include "recon/metrics_ssim.h"
 #include "recon/sci_ops.h"
 
 #include <math.h>
@@ -16,6 +17,17 @@ double sci_psnr_frame(const float *x, const float *ref, size_t n, double peak)
     if (mse == 0)
         return INFINITY;
     return 10.0 * log10(peak * peak / mse);
+}
+
+/* The mean of v[0..n), summed in frame order; v is freed unless it is the caller's per_frame. */
+static double frames_mean(double *v, int n, const double *per_frame)
+{
+    double s = 0;
+    for (int k = 0; k < n; k++)
+        s += v[k];
+    if (v != per_frame)
+        free(v);
+    return s / n;
 }
 
 double sci_psnr(const sci_cube *x, const sci_cube *truth, sci_peak conv, double peak, double *per_frame)
@@ -36,15 +48,10 @@ double sci_psnr(const sci_cube *x, const sci_cube *truth, sci_peak conv, double 
         }
         v[k] = sci_psnr_frame(sci_cube_frame(x, k), t, fs, p);
     }
-    double s = 0;
-    for (int k = 0; k < x->n; k++)
-        s += v[k];
-    if (!per_frame)
-        free(v);
-    return s / x->n;
+    return frames_mean(v, x->n, per_frame);
 }
 
-#define SSIM_RADIUS 5 /* ceil(3 σ) for σ = 1.5: an 11×11 window */
+#define SSIM_RADIUS SCI_SSIM_RADIUS
 
 /* Separable Gaussian filter with replicate padding (MATLAB imgaussfilt, 'Padding','replicate'), in double. */
 /* One tap sum with edge replication: in[clamp(i + k) * stride] for k = -R..R, in order. */
@@ -96,7 +103,7 @@ static void gauss_filter(const double *in, double *out, double *tmp, int w, int 
     }
 }
 
-double sci_ssim_frame(const float *x, const float *ref, int w, int h, double range)
+double sci_ssim_frame_filtered(const float *x, const float *ref, int w, int h, double range, sci_ssim_filter filter)
 {
     const double sigma = 1.5, c1 = (0.01 * range) * (0.01 * range), c2 = (0.03 * range) * (0.03 * range);
     double g[2 * SSIM_RADIUS + 1], gs = 0;
@@ -114,17 +121,17 @@ double sci_ssim_frame(const float *x, const float *ref, int w, int h, double ran
         a[i] = x[i];
         b[i] = ref[i];
     }
-    gauss_filter(a, mx, tmp, w, h, g);
-    gauss_filter(b, my, tmp, w, h, g);
+    filter(a, mx, tmp, w, h, g);
+    filter(b, my, tmp, w, h, g);
     for (size_t i = 0; i < n; i++)
         sq[i] = a[i] * a[i];
-    gauss_filter(sq, sxx, tmp, w, h, g);
+    filter(sq, sxx, tmp, w, h, g);
     for (size_t i = 0; i < n; i++)
         sq[i] = b[i] * b[i];
-    gauss_filter(sq, syy, tmp, w, h, g);
+    filter(sq, syy, tmp, w, h, g);
     for (size_t i = 0; i < n; i++)
         sq[i] = a[i] * b[i];
-    gauss_filter(sq, b, tmp, w, h, g); /* b now holds the filtered product */
+    filter(sq, b, tmp, w, h, g); /* b now holds the filtered product */
     double s = 0;
     for (size_t i = 0; i < n; i++) {
         double mux = mx[i], muy = my[i];
@@ -135,6 +142,11 @@ double sci_ssim_frame(const float *x, const float *ref, int w, int h, double ran
     return s / (double)n;
 }
 
+double sci_ssim_frame(const float *x, const float *ref, int w, int h, double range)
+{
+    return sci_ssim_frame_filtered(x, ref, w, h, range, gauss_filter);
+}
+
 double sci_ssim(const sci_cube *x, const sci_cube *truth, double range, double *per_frame)
 {
     double *v = per_frame ? per_frame : malloc((size_t)x->n * sizeof *v);
@@ -143,12 +155,7 @@ double sci_ssim(const sci_cube *x, const sci_cube *truth, double range, double *
 #pragma omp parallel for schedule(static) if (sci_cube_count(x) >= SCI_PARALLEL_MIN / 16)
     for (int k = 0; k < x->n; k++)
         v[k] = sci_ssim_frame(sci_cube_frame(x, k), sci_cube_frame(truth, k), x->w, x->h, range);
-    double s = 0;
-    for (int k = 0; k < x->n; k++)
-        s += v[k];
-    if (!per_frame)
-        free(v);
-    return s / x->n;
+    return frames_mean(v, x->n, per_frame);
 }
 
 const char *sci_peak_name(sci_peak conv, double peak, char *buf, size_t n)
