@@ -147,6 +147,28 @@ static inline __attribute__((always_inline)) void level_corners(const level *v, 
 /* Level-major loops: one level's table slice (at most T·F floats, 512 KiB for the RayFormer grid) stays in L2
  * while every point visits it; point-major order would sweep the whole table (8 MiB) per point. The order in
  * which points add into one gradient entry is still the point order, so results equal the point-major ones. */
+/* Points in order at one level, their cells computed a block of BLK at a time. */
+typedef struct level_walk {
+    const level *v;
+    uint64_t T;
+    uint32_t cell[3 * BLK];
+    float frac[3 * BLK];
+} level_walk;
+
+static inline void walk_start(level_walk *lw, const nerf_hashgrid *g, int l)
+{
+    lw->v = &g->lv[l];
+    lw->T = (uint64_t)1 << g->cfg.log2_table;
+}
+
+/* The corners of point i of x[3n]; points must come in order 0, 1, … (a new block is filled at each BLK). */
+static inline __attribute__((always_inline)) void walk_corners(level_walk *lw, int n, const float *x, int i,
+                                                               corners *c)
+{
+    if (i % BLK == 0) level_cells(lw->v, 3 * (n - i < BLK ? n - i : BLK), x + 3 * (size_t)i, lw->cell, lw->frac);
+    corners_from(lw->v, lw->T, lw->cell + 3 * (i % BLK), lw->frac + 3 * (i % BLK), c);
+}
+
 /* clang before 16 exports a target_clones function as NAME.ifunc, which other files' calls do not link to
  * (the fuzzers are built with clang): a single version there */
 #if defined(__clang__) && __clang_major__ < 16
@@ -160,14 +182,11 @@ CLONES static void level_forward(const nerf_hashgrid *g, const float *table, int
                                  int ldy, int l)
 {
     const int F = g->cfg.n_features;
-    const uint64_t T = (uint64_t)1 << g->cfg.log2_table;
-    const level *v = &g->lv[l];
-    uint32_t cell[3 * BLK];
-    float frac[3 * BLK];
+    level_walk lw;
+    walk_start(&lw, g, l);
     for (int i = 0; i < n; i++) {
-        if (i % BLK == 0) level_cells(v, 3 * (n - i < BLK ? n - i : BLK), x + 3 * (size_t)i, cell, frac);
         corners c;
-        corners_from(v, T, cell + 3 * (i % BLK), frac + 3 * (i % BLK), &c);
+        walk_corners(&lw, n, x, i, &c);
         float *yi = y + (size_t)i * ldy + l * F;
         if (F == 2) {
             float a0 = 0.0f, a1 = 0.0f;
@@ -193,14 +212,11 @@ CLONES static void level_backward_table(const nerf_hashgrid *g, int n, const flo
                                         float *dtable, int l)
 {
     const int F = g->cfg.n_features;
-    const uint64_t T = (uint64_t)1 << g->cfg.log2_table;
-    const level *v = &g->lv[l];
-    uint32_t cell[3 * BLK];
-    float frac[3 * BLK];
+    level_walk lw;
+    walk_start(&lw, g, l);
     for (int i = 0; i < n; i++) {
-        if (i % BLK == 0) level_cells(v, 3 * (n - i < BLK ? n - i : BLK), x + 3 * (size_t)i, cell, frac);
         corners c;
-        corners_from(v, T, cell + 3 * (i % BLK), frac + 3 * (i % BLK), &c);
+        walk_corners(&lw, n, x, i, &c);
         const float *gl = dy + (size_t)i * lddy + l * F;
         if (F == 2) {
             const float g0 = gl[0], g1 = gl[1];
