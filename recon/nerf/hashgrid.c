@@ -162,11 +162,12 @@ static inline void walk_start(level_walk *lw, const nerf_hashgrid *g, int l)
 }
 
 /* The corners of point i of x[3n]; points must come in order 0, 1, … (a new block is filled at each BLK). */
-static inline __attribute__((always_inline)) void walk_corners(level_walk *lw, int n, const float *x, int i,
-                                                               corners *c)
+static inline __attribute__((always_inline)) corners walk_corners(level_walk *lw, int n, const float *x, int i)
 {
     if (i % BLK == 0) level_cells(lw->v, 3 * (n - i < BLK ? n - i : BLK), x + 3 * (size_t)i, lw->cell, lw->frac);
-    corners_from(lw->v, lw->T, lw->cell + 3 * (i % BLK), lw->frac + 3 * (i % BLK), c);
+    corners c;
+    corners_from(lw->v, lw->T, lw->cell + 3 * (i % BLK), lw->frac + 3 * (i % BLK), &c);
+    return c;
 }
 
 /* clang before 16 exports a target_clones function as NAME.ifunc, which other files' calls do not link to
@@ -185,8 +186,7 @@ CLONES static void level_forward(const nerf_hashgrid *g, const float *table, int
     level_walk lw;
     walk_start(&lw, g, l);
     for (int i = 0; i < n; i++) {
-        corners c;
-        walk_corners(&lw, n, x, i, &c);
+        const corners c = walk_corners(&lw, n, x, i);
         float *yi = y + (size_t)i * ldy + l * F;
         if (F == 2) {
             float a0 = 0.0f, a1 = 0.0f;
@@ -215,8 +215,7 @@ CLONES static void level_backward_table(const nerf_hashgrid *g, int n, const flo
     level_walk lw;
     walk_start(&lw, g, l);
     for (int i = 0; i < n; i++) {
-        corners c;
-        walk_corners(&lw, n, x, i, &c);
+        const corners c = walk_corners(&lw, n, x, i);
         const float *gl = dy + (size_t)i * lddy + l * F;
         if (F == 2) {
             const float g0 = gl[0], g1 = gl[1];
