@@ -37,6 +37,21 @@ static double mean_loss(const sci_trace *t, size_t from, size_t to)
     return s / (double)(to - from);
 }
 
+/* sci_scinerf_solve on p, which must succeed. */
+static sci_result solved(const sci_problem *p, const sci_scinerf_params *prm)
+{
+    sci_result r = {0};
+    if (sci_scinerf_solve(p, prm, &r, NULL, NULL) != 0)
+        fail_msg("%s", r.error.msg);
+    return r;
+}
+
+static void done(sci_result *r, sci_problem *p)
+{
+    sci_result_free_contents(r);
+    sci_problem_free(p);
+}
+
 static void test_params_check(void **state)
 {
     (void)state;
@@ -72,10 +87,7 @@ static void test_learns_tiny_scene(void **state)
     sci_scinerf_params prm;
     small_params(&prm, seed);
     prm.iters = 150;
-    sci_result r = {0};
-    int rc = sci_scinerf_solve(p, &prm, &r, NULL, NULL);
-    if (rc != 0)
-        fail_msg("%s", r.error.msg);
+    sci_result r = solved(p, &prm);
     assert_int_equal((int)r.trace.len, prm.iters);
     double first = mean_loss(&r.trace, 0, 10), last = mean_loss(&r.trace, r.trace.len - 10, r.trace.len);
     double base = nerf_mean_frame_psnr(p), psnr = r.trace.e[r.trace.len - 1].psnr_peak1;
@@ -84,8 +96,7 @@ static void test_learns_tiny_scene(void **state)
     assert_true(last < 0.2 * first);
     assert_true(psnr > base + 3);
     assert_string_equal(r.method, "scinerf");
-    sci_result_free_contents(&r);
-    sci_problem_free(p);
+    done(&r, p);
 }
 
 /* Coarse + fine networks with importance sampling: learns as well (> 3 dB over the mean frame). */
@@ -99,16 +110,12 @@ static void test_coarse_fine(void **state)
     prm.iters = 100;
     prm.samples = 8;
     prm.fine_samples = 8;
-    sci_result r = {0};
-    int rc = sci_scinerf_solve(p, &prm, &r, NULL, NULL);
-    if (rc != 0)
-        fail_msg("%s", r.error.msg);
+    sci_result r = solved(p, &prm);
     double base = nerf_mean_frame_psnr(p), psnr = r.trace.e[r.trace.len - 1].psnr_peak1;
     printf("coarse 8 + fine 8 samples: PSNR %.2f dB vs mean frame %.2f dB\n", psnr, base);
     assert_true(psnr > base + 3);
     assert_int_equal(sci_cube_check_finite(r.frames, "frames", NULL), 0);
-    sci_result_free_contents(&r);
-    sci_problem_free(p);
+    done(&r, p);
 }
 
 /* SCINeRF's own network (frequency encoding, ReLU density), narrowed so that it runs in a test: finite frames. */
@@ -121,13 +128,9 @@ static void test_frequency_network(void **state)
     sci_scinerf_params_paper(&prm);
     prm.iters = 5, prm.rays_per_step = 64, prm.samples = 8, prm.fine_samples = 8, prm.depth = 3, prm.width = 32;
     prm.skip = 2, prm.feature_dim = 16, prm.color_hidden = 16, prm.metrics_every = 0;
-    sci_result r = {0};
-    int rc = sci_scinerf_solve(p, &prm, &r, NULL, NULL);
-    if (rc != 0)
-        fail_msg("%s", r.error.msg);
+    sci_result r = solved(p, &prm);
     assert_int_equal(sci_cube_check_finite(r.frames, "frames", NULL), 0);
-    sci_result_free_contents(&r);
-    sci_problem_free(p);
+    done(&r, p);
 }
 
 static void test_needs_camera(void **state)
