@@ -233,12 +233,187 @@ static int ckpt_read(const solver_io *io, const sci_desci_params *q, const sci_p
     return 0;
 }
 
+/* --- the run ---------------------------------------------------------------------------------------------------
+ * One run's inputs (borrowed for the call), buffers (owned, freed by desci_state_free) and the state a checkpoint
+ * names. */
+typedef struct desci_state {
+    const sci_problem *problem;
+    const sci_desci_params *params;
+    const solver_io *io;
+    sci_result *result;
+    sci_tracer tr;
+    sci_cube *x, *xprev, *yhat, *ybar, *ybprev, *phi, *r;
+    sci_cube *xm, *xmn; /* the image the groups were matched on; the one being matched */
+    double *rowbuf;
+    sci_wnnm *wn;
+    sci_wnnm_params cur;
+    int first, has_match, done;
+} desci_state;
+
+/* rc: the status so far (>= 0); returned unchanged by a success that allocates nothing new to report. */
+static int desci_state_alloc(desci_state *d, int rc, sci_error *err)
+{
+    const sci_cube *mask = d->problem->mask;
+    const int w = mask->w, h = mask->h, n = mask->n;
+    d->rowbuf = malloc(2 * (size_t)h * sizeof *d->rowbuf);
+    if (!d->rowbuf || (rc = sci_cube_new(&d->x, w, h, n, err)) < 0 ||
+        (rc = sci_cube_new(&d->xprev, w, h, n, err)) < 0 || (rc = sci_cube_new(&d->yhat, w, h, 1, err)) < 0 ||
+        (rc = sci_cube_new(&d->ybar, w, h, 1, err)) < 0 || (rc = sci_cube_new(&d->ybprev, w, h, 1, err)) < 0 ||
+        (rc = sci_cube_new(&d->xm, w, h, n, err)) < 0 || (rc = sci_cube_new(&d->xmn, w, h, n, err)) < 0 ||
+        (rc = sci_cube_new(&d->phi, w, h, 1, err)) < 0 || (rc = sci_cube_new(&d->r, w, h, 1, err)) < 0) {
+        if (rc >= 0)
+            rc = sci_error_set(err, -ENOMEM, "desci: out of memory");
+    }
+    return rc;
+}
+
+static void desci_state_free(desci_state *d)
+{
+    free(d->rowbuf);
+    sci_wnnm_free(d->wn);
+    sci_cube_free(d->x);
+    sci_cube_free(d->xprev);
+    sci_cube_free(d->yhat);
+    sci_cube_free(d->ybar);
+    sci_cube_free(d->ybprev);
+    sci_cube_free(d->xm);
+    sci_cube_free(d->xmn);
+    sci_cube_free(d->phi);
+    sci_cube_free(d->r);
+}
+
+/* State from a checkpoint, and the groups that were in use when it was taken. */
+static int desci_resume(desci_state *d, sci_error *err)
+{
+    const sci_desci_params *params = d->params;
+    const sci_cube *mask = d->problem->mask;
+    int rc;
+    if ((rc = ckpt_read(d->io, params, d->problem, d->x, d->ybar, d->xm, &d->first, &d->has_match, err)) < 0)
+        return rc;
+    d->done = d->first++;
+    sci_op_forward_residual(mask, d->x, d->problem->meas, d->yhat, d->rowbuf);
+    if (d->has_match && d->done < params->iters) { /* the groups in use when the checkpoint was taken */
+        d->cur = stage_params(params, params->sigma.v[stage_of(d->done, params->iters, params->sigma.n)]);
+        if ((rc = sci_wnnm_new(&d->wn, mask->w, mask->h, mask->n, &d->cur, params->threads, err)) < 0 ||
+            (rc = sci_wnnm_match(d->wn, d->xm->data, d->io->cancel)) < 0) {
+            if (rc == SCI_ECANCELED)
+                d->result->stopped = rc, sci_error_set(err, rc, "desci canceled at resume");
+            return rc;
+        }
+    }
+    return rc;
+}
+
+/* x⁰ and ȳ⁰ of a fresh run. */
+static int desci_begin(desci_state *d, sci_error *err)
+{
+    int rc;
+    if ((rc = start_point(d->problem, d->params, d->x, err)) < 0) /* its time counts in the trace's */
+        return rc;
+    sci_op_forward_residual(d->problem->mask, d->x, d->problem->meas, d->yhat, d->rowbuf);
+    /* ȳ = 0 is the reference's start from Aᵀy; from a warm start it would make the first step
+     * x += λAᵀ((y − 2ŷ) ⊘ Φ) ≈ −λAᵀ(y ⊘ Φ) and throw the start away (5 dB after one step from GAP-TV's
+     * 34.6). ȳ = A(x⁰) makes the first step the plain GAP step, which keeps it. */
+    if (d->params->tv_init > 0)
+        memcpy(d->ybar->data, d->yhat->data, sci_cube_frame_size(d->problem->mask) * sizeof *d->ybar->data);
+    return rc;
+}
+
+/* A new WNNM plan when the stage's patch geometry differs from the current one (then *match = 1). rc: the
+ * status so far, returned unchanged when the plan stays. */
+static int desci_stage_plan(desci_state *d, double sigma255, int rc, int *match, sci_error *err)
+{
+    const sci_wnnm_params want = stage_params(d->params, sigma255);
+    if (d->wn && same_geometry(&want, &d->cur))
+        return rc;
+    const sci_cube *mask = d->problem->mask;
+    sci_wnnm_free(d->wn); /* one plan at a time: the groups of a 256×256×8 problem take 35–70 MB */
+    d->wn = NULL;
+    if ((rc = sci_wnnm_new(&d->wn, mask->w, mask->h, mask->n, &want, d->params->threads, err)) < 0) {
+        sci_error_prefix(err, "desci: sigma %g: ", sigma255);
+        return rc;
+    }
+    d->cur = want;
+    *match = 1;
+    return rc;
+}
+
+/* The GAP step on x (with the accelerated ȳ update), after saving x and ȳ for a cancel. */
+static void desci_gap_step(desci_state *d)
+{
+    const sci_desci_params *params = d->params;
+    const sci_cube *y = d->problem->meas, *mask = d->problem->mask;
+    const int n = mask->n;
+    const size_t fs = sci_cube_frame_size(mask), count = sci_cube_count(mask);
+    const float lambda = (float)params->lambda;
+    sci_cube *x = d->x, *ybar = d->ybar;
+    memcpy(d->xprev->data, x->data, count * sizeof *x->data);
+    memcpy(d->ybprev->data, ybar->data, fs * sizeof *ybar->data);
+    const float *yv = y->data, *yh = d->yhat->data, *ph = d->phi->data;
+    float *yb = ybar->data, *rv = d->r->data;
+    for (size_t i = 0; i < fs; i++) {
+        if (params->accelerate)
+            yb[i] += yv[i] - yh[i];
+        rv[i] = ((params->accelerate ? yb[i] : yv[i]) - yh[i]) / ph[i];
+    }
+    for (int k = 0; k < n; k++) {
+        const float *m = mask->data + (size_t)k * fs;
+        float *xk = x->data + (size_t)k * fs;
+        for (size_t i = 0; i < fs; i++)
+            xk[i] += lambda * (m[i] * rv[i]);
+    }
+}
+
+/* Iteration it: plan, GAP step, (re)match, denoise, record, checkpoint. rc: the status so far (>= 0; the
+ * denoise runs only when it is 0 after matching). Returns the new status: 0 to go on, nonzero to stop with x
+ * handed out, or with *fatal set to stop without. */
+static int desci_iterate(desci_state *d, int it, int rc, int *fatal, sci_error *err)
+{
+    const sci_desci_params *params = d->params;
+    const solver_io *io = d->io;
+    const sci_cube *mask = d->problem->mask;
+    const size_t fs = sci_cube_frame_size(mask), count = sci_cube_count(mask);
+    const double peak = d->problem->peak > 0 ? d->problem->peak : 1.0;
+    const double sigma255 = params->sigma.v[stage_of(it, params->iters, params->sigma.n)];
+    int match = (it - 1) % params->match_every == 0;
+    if ((rc = desci_stage_plan(d, sigma255, rc, &match, err)) < 0)
+        return *fatal = 1, rc;
+    desci_gap_step(d);
+    if (match) {
+        memcpy(d->xmn->data, d->x->data, count * sizeof *d->x->data);
+        rc = sci_wnnm_match(d->wn, d->x->data, io->cancel);
+    }
+    if (rc == 0)
+        rc = sci_wnnm_denoise(d->wn, d->x->data, sigma255 / 255.0 * peak, d->x->data, io->cancel);
+    if (rc == SCI_ECANCELED) {
+        /* inside an iteration: hand out the last complete iterate */
+        memcpy(d->x->data, d->xprev->data, count * sizeof *d->x->data);
+        memcpy(d->ybar->data, d->ybprev->data, fs * sizeof *d->ybar->data);
+        sci_error_set(err, rc, "desci canceled at iteration %d", it);
+        d->result->stopped = rc;
+        return rc;
+    }
+    if (rc < 0) {
+        sci_error_set(err, rc, "desci: iteration %d (sigma %g): the eigensolver failed on a patch group "
+                               "(a non-finite estimate?)", it, sigma255);
+        return *fatal = 1, rc;
+    }
+    if (match) { /* the iteration is complete: its groups become the ones a checkpoint names */
+        sci_cube *t = d->xm;
+        d->xm = d->xmn, d->xmn = t, d->has_match = 1;
+    }
+    d->done = it;
+    const double res = sci_op_forward_residual(mask, d->x, d->problem->meas, d->yhat, d->rowbuf);
+    if ((rc = sci_tracer_record(&d->tr, it, d->x, res, NAN)) != 0)
+        return rc;
+    if (io->checkpoint_fn && io->checkpoint_every > 0 && it % io->checkpoint_every == 0 && it < params->iters)
+        rc = ckpt_write(io, params, d->problem, it, d->x, d->ybar, d->xm, d->has_match);
+    return rc;
+}
+
 int sci_desci_solve_io(const sci_problem *problem, const sci_desci_params *params, const solver_io *io,
                        sci_result *result)
 {
-    sci_progress_fn progress = io->progress;
-    void *user = io->user;
-    const atomic_int *cancel = io->cancel;
     snprintf(result->method, sizeof result->method, "desci");
     sci_error *err = &result->error;
     int rc = sci_desci_params_check(params, err);
@@ -249,137 +424,34 @@ int sci_desci_solve_io(const sci_problem *problem, const sci_desci_params *param
                            params->iters, params->sigma.n);
     if (rc < 0)
         return rc;
-    const sci_cube *y = problem->meas, *mask = problem->mask;
-    const int w = mask->w, h = mask->h, n = mask->n;
-    const size_t fs = sci_cube_frame_size(mask), count = sci_cube_count(mask);
-    const double peak = problem->peak > 0 ? problem->peak : 1.0;
-
-    sci_cube *x = NULL, *xprev = NULL, *yhat = NULL, *ybar = NULL, *ybprev = NULL, *phi = NULL, *r = NULL;
-    sci_cube *xm = NULL, *xmn = NULL; /* the image the groups were matched on; the one being matched */
-    int first = 1, has_match = 0, done = 0;
-    sci_wnnm *wn = NULL;
-    sci_wnnm_params cur = {0};
-    double *rowbuf = malloc(2 * (size_t)h * sizeof *rowbuf);
-    if (!rowbuf || (rc = sci_cube_new(&x, w, h, n, err)) < 0 || (rc = sci_cube_new(&xprev, w, h, n, err)) < 0 ||
-        (rc = sci_cube_new(&yhat, w, h, 1, err)) < 0 || (rc = sci_cube_new(&ybar, w, h, 1, err)) < 0 ||
-        (rc = sci_cube_new(&ybprev, w, h, 1, err)) < 0 || (rc = sci_cube_new(&xm, w, h, n, err)) < 0 ||
-        (rc = sci_cube_new(&xmn, w, h, n, err)) < 0 ||
-        (rc = sci_cube_new(&phi, w, h, 1, err)) < 0 || (rc = sci_cube_new(&r, w, h, 1, err)) < 0) {
-        if (rc >= 0)
-            rc = sci_error_set(err, -ENOMEM, "desci: out of memory");
+    desci_state d = {.problem = problem, .params = params, .io = io, .result = result, .first = 1};
+    if ((rc = desci_state_alloc(&d, rc, err)) < 0)
         goto out;
-    }
-    sci_op_phi_sum(mask, phi);
-    sci_tracer tr;
-    sci_tracer_start(&tr, problem, result, progress, user, params->iters, params->metrics_every,
+    sci_op_phi_sum(problem->mask, d.phi);
+    sci_tracer_start(&d.tr, problem, result, io->progress, io->user, params->iters, params->metrics_every,
                      params->ssim_every);
-    if (io->resume) {
-        if ((rc = ckpt_read(io, params, problem, x, ybar, xm, &first, &has_match, err)) < 0)
+    if ((rc = io->resume ? desci_resume(&d, err) : desci_begin(&d, err)) < 0)
+        goto out;
+    for (int it = d.first; it <= params->iters; it++) {
+        int fatal = 0;
+        rc = desci_iterate(&d, it, rc, &fatal, err);
+        if (fatal)
             goto out;
-        done = first++;
-        sci_op_forward_residual(mask, x, y, yhat, rowbuf);
-        if (has_match && done < params->iters) { /* the groups in use when the checkpoint was taken */
-            cur = stage_params(params, params->sigma.v[stage_of(done, params->iters, params->sigma.n)]);
-            if ((rc = sci_wnnm_new(&wn, w, h, n, &cur, params->threads, err)) < 0 ||
-                (rc = sci_wnnm_match(wn, xm->data, cancel)) < 0) {
-                if (rc == SCI_ECANCELED)
-                    result->stopped = rc, sci_error_set(err, rc, "desci canceled at resume");
-                goto out;
-            }
-        }
-    } else {
-        if ((rc = start_point(problem, params, x, err)) < 0) /* its time counts in the trace's */
-            goto out;
-        sci_op_forward_residual(mask, x, y, yhat, rowbuf);
-        /* ȳ = 0 is the reference's start from Aᵀy; from a warm start it would make the first step
-         * x += λAᵀ((y − 2ŷ) ⊘ Φ) ≈ −λAᵀ(y ⊘ Φ) and throw the start away (5 dB after one step from GAP-TV's
-         * 34.6). ȳ = A(x⁰) makes the first step the plain GAP step, which keeps it. */
-        if (params->tv_init > 0)
-            memcpy(ybar->data, yhat->data, fs * sizeof *ybar->data);
-    }
-    const float lambda = (float)params->lambda;
-    for (int it = first; it <= params->iters; it++) {
-        const double sigma255 = params->sigma.v[stage_of(it, params->iters, params->sigma.n)];
-        const sci_wnnm_params want = stage_params(params, sigma255);
-        int match = (it - 1) % params->match_every == 0;
-        if (!wn || !same_geometry(&want, &cur)) {
-            sci_wnnm_free(wn); /* one plan at a time: the groups of a 256×256×8 problem take 35–70 MB */
-            wn = NULL;
-            if ((rc = sci_wnnm_new(&wn, w, h, n, &want, params->threads, err)) < 0) {
-                sci_error_prefix(err, "desci: sigma %g: ", sigma255);
-                goto out;
-            }
-            cur = want;
-            match = 1;
-        }
-        memcpy(xprev->data, x->data, count * sizeof *x->data);
-        memcpy(ybprev->data, ybar->data, fs * sizeof *ybar->data);
-        const float *yv = y->data, *yh = yhat->data, *ph = phi->data;
-        float *yb = ybar->data, *rv = r->data;
-        for (size_t i = 0; i < fs; i++) {
-            if (params->accelerate)
-                yb[i] += yv[i] - yh[i];
-            rv[i] = ((params->accelerate ? yb[i] : yv[i]) - yh[i]) / ph[i];
-        }
-        for (int k = 0; k < n; k++) {
-            const float *m = mask->data + (size_t)k * fs;
-            float *xk = x->data + (size_t)k * fs;
-            for (size_t i = 0; i < fs; i++)
-                xk[i] += lambda * (m[i] * rv[i]);
-        }
-        if (match) {
-            memcpy(xmn->data, x->data, count * sizeof *x->data);
-            rc = sci_wnnm_match(wn, x->data, cancel);
-        }
-        if (rc == 0)
-            rc = sci_wnnm_denoise(wn, x->data, sigma255 / 255.0 * peak, x->data, cancel);
-        if (rc == SCI_ECANCELED) {
-            /* inside an iteration: hand out the last complete iterate */
-            memcpy(x->data, xprev->data, count * sizeof *x->data);
-            memcpy(ybar->data, ybprev->data, fs * sizeof *ybar->data);
-            sci_error_set(err, rc, "desci canceled at iteration %d", it);
-            result->stopped = rc;
-            break;
-        }
-        if (rc < 0) {
-            sci_error_set(err, rc, "desci: iteration %d (sigma %g): the eigensolver failed on a patch group "
-                                   "(a non-finite estimate?)", it, sigma255);
-            goto out;
-        }
-        if (match) { /* the iteration is complete: its groups become the ones a checkpoint names */
-            sci_cube *t = xm;
-            xm = xmn, xmn = t, has_match = 1;
-        }
-        done = it;
-        const double res = sci_op_forward_residual(mask, x, y, yhat, rowbuf);
-        if ((rc = sci_tracer_record(&tr, it, x, res, NAN)) != 0)
-            break;
-        if (io->checkpoint_fn && io->checkpoint_every > 0 && it % io->checkpoint_every == 0 &&
-            it < params->iters && (rc = ckpt_write(io, params, problem, it, x, ybar, xm, has_match)) != 0)
+        if (rc != 0)
             break;
     }
     /* at the end and on a cancel: the state after the last complete iteration */
     if (io->checkpoint_fn && (rc == 0 || rc == SCI_ECANCELED)) {
-        const int crc = ckpt_write(io, params, problem, done, x, ybar, xm, has_match);
+        const int crc = ckpt_write(io, params, problem, d.done, d.x, d.ybar, d.xm, d.has_match);
         if (crc != 0 && rc == 0)
             rc = crc;
     }
     if (rc != SCI_EDIVERGED) {
-        result->frames = x; /* never hand out a diverged estimate */
-        x = NULL;
+        result->frames = d.x; /* never hand out a diverged estimate */
+        d.x = NULL;
     }
 out:
-    free(rowbuf);
-    sci_wnnm_free(wn);
-    sci_cube_free(x);
-    sci_cube_free(xprev);
-    sci_cube_free(yhat);
-    sci_cube_free(ybar);
-    sci_cube_free(ybprev);
-    sci_cube_free(xm);
-    sci_cube_free(xmn);
-    sci_cube_free(phi);
-    sci_cube_free(r);
+    desci_state_free(&d);
     return rc;
 }
 
