@@ -647,6 +647,129 @@ static int mat_read(const char *path, const sci_mat_options *o, double legacy, s
     return rc;
 }
 
+/* The files of a read exist, are readable and pass io/mat_verify.h's and the HDF5 checks. 0 or their error. */
+static int mat_files_check(const char *path, const char *mask_file, int two, sci_error *err)
+{
+    const char *paths[2] = {path, mask_file};
+    for (int i = 0; i < (two ? 2 : 1); i++) {
+        if (access(paths[i], R_OK) != 0)
+            return sci_error_set(err, -errno, "%s: %s", paths[i], strerror(errno));
+        int rc0 = sci_mat_verify(paths[i], err);
+        if (rc0 < 0 || (rc0 = h5_check(paths[i], err)) < 0)
+            return rc0;
+    }
+    return 0;
+}
+
+/* The variables of one read (owned: Mat_VarFree), their dims as read_var's (H, W, frames, k) and names. */
+typedef struct mat_vars {
+    const char *path, *mask_file, *mask_name, *meas_name, *truth_name;
+    char only[64]; /* the one variable of a separate mask file, when it names the masks */
+    matvar_t *mask, *meas, *orig;
+    size_t dm[4], dy[4], dt[4];
+} mat_vars;
+
+/* Read meas, the masks and the truth into V after checking the declared sizes against the limits; their H×W must
+ * agree. 0 or the error (V's variables then freed by the caller). */
+static int mat_vars_read(mat_t *mat, mat_t *msrc, const sci_mat_options *o, mat_vars *V, sci_error *err)
+{
+    const char *path = V->path;
+    int rc = 0;
+    /* What the variables declare, before libmatio allocates it: a 2 KB file can declare gigabytes. */
+    {
+        sci_io_limits deflim;
+        const sci_io_limits *lim = o->limits;
+        if (!lim)
+            sci_io_limits_default(&deflim), lim = &deflim;
+        long long pw, ph, pn, pk;
+        if (probe_open(mat, msrc, path, V->mask_name, V->meas_name, V->truth_name, &pw, &ph, &pn, &pk) == 0 &&
+            (rc = sci_io_limits_check_input(lim, path, pw, ph, pn, pk, err)) < 0)
+            return rc;
+    }
+    if (!(V->meas = read_var(mat, path, V->meas_name, 1, MEAS_OPTION, V->dy, err, &rc)) ||
+        !(V->mask = read_var(msrc, V->mask_file, V->mask_name, 1, MASK_OPTION(o->mask_path), V->dm, err, &rc)))
+        return rc;
+    /* The truth is optional, but a named one must be there, and one the directory lists must be readable (a
+     * truncated file most often ends inside its largest variable). */
+    V->orig = read_var(mat, path, V->truth_name, o->truth_var != NULL || has_var(mat, V->truth_name),
+                       "Name the truth with --truth-var NAME (it is optional)", V->dt, err,
+                       &rc);
+    if (rc < 0)
+        return rc;
+    const size_t *dm = V->dm, *dy = V->dy, *dt = V->dt;
+    if (dm[0] != dy[0] || dm[1] != dy[1])
+        return sci_error_set(err, SCI_ESHAPE, "%s: mask '%s' is %zux%zu but meas '%s' is %zux%zu (H×W)", path,
+                             V->mask_name, dm[0], dm[1], V->meas_name, dy[0], dy[1]);
+    if (V->orig && (dt[0] != dm[0] || dt[1] != dm[1]))
+        return sci_error_set(err, SCI_ESHAPE, "%s: truth '%s' is %zux%zu but mask '%s' is %zux%zu (H×W)", path,
+                             V->truth_name, dt[0], dt[1], V->mask_name, dm[0], dm[1]);
+    return rc;
+}
+
+/* The snapshots (*nsnap) and the masks' layout L (white level 1 until inferred), checked against --frames and
+ * the truth's frame count; the layout's part of info. 0 or SCI_ESHAPE. */
+static int mat_layout(const sci_mat_options *o, const mat_vars *V, mask_layout *L, int *nsnap, sci_mat_info *info,
+                      sci_error *err)
+{
+    const char *path = V->path, *mask_name = V->mask_name;
+    const size_t *dm = V->dm, *dy = V->dy, *dt = V->dt;
+    *nsnap = (int)dy[2];
+    /* Shared or per-snapshot masks: H×W×N×k says so; H×W×(N·k) does when the truth gives N = frames / k. */
+    size_t nsplit;
+    int per;
+    split_masks(dm, dt, V->orig != NULL, (size_t)*nsnap, &nsplit, &per);
+    if (per && (dm[2] % (size_t)*nsnap != 0 || (dm[3] > 1 && dm[3] != (size_t)*nsnap)))
+        return sci_error_set(err, SCI_ESHAPE, "%s: per-snapshot masks '%s' (%zu frames) do not divide into %d "
+                                              "snapshots", V->mask_file, mask_name, dm[2], *nsnap);
+    *L = (mask_layout){.px = dm[0] * dm[1], .nset = (int)nsplit, .n = (int)nsplit, .per = per, .mw = 1};
+    info->mask_per_snapshot = per;
+    info->mask_frames = L->nset;
+    if (o->frames > L->nset)
+        return sci_error_set(err, SCI_ESHAPE, "%s: --frames %d, but the masks '%s' hold %d frames%s", path,
+                             o->frames, mask_name, L->nset, per ? " per snapshot" : "");
+    if (o->frames > 0)
+        L->n = o->frames;
+    const int n = L->n;
+    info->frames = n;
+    if (V->orig && (dt[2] < (size_t)n || (dt[2] % (size_t)n != 0 && dt[2] < (size_t)n * (size_t)*nsnap)))
+        return sci_error_set(err, SCI_ESHAPE,
+                             "%s: truth '%s' has %zu frames but the masks '%s' %d per snapshot (%d snapshot(s)); "
+                             "if the capture used the first %zu masks, give --frames %zu",
+                             path, V->truth_name, dt[2], mask_name, n, *nsnap, dt[2] / (size_t)*nsnap,
+                             dt[2] / (size_t)*nsnap);
+    return 0;
+}
+
+/* One problem per snapshot into *probs (*nprob of them made so far, freed by the caller also on an error), each
+ * at the scales in info. 0 or the error. */
+static int mat_problems_make(const mat_vars *V, const mask_layout *L, int nsnap, double legacy,
+                             const sci_mat_info *info, sci_problem ***probs, int *nprob, sci_error *err)
+{
+    const char *path = V->path;
+    const int n = L->n;
+    int rc = 0;
+    *probs = calloc((size_t)nsnap, sizeof **probs);
+    if (!*probs)
+        return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
+    const char *base = strrchr(path, '/') ? strrchr(path, '/') + 1 : path;
+    for (int j = 0; j < nsnap; j++) {
+        sci_problem *p = calloc(1, sizeof *p);
+        if (!p)
+            return sci_error_set(err, -ENOMEM, "%s: out of memory", path);
+        (*probs)[(*nprob)++] = p;
+        p->peak = legacy > 0 ? 255.0 / legacy : 1.0;
+        snprintf(p->name, sizeof p->name, "%s#%d", base, j + 1);
+        if ((rc = to_cube(V->mask, V->dm, L->per ? (size_t)L->nset * j : 0, n, L->mw, V->mask_file, V->mask_name,
+                          &p->mask, err)) < 0 ||
+            (rc = to_cube(V->meas, V->dy, (size_t)j, 1, info->meas_white, path, V->meas_name, &p->meas, err)) < 0)
+            return rc;
+        if (V->orig && V->dt[2] >= (size_t)n * (j + 1) &&
+            (rc = to_cube(V->orig, V->dt, (size_t)n * j, n, info->white, path, V->truth_name, &p->truth, err)) < 0)
+            return rc;
+    }
+    return rc;
+}
+
 static int mat_read_quiet(const char *path, const sci_mat_options *o, double legacy, sci_problem ***out, int *k,
                           sci_mat_info *info, sci_error *err)
 {
@@ -656,23 +779,16 @@ static int mat_read_quiet(const char *path, const sci_mat_options *o, double leg
     if (!info)
         info = &local;
     memset(info, 0, sizeof *info);
-    const char *meas_name = o->meas_var ? o->meas_var : "meas";
-    const char *truth_name = o->truth_var ? o->truth_var : "orig";
-    const char *mask_file = o->mask_path ? o->mask_path : path;
-    const char *paths[2] = {path, mask_file};
-    for (int i = 0; i < (o->mask_path ? 2 : 1); i++) {
-        if (access(paths[i], R_OK) != 0)
-            return sci_error_set(err, -errno, "%s: %s", paths[i], strerror(errno));
-        int rc0 = sci_mat_verify(paths[i], err);
-        if (rc0 < 0 || (rc0 = h5_check(paths[i], err)) < 0)
-            return rc0;
-    }
+    mat_vars V = {.path = path,
+                  .meas_name = o->meas_var ? o->meas_var : "meas",
+                  .truth_name = o->truth_var ? o->truth_var : "orig",
+                  .mask_file = o->mask_path ? o->mask_path : path};
+    int rc = mat_files_check(path, V.mask_file, o->mask_path != NULL, err);
+    if (rc < 0)
+        return rc;
     mat_t *mat = Mat_Open(path, MAT_ACC_RDONLY), *mmat = NULL;
     if (!mat)
         return sci_error_set(err, SCI_EFORMAT, "%s: not a MATLAB .mat file (v5 or v7.3), or truncated", path);
-    size_t dm[4], dy[4], dt[4];
-    int rc = 0;
-    matvar_t *mask = NULL, *meas = NULL, *orig = NULL;
     sci_problem **probs = NULL;
     int nprob = 0;
     if (o->mask_path) {
@@ -683,97 +799,18 @@ static int mat_read_quiet(const char *path, const sci_mat_options *o, double leg
         }
     }
     mat_t *msrc = mmat ? mmat : mat;
-    char only[64];
-    const char *mask_name = o->mask_var ? o->mask_var : "mask";
+    V.mask_name = o->mask_var ? o->mask_var : "mask";
     /* A separate mask file with one variable needs no --mask-var (real-data sets ship e.g. mask.mat with one). */
-    if (mmat && !o->mask_var && !has_var(mmat, "mask") && only_numeric_var(mmat, only, sizeof only))
-        mask_name = only;
-    snprintf(info->mask_var, sizeof info->mask_var, "%s", mask_name);
-    /* What the variables declare, before libmatio allocates it: a 2 KB file can declare gigabytes. */
-    {
-        sci_io_limits deflim;
-        const sci_io_limits *lim = o->limits;
-        if (!lim)
-            sci_io_limits_default(&deflim), lim = &deflim;
-        long long pw, ph, pn, pk;
-        if (probe_open(mat, msrc, path, mask_name, meas_name, truth_name, &pw, &ph, &pn, &pk) == 0 &&
-            (rc = sci_io_limits_check_input(lim, path, pw, ph, pn, pk, err)) < 0)
-            goto out;
-    }
-    if (!(meas = read_var(mat, path, meas_name, 1, MEAS_OPTION, dy, err, &rc)) ||
-        !(mask = read_var(msrc, mask_file, mask_name, 1, MASK_OPTION(o->mask_path), dm, err, &rc)))
+    if (mmat && !o->mask_var && !has_var(mmat, "mask") && only_numeric_var(mmat, V.only, sizeof V.only))
+        V.mask_name = V.only;
+    snprintf(info->mask_var, sizeof info->mask_var, "%s", V.mask_name);
+    mask_layout L = {0};
+    int nsnap = 0;
+    if ((rc = mat_vars_read(mat, msrc, o, &V, err)) < 0 || (rc = mat_layout(o, &V, &L, &nsnap, info, err)) < 0 ||
+        (rc = infer_scales(o, legacy, V.mask, V.dm, V.meas, V.dy, V.orig, V.dt, &L, V.mask_name, V.meas_name,
+                           V.truth_name, info, path, err)) < 0 ||
+        (rc = mat_problems_make(&V, &L, nsnap, legacy, info, &probs, &nprob, err)) < 0)
         goto out;
-    /* The truth is optional, but a named one must be there, and one the directory lists must be readable (a
-     * truncated file most often ends inside its largest variable). */
-    orig = read_var(mat, path, truth_name, o->truth_var != NULL || has_var(mat, truth_name),
-                    "Name the truth with --truth-var NAME (it is optional)", dt, err,
-                    &rc);
-    if (rc < 0)
-        goto out;
-    if (dm[0] != dy[0] || dm[1] != dy[1]) {
-        rc = sci_error_set(err, SCI_ESHAPE, "%s: mask '%s' is %zux%zu but meas '%s' is %zux%zu (H×W)", path, mask_name,
-                           dm[0], dm[1], meas_name, dy[0], dy[1]);
-        goto out;
-    }
-    if (orig && (dt[0] != dm[0] || dt[1] != dm[1])) {
-        rc = sci_error_set(err, SCI_ESHAPE, "%s: truth '%s' is %zux%zu but mask '%s' is %zux%zu (H×W)", path,
-                           truth_name, dt[0], dt[1], mask_name, dm[0], dm[1]);
-        goto out;
-    }
-    const int nsnap = (int)dy[2];
-    /* Shared or per-snapshot masks: H×W×N×k says so; H×W×(N·k) does when the truth gives N = frames / k. */
-    size_t nsplit;
-    int per;
-    split_masks(dm, dt, orig != NULL, (size_t)nsnap, &nsplit, &per);
-    if (per && (dm[2] % (size_t)nsnap != 0 || (dm[3] > 1 && dm[3] != (size_t)nsnap))) {
-        rc = sci_error_set(err, SCI_ESHAPE, "%s: per-snapshot masks '%s' (%zu frames) do not divide into %d snapshots",
-                           mask_file, mask_name, dm[2], nsnap);
-        goto out;
-    }
-    mask_layout L = {.px = dm[0] * dm[1], .nset = (int)nsplit, .n = (int)nsplit, .per = per, .mw = 1};
-    info->mask_per_snapshot = per;
-    info->mask_frames = L.nset;
-    if (o->frames > L.nset) {
-        rc = sci_error_set(err, SCI_ESHAPE, "%s: --frames %d, but the masks '%s' hold %d frames%s", path, o->frames,
-                           mask_name, L.nset, per ? " per snapshot" : "");
-        goto out;
-    }
-    if (o->frames > 0)
-        L.n = o->frames;
-    const int n = L.n;
-    info->frames = n;
-    if (orig && (dt[2] < (size_t)n || (dt[2] % (size_t)n != 0 && dt[2] < (size_t)n * (size_t)nsnap))) {
-        rc = sci_error_set(err, SCI_ESHAPE,
-                           "%s: truth '%s' has %zu frames but the masks '%s' %d per snapshot (%d snapshot(s)); if the "
-                           "capture used the first %zu masks, give --frames %zu",
-                           path, truth_name, dt[2], mask_name, n, nsnap, dt[2] / (size_t)nsnap, dt[2] / (size_t)nsnap);
-        goto out;
-    }
-    if ((rc = infer_scales(o, legacy, mask, dm, meas, dy, orig, dt, &L, mask_name, meas_name, truth_name, info,
-                           path, err)) < 0)
-        goto out;
-    probs = calloc((size_t)nsnap, sizeof *probs);
-    if (!probs) {
-        rc = sci_error_set(err, -ENOMEM, "%s: out of memory", path);
-        goto out;
-    }
-    const char *base = strrchr(path, '/') ? strrchr(path, '/') + 1 : path;
-    for (int j = 0; j < nsnap; j++) {
-        sci_problem *p = calloc(1, sizeof *p);
-        if (!p) {
-            rc = sci_error_set(err, -ENOMEM, "%s: out of memory", path);
-            goto out;
-        }
-        probs[nprob++] = p;
-        p->peak = legacy > 0 ? 255.0 / legacy : 1.0;
-        snprintf(p->name, sizeof p->name, "%s#%d", base, j + 1);
-        if ((rc = to_cube(mask, dm, per ? (size_t)L.nset * j : 0, n, L.mw, mask_file, mask_name, &p->mask, err)) < 0 ||
-            (rc = to_cube(meas, dy, (size_t)j, 1, info->meas_white, path, meas_name, &p->meas, err)) < 0)
-            goto out;
-        if (orig && dt[2] >= (size_t)n * (j + 1) &&
-            (rc = to_cube(orig, dt, (size_t)n * j, n, info->white, path, truth_name, &p->truth, err)) < 0)
-            goto out;
-    }
     *out = probs;
     *k = nprob;
     probs = NULL;
@@ -781,9 +818,9 @@ static int mat_read_quiet(const char *path, const sci_mat_options *o, double leg
 out:
     if (probs)
         sci_problem_array_free(probs, nprob);
-    Mat_VarFree(mask);
-    Mat_VarFree(meas);
-    Mat_VarFree(orig);
+    Mat_VarFree(V.mask);
+    Mat_VarFree(V.meas);
+    Mat_VarFree(V.orig);
     if (mmat)
         Mat_Close(mmat);
     Mat_Close(mat);
