@@ -146,6 +146,33 @@ static PyObject *per_frame_result(double mean, const double *v, int n)
     return Py_BuildValue("(dN)", mean, a);
 }
 
+/* Which metric to take: SSIM with data range `value`, or PSNR by `conv` with peak `value`. */
+typedef struct metric {
+    int ssim;
+    sci_peak conv;
+    double value;
+} metric;
+
+/* (mean, per-frame array) of metric m over x against truth, computed without the GIL. NULL with an exception set. */
+static PyObject *metric_per_frame(PyObject *xo, PyObject *to, const metric *m)
+{
+    sci_cube *x, *t;
+    if (load_same(xo, to, &x, &t) < 0)
+        return NULL;
+    double *v = malloc((size_t)x->n * sizeof *v), mean = NAN;
+    if (!v) {
+        sci_cube_free(x), sci_cube_free(t);
+        return PyErr_NoMemory();
+    }
+    Py_BEGIN_ALLOW_THREADS
+    mean = m->ssim ? sci_ssim(x, t, m->value, v) : sci_psnr(x, t, m->conv, m->value, v);
+    Py_END_ALLOW_THREADS
+    PyObject *res = per_frame_result(mean, v, x->n);
+    free(v);
+    sci_cube_free(x), sci_cube_free(t);
+    return res;
+}
+
 static PyObject *py_psnr(PyObject *self, PyObject *args, PyObject *kw)
 {
     static char *kws[] = {"x", "truth", "peak", NULL};
@@ -157,21 +184,8 @@ static PyObject *py_psnr(PyObject *self, PyObject *args, PyObject *kw)
         return NULL;
     if (peak_o != Py_None && !(peak > 0))
         return py_error_input("peak must be > 0 (or None: each truth frame's maximum), got %g", peak);
-    sci_cube *x, *t;
-    if (load_same(xo, to, &x, &t) < 0)
-        return NULL;
-    double *v = malloc((size_t)x->n * sizeof *v), mean = NAN;
-    if (!v) {
-        sci_cube_free(x), sci_cube_free(t);
-        return PyErr_NoMemory();
-    }
-    Py_BEGIN_ALLOW_THREADS
-    mean = sci_psnr(x, t, peak_o == Py_None ? SCI_PEAK_FRAME_MAX : SCI_PEAK_FIXED, peak, v);
-    Py_END_ALLOW_THREADS
-    PyObject *res = per_frame_result(mean, v, x->n);
-    free(v);
-    sci_cube_free(x), sci_cube_free(t);
-    return res;
+    metric m = {.ssim = 0, .conv = peak_o == Py_None ? SCI_PEAK_FRAME_MAX : SCI_PEAK_FIXED, .value = peak};
+    return metric_per_frame(xo, to, &m);
 }
 
 static PyObject *py_ssim(PyObject *self, PyObject *args, PyObject *kw)
@@ -183,21 +197,8 @@ static PyObject *py_ssim(PyObject *self, PyObject *args, PyObject *kw)
         return NULL;
     if (!(range > 0))
         return py_error_input("data_range must be > 0, got %g", range);
-    sci_cube *x, *t;
-    if (load_same(xo, to, &x, &t) < 0)
-        return NULL;
-    double *v = malloc((size_t)x->n * sizeof *v), mean = NAN;
-    if (!v) {
-        sci_cube_free(x), sci_cube_free(t);
-        return PyErr_NoMemory();
-    }
-    Py_BEGIN_ALLOW_THREADS
-    mean = sci_ssim(x, t, range, v);
-    Py_END_ALLOW_THREADS
-    PyObject *res = per_frame_result(mean, v, x->n);
-    free(v);
-    sci_cube_free(x), sci_cube_free(t);
-    return res;
+    metric m = {.ssim = 1, .value = range};
+    return metric_per_frame(xo, to, &m);
 }
 
 PyMethodDef py_ops_methods[] = {
