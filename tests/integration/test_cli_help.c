@@ -90,6 +90,17 @@ static int table_names(const char *file, const char *table, char names[][48], in
     return n;
 }
 
+/* The long options of scicap `cmd`: the names in every getopt table that serves it. */
+static int command_options(const char *cmd, char names[][48], int max)
+{
+    int n = 0;
+    for (size_t t = 0; t < sizeof tables / sizeof tables[0]; t++)
+        for (int k = 0; k < 8 && tables[t].cmds[k]; k++)
+            if (!strcmp(tables[t].cmds[k], cmd))
+                n += table_names(tables[t].file, tables[t].table, names + n, max - n);
+    return n;
+}
+
 /* Every `struct option NAME[]` in cli/ is one of ours. */
 static void test_every_table_is_mapped(void **state)
 {
@@ -156,26 +167,16 @@ static void test_help_names_every_option(void **state)
         if (!strstr(help, want))
             fail_msg("'%s --help' does not name the command:\n%s", commands[c], help);
         snprintf(first_lines[c], sizeof first_lines[c], "%.*s", (int)strcspn(help, "\n"), help);
-        int checked = 0;
-        for (size_t t = 0; t < sizeof tables / sizeof tables[0]; t++) {
-            int mine = 0;
-            for (int k = 0; k < 8 && tables[t].cmds[k]; k++)
-                mine |= !strcmp(tables[t].cmds[k], commands[c]);
-            if (!mine)
-                continue;
-            char names[96][48];
-            int nn = table_names(tables[t].file, tables[t].table, names, 96);
-            for (int i = 0; i < nn; i++) {
-                char opt[64];
-                snprintf(opt, sizeof opt, "--%s", names[i]);
-                const char *why = unlisted_why(commands[c], names[i]);
-                if (why && !strstr(help, opt))
-                    printf("scicap %s %s: not in --help (%s)\n", commands[c], opt, why);
-                else if (!strstr(help, opt))
-                    fail_msg("scicap %s accepts %s (%s:%s) but its --help does not name it", commands[c], opt,
-                             tables[t].file, tables[t].table);
-                checked++;
-            }
+        char names[192][48];
+        int checked = command_options(commands[c], names, 192);
+        for (int i = 0; i < checked; i++) {
+            char opt[64];
+            snprintf(opt, sizeof opt, "--%s", names[i]);
+            const char *why = unlisted_why(commands[c], names[i]);
+            if (why && !strstr(help, opt))
+                printf("scicap %s %s: not in --help (%s)\n", commands[c], opt, why);
+            else if (!strstr(help, opt))
+                fail_msg("scicap %s accepts %s (cli/ getopt table) but its --help does not name it", commands[c], opt);
         }
         printf("scicap %-9s --help names all %d options\n", commands[c], checked);
         assert_true(checked >= 2);
@@ -279,21 +280,14 @@ static void test_man_page_complete(void **state)
             if (!strstr(text, want) && !(snprintf(want, sizeof want, ".BI %s", commands[c]) && strstr(text, want)))
                 fail_msg("docs/man/scicap.1: %s is not described under DAEMON COMMANDS", commands[c]);
         }
-        for (size_t t = 0; t < sizeof tables / sizeof tables[0]; t++) {
-            int mine = 0;
-            for (int k = 0; k < 8 && tables[t].cmds[k]; k++)
-                mine |= !strcmp(tables[t].cmds[k], commands[c]);
-            if (!mine)
-                continue;
-            char names[96][48];
-            int nn = table_names(tables[t].file, tables[t].table, names, 96);
-            for (int i = 0; i < nn; i++) {
-                char opt[64];
-                snprintf(opt, sizeof opt, "\\-\\-%s", names[i]);
-                if (!strstr(text, opt))
-                    fail_msg("docs/man/scicap.1, section %s: no %s (scicap %s accepts it)", man_section(commands[c]),
-                             opt, commands[c]);
-            }
+        char names[192][48];
+        int nn = command_options(commands[c], names, 192);
+        for (int i = 0; i < nn; i++) {
+            char opt[64];
+            snprintf(opt, sizeof opt, "\\-\\-%s", names[i]);
+            if (!strstr(text, opt))
+                fail_msg("docs/man/scicap.1, section %s: no %s (scicap %s accepts it)", man_section(commands[c]), opt,
+                         commands[c]);
         }
         free(text);
     }
@@ -309,10 +303,7 @@ static void test_man_page_complete(void **state)
         for (size_t d = 0; d < NCMD; d++) {
             if (strcmp(man_section(commands[d]), man_section(commands[c])) != 0)
                 continue;
-            for (size_t t = 0; t < sizeof tables / sizeof tables[0]; t++)
-                for (int k = 0; k < 8 && tables[t].cmds[k]; k++)
-                    if (!strcmp(tables[t].cmds[k], commands[d]))
-                        nn += table_names(tables[t].file, tables[t].table, names + nn, 512 - nn);
+            nn += command_options(commands[d], names + nn, 512 - nn);
         }
         char head[64];
         snprintf(head, sizeof head, ".SH %s\n", man_section(commands[c]));
