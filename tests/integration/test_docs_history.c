@@ -285,6 +285,14 @@ static int hits_in(const char *text, int roff)
     return n;
 }
 
+/* Each of n phrases (roff when it holds a font escape) must give `want` hits; `why` names a failure. */
+static void expect_hits(const char *const *phrases, size_t n, int want, const char *why)
+{
+    for (size_t i = 0; i < n; i++)
+        if (hits_in(phrases[i], strstr(phrases[i], "\\f") != NULL) != want)
+            fail_msg("%s: \"%s\"", why, phrases[i]);
+}
+
 /* The scanner on phrases the project's documents used to hold, and on legitimate uses of the same words. */
 static void test_scanner_examples(void **state)
 {
@@ -316,9 +324,7 @@ static void test_scanner_examples(void **state)
         ".SH NOTES\nmeasured in \\fBsession 9\\fR",
         "the \\fIthird round\\fP",
     };
-    for (size_t i = 0; i < sizeof history / sizeof history[0]; i++)
-        if (hits_in(history[i], strstr(history[i], "\\f") != NULL) != 1)
-            fail_msg("not found once: \"%s\"", history[i]);
+    expect_hits(history, sizeof history / sizeof history[0], 1, "not found once");
     static const char *const legitimate[] = {
         "counts = clamp(round(electrons / gain), 0, 255)",
         "rounded to an integer",
@@ -340,9 +346,7 @@ static void test_scanner_examples(void **state)
         "issued 15 requests",
         "the sessions file",
     };
-    for (size_t i = 0; i < sizeof legitimate / sizeof legitimate[0]; i++)
-        if (hits_in(legitimate[i], strstr(legitimate[i], "\\f") != NULL) != 0)
-            fail_msg("a legitimate phrase taken for history: \"%s\"", legitimate[i]);
+    expect_hits(legitimate, sizeof legitimate / sizeof legitimate[0], 0, "a legitimate phrase taken for history");
 }
 
 static void test_readme(void **state)
