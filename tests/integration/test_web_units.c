@@ -95,15 +95,23 @@ static void read_text(web_stream *st, char *out, size_t n)
     out[r] = '\0';
 }
 
+/* A ring of `cap` events and one stream on it (keep-alive after keepalive_ms), its opening comment read. */
+static web_stream *stream_opened(web_events **ev, int cap, int keepalive_ms)
+{
+    assert_int_equal(web_events_new(ev, cap), 0);
+    web_stream *st = web_stream_new(*ev, keepalive_ms);
+    char buf[256];
+    read_text(st, buf, sizeof buf);
+    assert_non_null(strstr(buf, ": scicapd events"));
+    return st;
+}
+
 static void events_in_order_then_reset(void **s)
 {
     (void)s;
     web_events *ev;
-    assert_int_equal(web_events_new(&ev, 4), 0);
-    web_stream *st = web_stream_new(ev, 100);
+    web_stream *st = stream_opened(&ev, 4, 100);
     char buf[256];
-    read_text(st, buf, sizeof buf);
-    assert_non_null(strstr(buf, ": scicapd events")); /* the opening comment */
     web_events_push(ev, "{\"event\": \"a\"}\n");
     web_events_push(ev, "{\"event\": \"b\"}");
     read_text(st, buf, sizeof buf);
@@ -140,10 +148,8 @@ static void events_close_ends_streams(void **s)
 {
     (void)s;
     web_events *ev;
-    assert_int_equal(web_events_new(&ev, 8), 0);
-    web_stream *st = web_stream_new(ev, 60000);
+    web_stream *st = stream_opened(&ev, 8, 60000);
     char buf[64];
-    read_text(st, buf, sizeof buf);
     pthread_t t;
     pthread_create(&t, NULL, close_later, ev);
     assert_int_equal(web_stream_read(st, buf, sizeof buf), -1); /* woken by the close, not by the 60 s */
