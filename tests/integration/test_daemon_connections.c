@@ -16,16 +16,12 @@
 #include "tests/helpers/cli_child.h"
 #include "tests/integration/daemon_harness.h"
 
-#define UID_A 65534
-#define UID_B 65533
-
 static harness H;
 
 static int cleanup(void **state)
 {
     (void)state;
-    harness_cleanup(&H);
-    memset(&H, 0, sizeof H);
+    harness_reset(&H);
     return 0;
 }
 
@@ -35,17 +31,17 @@ static void test_per_uid_cap(void **state)
     harness_start_open(&H, "{\"control\": {\"mode\": \"0666\", \"max_per_uid\": 4}}\n");
     hconn w[4];
     for (int i = 0; i < 4; i++) {
-        hconn_open_as(&w[i], &H, UID_A, UID_A);
+        hconn_open_as(&w[i], &H, HARNESS_UID_A, HARNESS_UID_A);
         json_decref(hconn_request(&w[i], "watch", NULL));
     }
     /* the fifth of uid A: busy, naming the cap */
     hconn x;
-    hconn_open_as(&x, &H, UID_A, UID_A);
+    hconn_open_as(&x, &H, HARNESS_UID_A, HARNESS_UID_A);
     json_t *m = hconn_read(&x, 5000);
     assert_non_null(m);
     const char *code = json_string_value(json_object_get(json_object_get(m, "error"), "code"));
     const char *msg = json_string_value(json_object_get(json_object_get(m, "error"), "message"));
-    print_message("  5th connection of uid %d: %s: %s\n", UID_A, code, msg);
+    print_message("  5th connection of uid %d: %s: %s\n", HARNESS_UID_A, code, msg);
     assert_string_equal(code, "busy");
     assert_non_null(strstr(msg, "max_per_uid"));
     json_decref(m);
@@ -55,8 +51,8 @@ static void test_per_uid_cap(void **state)
     assert_int_equal(cli_child_program(scicap, sizeof scicap, "scicap"), 0);
     char cmd[3000], out[400];
     snprintf(out, sizeof out, "%s/cli.err", H.dir);
-    snprintf(cmd, sizeof cmd, "setpriv --reuid %d --regid %d --clear-groups %s status --socket %s 2> %s", UID_A,
-             UID_A, scicap, H.sock, out);
+    snprintf(cmd, sizeof cmd, "setpriv --reuid %d --regid %d --clear-groups %s status --socket %s 2> %s", HARNESS_UID_A,
+             HARNESS_UID_A, scicap, H.sock, out);
     int st = system(cmd);
     FILE *f = fopen(out, "r");
     assert_non_null(f);
@@ -64,13 +60,13 @@ static void test_per_uid_cap(void **state)
     size_t n = fread(err, 1, sizeof err - 1, f);
     err[n] = '\0';
     fclose(f);
-    print_message("  scicap status as uid %d: exit %d, stderr: %s", UID_A, WEXITSTATUS(st), err);
+    print_message("  scicap status as uid %d: exit %d, stderr: %s", HARNESS_UID_A, WEXITSTATUS(st), err);
     assert_true(WIFEXITED(st) && WEXITSTATUS(st) != 0);
     assert_null(strstr(err, "Broken pipe"));
     assert_non_null(strstr(err, "max_per_uid"));
     /* another uid and root get in */
     hconn b;
-    hconn_open_as(&b, &H, UID_B, UID_B);
+    hconn_open_as(&b, &H, HARNESS_UID_B, HARNESS_UID_B);
     json_decref(hconn_request(&b, "status", NULL));
     hconn_close(&b);
     hconn r;
@@ -80,7 +76,7 @@ static void test_per_uid_cap(void **state)
     /* one of A's closes: A may connect again */
     hconn_close(&w[0]);
     h_sleep_ms(200);
-    hconn_open_as(&w[0], &H, UID_A, UID_A);
+    hconn_open_as(&w[0], &H, HARNESS_UID_A, HARNESS_UID_A);
     json_decref(hconn_request(&w[0], "status", NULL));
     for (int i = 0; i < 4; i++)
         hconn_close(&w[i]);

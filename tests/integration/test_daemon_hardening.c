@@ -35,8 +35,7 @@ static harness H;
 static int cleanup(void **state)
 {
     (void)state;
-    harness_cleanup(&H);
-    memset(&H, 0, sizeof H);
+    harness_reset(&H);
     return 0;
 }
 
@@ -257,6 +256,27 @@ static int log_has(const harness *h, const char *what)
     return system(cmd) == 0;
 }
 
+/* scicapd (RUN_PLAIN) with extra args and env: 1 listening, 0 exited (st set, reaped). */
+static int spawn_plain(const char *const *extra, const char *env, pid_t *pid, int *st)
+{
+    *pid = H.pid = spawn(&H, RUN_PLAIN, extra, env);
+    int up = wait_listening(&H, *pid, st);
+    if (!up)
+        H.pid = 0; /* exited, reaped */
+    return up;
+}
+
+/* Root started in an allowed way (`how`): it must come up, and stop cleanly. */
+static void expect_started(const char *const *extra, const char *env, const char *how)
+{
+    pid_t pid;
+    int st = 0;
+    int up = spawn_plain(extra, env, &pid, &st);
+    printf("  uid 0 %s: %s\n", how, up ? "started" : "REFUSED");
+    assert_true(up);
+    assert_int_equal(stop(pid), 0);
+}
+
 static void root_needs_allow_root(void **state)
 {
     (void)state;
@@ -266,10 +286,8 @@ static void root_needs_allow_root(void **state)
     }
     harness_init(&H, NULL);
     int st = 0;
-    pid_t pid = H.pid = spawn(&H, RUN_PLAIN, NULL, NULL);
-    int up = wait_listening(&H, pid, &st);
-    if (!up)
-        H.pid = 0; /* exited, reaped */
+    pid_t pid;
+    int up = spawn_plain(NULL, NULL, &pid, &st);
     if (up)
         stop(pid);
     printf("  uid 0, no --allow-root, no systemd: %s (exit %d)\n", up ? "STARTED" : "refused",
@@ -278,20 +296,8 @@ static void root_needs_allow_root(void **state)
     assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 1);
     assert_true(log_has(&H, "refusing to run as root outside systemd"));
     static const char *const allow[] = {"--allow-root", NULL};
-    pid = H.pid = spawn(&H, RUN_PLAIN, allow, NULL);
-    up = wait_listening(&H, pid, &st);
-    if (!up)
-        H.pid = 0;
-    printf("  uid 0 with --allow-root: %s\n", up ? "started" : "REFUSED");
-    assert_true(up);
-    assert_int_equal(stop(pid), 0);
-    pid = H.pid = spawn(&H, RUN_PLAIN, NULL, "INVOCATION_ID=0123456789abcdef0123456789abcdef");
-    up = wait_listening(&H, pid, &st);
-    if (!up)
-        H.pid = 0;
-    printf("  uid 0 started by systemd (INVOCATION_ID set): %s\n", up ? "started" : "REFUSED");
-    assert_true(up);
-    assert_int_equal(stop(pid), 0);
+    expect_started(allow, NULL, "with --allow-root");
+    expect_started(NULL, "INVOCATION_ID=0123456789abcdef0123456789abcdef", "started by systemd (INVOCATION_ID set)");
     harness_cleanup(&H);
 }
 

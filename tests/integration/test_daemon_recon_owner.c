@@ -12,16 +12,12 @@
 
 #include "tests/helpers/daemon_child.h"
 
-#define UID_A 65534
-#define UID_B 65533
-
 static harness H;
 
 static int cleanup(void **state)
 {
     (void)state;
-    harness_cleanup(&H);
-    memset(&H, 0, sizeof H);
+    harness_reset(&H);
     return 0;
 }
 
@@ -51,26 +47,26 @@ static void test_second_user_never_replaces_first(void **state)
     char cap[32];
     daemon_child_capture(&root, cap, sizeof cap, 30000);
     hconn a, b;
-    hconn_open_as(&a, &H, UID_A, UID_A);
+    hconn_open_as(&a, &H, HARNESS_UID_A, HARNESS_UID_A);
     json_t *da = reconstruct(&a, cap);
     json_t *ra = result_of(cap, "gap-tv");
     char *ra_text = json_dumps(ra, JSON_SORT_KEYS);
-    hconn_open_as(&b, &H, UID_B, UID_B);
+    hconn_open_as(&b, &H, HARNESS_UID_B, HARNESS_UID_B);
     json_t *db = reconstruct(&b, cap);
-    print_message("  uid %d: %s (owner %lld); uid %d: %s (owner %lld)\n", UID_A,
+    print_message("  uid %d: %s (owner %lld); uid %d: %s (owner %lld)\n", HARNESS_UID_A,
                   json_string_value(json_object_get(da, "dir")),
-                  (long long)json_integer_value(json_object_get(da, "owner")), UID_B,
+                  (long long)json_integer_value(json_object_get(da, "owner")), HARNESS_UID_B,
                   json_string_value(json_object_get(db, "dir")),
                   (long long)json_integer_value(json_object_get(db, "owner")));
-    assert_int_equal(json_integer_value(json_object_get(da, "owner")), UID_A);
-    assert_int_equal(json_integer_value(json_object_get(db, "owner")), UID_B);
+    assert_int_equal(json_integer_value(json_object_get(da, "owner")), HARNESS_UID_A);
+    assert_int_equal(json_integer_value(json_object_get(db, "owner")), HARNESS_UID_B);
     /* A's result as it was; B's beside it */
     json_t *ra2 = result_of(cap, "gap-tv");
     char *ra2_text = json_dumps(ra2, JSON_SORT_KEYS);
     assert_string_equal(ra_text, ra2_text);
     json_t *rb = result_of(cap, "gap-tv.2");
-    assert_int_equal(json_integer_value(json_object_get(json_object_get(ra2, "job"), "owner")), UID_A);
-    assert_int_equal(json_integer_value(json_object_get(json_object_get(rb, "job"), "owner")), UID_B);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(ra2, "job"), "owner")), HARNESS_UID_A);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(rb, "job"), "owner")), HARNESS_UID_B);
     free(ra_text);
     free(ra2_text);
     json_decref(ra);

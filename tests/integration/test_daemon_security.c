@@ -24,13 +24,9 @@ static harness H;
 static int cleanup(void **state)
 {
     (void)state;
-    harness_cleanup(&H);
-    memset(&H, 0, sizeof H);
+    harness_reset(&H);
     return 0;
 }
-
-#define UID_A 65534 /* nobody */
-#define UID_B 65533
 
 /* request deadline 1 s, idle 2 s, 2 of 32 slots for admins; no per-uid cap, so that one uid can try to take
  * every ordinary slot (test_daemon_connections tests the cap) */
@@ -105,7 +101,7 @@ static void slowloris_does_not_lock_out(void **state)
     int fd[STALLED];
     int64_t t0 = h_now_ms();
     for (int i = 0; i < STALLED; i++) {
-        fd[i] = h_connect_as(&H, UID_A, UID_A);
+        fd[i] = h_connect_as(&H, HARNESS_UID_A, HARNESS_UID_A);
         assert_true(fd[i] >= 0);
         ssize_t w = send(fd[i], "{", 1, MSG_NOSIGNAL); /* one byte, then nothing */
         (void)w;
@@ -126,7 +122,7 @@ static void slowloris_does_not_lock_out(void **state)
             refused++;
         }
     }
-    printf("  %d stalled one-byte connections from uid %d: %d held, %d refused busy\n", STALLED, UID_A,
+    printf("  %d stalled one-byte connections from uid %d: %d held, %d refused busy\n", STALLED, HARNESS_UID_A,
            STALLED - refused, refused);
     assert_int_equal(refused, 2);
     /* an admin (root) gets in through the reserved slots at once */
@@ -135,11 +131,11 @@ static void slowloris_does_not_lock_out(void **state)
     int64_t admin_ms = h_now_ms() - ta;
     assert_true(h_now_ms() - t0 < 1000); /* still inside the attackers' deadline */
     /* an ordinary well-behaved client is refused while the slots are held ... */
-    assert_false(try_status_as(&H, UID_B));
+    assert_false(try_status_as(&H, HARNESS_UID_B));
     /* ... and served once the request deadline (1 s) has dropped the stalled connections */
     int served = 0;
     while (!served && h_now_ms() - t0 < 5000) {
-        served = try_status_as(&H, UID_B);
+        served = try_status_as(&H, HARNESS_UID_B);
         if (!served)
             h_sleep_ms(50);
     }
@@ -177,7 +173,7 @@ static void trickle_and_idle_deadlines(void **state)
     harness_require_root("connect as other uids (seteuid)");
     harness_start_open(&H, CONFIG);
     /* a byte every 200 ms never completes a line: dropped 1 s after its first byte, not after its last */
-    int t = h_connect_as(&H, UID_A, UID_A);
+    int t = h_connect_as(&H, HARNESS_UID_A, HARNESS_UID_A);
     assert_true(t >= 0);
     int64_t t0 = h_now_ms(), closed_ms = -1;
     while (h_now_ms() - t0 < 4000) {
@@ -199,8 +195,8 @@ static void trickle_and_idle_deadlines(void **state)
     assert_true(closed_ms >= 900 && closed_ms < 2500);
     /* after a request, an ordinary idle connection is closed at 2 s; a watcher stays */
     hconn idle, watcher;
-    hconn_open_as(&idle, &H, UID_A, UID_A);
-    hconn_open_as(&watcher, &H, UID_A, UID_A);
+    hconn_open_as(&idle, &H, HARNESS_UID_A, HARNESS_UID_A);
+    hconn_open_as(&watcher, &H, HARNESS_UID_A, HARNESS_UID_A);
     json_decref(hconn_request(&idle, "status", NULL));
     json_decref(hconn_request(&watcher, "watch", NULL));
     int64_t t1 = h_now_ms();
@@ -257,9 +253,9 @@ static void jobs_belong_to_their_uid(void **state)
     harness_require_root("connect as other uids (seteuid)");
     harness_start_open(&H, CONFIG_SLOW);
     hconn a, b, bw, root, rw;
-    hconn_open_as(&a, &H, UID_A, UID_A);
-    hconn_open_as(&b, &H, UID_B, UID_B);
-    hconn_open_as(&bw, &H, UID_B, UID_B);
+    hconn_open_as(&a, &H, HARNESS_UID_A, HARNESS_UID_A);
+    hconn_open_as(&b, &H, HARNESS_UID_B, HARNESS_UID_B);
+    hconn_open_as(&bw, &H, HARNESS_UID_B, HARNESS_UID_B);
     hconn_open(&root, &H);
     hconn_open(&rw, &H);
     json_decref(hconn_request(&bw, "watch", NULL));
@@ -296,8 +292,9 @@ static void jobs_belong_to_their_uid(void **state)
     int nr = list_jobs(&root, ids, 64);
     int r_sees_both = has(ids, nr, ja) && has(ids, nr, jb);
     printf("  jobs: uid %d lists %d (own %d, other's %d); uid %d lists %d (own %d, other's %d); root lists %d "
-           "(both %d)\n  watch: uid %d's watcher saw %d events of uid %d's job; root's watcher saw %d\n", UID_A, na,
-           a_sees_a, a_sees_b, UID_B, nb, b_sees_b, b_sees_a, nr, r_sees_both, UID_B, saw_a, UID_A, root_a);
+           "(both %d)\n  watch: uid %d's watcher saw %d events of uid %d's job; root's watcher saw %d\n",
+           HARNESS_UID_A, na, a_sees_a, a_sees_b, HARNESS_UID_B, nb, b_sees_b, b_sees_a, nr, r_sees_both, HARNESS_UID_B,
+           saw_a, HARNESS_UID_A, root_a);
     assert_true(a_sees_a && !a_sees_b && b_sees_b && !b_sees_a && r_sees_both);
     assert_int_equal(saw_a, 0);
     assert_true(root_a > 0);
