@@ -191,7 +191,7 @@ static int parse_camera(const sci_json_doc *doc, const json_t *root, int w, int 
     memcpy(T1, T0, sizeof T1);
     if (end && (rc = parse_pose(doc, end, "camera.end", T1, err)) < 0)
         return rc;
-    /* τ_g = g/(K·N − 1), so g = 0 and g = K·N − 1 are the end poses themselves (sci-reconstruction.md §12). */
+    /* τ_g = g/(K·N − 1), so g = 0 and g = K·N − 1 are the end poses themselves (docs/conventions.md §12). */
     for (int g = 0; g < frames; g++)
         sim_pose_interp(T0, T1, frames > 1 ? (double)g / (frames - 1) : 0, s->pose[g]);
     return 0;

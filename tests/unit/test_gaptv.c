@@ -1,4 +1,4 @@
-/* GAP-TV and ADMM-TV against the MATLAB reference on the drop40 benchmark (sci-reconstruction.md §6), the
+/* GAP-TV and ADMM-TV against the MATLAB reference on the drop40 benchmark (docs/conventions.md §6), the
  * orientation identity that catches a transposed mask, and the presets as points of the measured curve: fast within
  * 1 dB of best, balanced within 0.3 dB (no preset is a trap for live preview). */
 #include <math.h>
