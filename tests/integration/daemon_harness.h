@@ -220,13 +220,6 @@ static inline void harness_cleanup(harness *h)
     sci_staging_remove(h->dir);
 }
 
-/* harness_cleanup, then h zeroed for the next test (a cmocka teardown's whole work). */
-static inline void harness_reset(harness *h)
-{
-    harness_cleanup(h);
-    memset(h, 0, sizeof *h);
-}
-
 /* Two unprivileged client uids for the ownership tests: nobody, and the one below it. */
 #define HARNESS_UID_A 65534
 #define HARNESS_UID_B 65533

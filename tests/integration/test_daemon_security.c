@@ -24,7 +24,8 @@ static harness H;
 static int cleanup(void **state)
 {
     (void)state;
-    harness_reset(&H);
+    harness_cleanup(&H);
+    memset(&H, 0, sizeof H);
     return 0;
 }
 
