@@ -37,6 +37,15 @@ static double mean_loss(const sci_trace *t, size_t from, size_t to)
     return s / (double)(to - from);
 }
 
+/* The tiny scene and small parameters at the test seed (7 unless SCICAP_TEST_SEED says otherwise). */
+static sci_problem *tiny_seeded(sci_scinerf_params *prm)
+{
+    unsigned long long seed = test_seed_env(7);
+    sci_problem *p = nerf_tiny_problem(32, seed);
+    small_params(prm, seed);
+    return p;
+}
+
 /* sci_scinerf_solve on p, which must succeed. */
 static sci_result solved(const sci_problem *p, const sci_scinerf_params *prm)
 {
@@ -82,10 +91,8 @@ static void test_params_check(void **state)
 static void test_learns_tiny_scene(void **state)
 {
     (void)state;
-    unsigned long long seed = test_seed_env(7);
-    sci_problem *p = nerf_tiny_problem(32, seed);
     sci_scinerf_params prm;
-    small_params(&prm, seed);
+    sci_problem *p = tiny_seeded(&prm);
     prm.iters = 150;
     sci_result r = solved(p, &prm);
     assert_int_equal((int)r.trace.len, prm.iters);
@@ -103,10 +110,8 @@ static void test_learns_tiny_scene(void **state)
 static void test_coarse_fine(void **state)
 {
     (void)state;
-    unsigned long long seed = test_seed_env(7);
-    sci_problem *p = nerf_tiny_problem(32, seed);
     sci_scinerf_params prm;
-    small_params(&prm, seed);
+    sci_problem *p = tiny_seeded(&prm);
     prm.iters = 100;
     prm.samples = 8;
     prm.fine_samples = 8;
