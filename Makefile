@@ -51,6 +51,8 @@ BINS     := $(BUILD)/scicap $(if $(wildcard daemon/main.c),$(BUILD)/scicapd)
 TEST_SRC := $(wildcard tests/unit/test_*.c tests/stability/test_*.c tests/integration/test_*.c)
 TEST_BIN := $(TEST_SRC:%.c=$(BUILD)/%)
 TEST_HELPERS := $(patsubst %.c,$(BUILD)/%.o,$(wildcard tests/helpers/*.c))
+# built through a pattern rule, they would count as intermediate and be deleted after the run that made them
+.SECONDARY: $(TEST_HELPERS)
 BENCH_SRC := $(wildcard bench/bench_*.c)
 BENCH_BIN := $(BENCH_SRC:%.c=$(BUILD)/%)
 
