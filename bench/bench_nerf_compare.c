@@ -656,7 +656,7 @@ int main(int argc, char **argv)
         else if (strcmp(argv[i], "--parts") == 0 && i + 1 < argc)
             snprintf(parts, sizeof parts, "%s", argv[++i]);
         else if (strcmp(argv[i], "--out") == 0 && i + 1 < argc && strspn(argv[i + 1], "abcdefghijklmnopqrstuvwxyz_") ==
-                                                                       strlen(argv[i + 1]) && strlen(argv[i + 1]) < 20)
+                                                                       strlen(argv[i + 1]) && strlen(argv[i + 1]) < sizeof out)
             snprintf(out, sizeof out, "%s", argv[++i]);
         else if (strcmp(argv[i], "--seeds") == 0 && i + 1 < argc && (n_seeds = atoi(argv[++i])) >= 1 && n_seeds <= 16)
             ;
@@ -666,7 +666,7 @@ int main(int argc, char **argv)
         else {
             fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c]\n"
                             "         [--parts classic,scinerf,ladder,attention,full,patch,poses] [--seeds 1…16 | --more-seeds 1…16]\n"
-                            "         [--out NAME]   (bench/results/NAME.{tsv,md}, a-z and _; default nerf_compare_<preset>)\n"
+                            "         [--out NAME]   (bench/results/NAME.{tsv,md}, a-z and _, up to 31; default nerf_compare_<preset>)\n"
                             "       bench_nerf_compare --table [--preset P] [--out NAME]   (the table from its stored rows)\n"
                             "  the ablation study (ladder, patch sizes, poses) lives in --out nerf_ablation\n");
             return 2;
