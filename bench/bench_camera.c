@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "base/clock.h"
+#include "base/runtime_env.h"
 #include "drivers/capture.h"
 #include "sim/camera_sim.h"
 #include "sim/trigger_sim.h"
@@ -147,8 +148,10 @@ static int run_snapshots(double seconds, double *per_s, double *cpu_us, int *bro
     return 0;
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    (void)argc;
+    sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     const enum pixfmt fmts[] = {PIXFMT_Y16, PIXFMT_Y12, PIXFMT_Y10, PIXFMT_Y10P, PIXFMT_GREY};
     result res[10];
     int nr = 0;

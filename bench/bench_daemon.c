@@ -34,6 +34,7 @@
 #include <unistd.h>
 
 #include "base/clock.h"
+#include "base/runtime_env.h"
 #include "daemon/store.h"
 #include "io/staging.h"
 
@@ -342,6 +343,7 @@ static int usage(void)
 
 int main(int argc, char **argv)
 {
+    sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     bench_opts bo = {.snapshots = 40, .latency = 15, .settings = NULL, .out = "bench/results/daemon.md"};
     for (int i = 1; i < argc; i++) {
         if (i + 1 >= argc)

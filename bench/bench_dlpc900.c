@@ -13,6 +13,7 @@
 
 #include "base/clock.h"
 #include "base/rng.h"
+#include "base/runtime_env.h"
 #include "drivers/dlpc900_ctl.h"
 #include "drivers/dlpc900_emu.h"
 #include "drivers/dlpc900_erle.h"
@@ -98,8 +99,10 @@ out:
     return rc;
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    (void)argc;
+    sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     static const struct { const char *name; int block; } kinds[] = {{"random", 1}, {"4×4 super-pixel", 4},
                                                                    {"8×8 super-pixel", 8}};
     uint32_t *px = malloc((size_t)W * H * sizeof *px);

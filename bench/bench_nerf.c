@@ -17,6 +17,7 @@
 #include "bench/bench_load.h"
 #include "base/clock.h"
 #include "base/rng.h"
+#include "base/runtime_env.h"
 #include "recon/nerf/act.h"
 #include "recon/nerf/adam.h"
 #include "recon/nerf/attention.h"
@@ -474,8 +475,10 @@ static void bench_report(FILE *f, const step_result *st, int64_t rss_all, const 
             st->N, st->best * 1e3, st->median * 1e3, st->mib, (double)rss_all / (1 << 20), st->np, load0, load1);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    (void)argc;
+    sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     sci_rng rng;
     sci_rng_seed(&rng, 1234, 9);
     omp_set_dynamic(0);

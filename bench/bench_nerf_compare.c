@@ -34,6 +34,7 @@
 #include <string.h>
 
 #include "base/file.h"
+#include "base/runtime_env.h"
 #include "bench/bench_load.h"
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
@@ -642,6 +643,7 @@ static void one_scene(const char *name, const char *parts)
 
 int main(int argc, char **argv)
 {
+    sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     int run = 0;
     char scenes[128] = "corridor,orbit,noisy", parts[64] = "classic,scinerf,ladder,patch,poses", out[32] = "";
     for (int i = 1; i < argc; i++) {

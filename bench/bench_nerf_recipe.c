@@ -25,6 +25,7 @@
 
 #include <jansson.h>
 
+#include "base/runtime_env.h"
 #include "bench/bench_load.h"
 #include "io/source.h"
 #include "recon/nerf/poses.h"
@@ -91,6 +92,7 @@ static void add_key(json_t *obj, const char *arg)
 
 int main(int argc, char **argv)
 {
+    sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     if (argc < 3) { /* `make bench` runs every program bare: say how to use this one */
         fprintf(argc == 1 ? stdout : stderr, "usage: %s PROBLEM METHOD [key=value ...] (the recipe study; not part "
                 "of make bench)\n", argv[0]);

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "base/clock.h"
+#include "base/runtime_env.h"
 #include "recon/sci_ops.h"
 #include "sim/simulate.h"
 
@@ -87,8 +88,10 @@ static double time_measure(const sim_scene *sc, const sci_cube *x, const sci_cub
     return med;
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    (void)argc;
+    sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     sci_error err = {0};
     sim_scene *base = scene_with(0);
     sci_cube *x, *m, *y;

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <cmocka.h>
+#include <glob.h>
 
 #include "base/runtime_env.h"
 
@@ -51,9 +52,53 @@ static void test_programs_run_with_the_choice(void **state)
     assert_non_null(strstr(line, "Haswell (OPENBLAS_CORETYPE=Haswell)"));
 }
 
+/* Every program of the tree (scicap, scicapd, each bench/ program) applies the runtime environment first thing in
+ * main(): a bench that left it out measured its methods with OpenBLAS's generic kernels, 1.44 times slower than
+ * scicap runs them (900 RayFormer steps on photo_llff: 387 s against 269 s). The checker is tried on two texts. */
+static int applies_first(const char *text)
+{
+    const char *m = strstr(text, "int main(");
+    const char *body = m ? strchr(m, '{') : NULL;
+    if (!body)
+        return -1; /* no main: not a program */
+    body++;
+    body += strspn(body, " \n");
+    if (strncmp(body, "(void)argc;", 11) == 0)
+        body += 11 + strspn(body + 11, " \n");
+    return strncmp(body, "sci_runtime_env_apply(argv);", 28) == 0;
+}
+
+static void test_every_program_applies_it(void **state)
+{
+    assert_int_equal(applies_first("int main(int argc, char **argv)\n{\n    sci_runtime_env_apply(argv); /* */\n"), 1);
+    assert_int_equal(applies_first("int main(void)\n{\n    int x = 0;\n    sci_runtime_env_apply(argv);\n"), 0);
+    assert_int_equal(applies_first("static int helper(void) { return 0; }\n"), -1);
+    glob_t g;
+    assert_int_equal(glob("bench/*.c", 0, NULL, &g), 0);
+    assert_int_equal(glob("cli/main.c", GLOB_APPEND, NULL, &g), 0);
+    assert_int_equal(glob("daemon/main.c", GLOB_APPEND, NULL, &g), 0);
+    int programs = 0;
+    for (size_t i = 0; i < g.gl_pathc; i++) {
+        FILE *f = fopen(g.gl_pathv[i], "r");
+        assert_non_null(f);
+        static char text[1 << 20];
+        size_t n = fread(text, 1, sizeof text - 1, f);
+        fclose(f);
+        text[n] = 0;
+        int r = applies_first(text);
+        if (r == 0)
+            fail_msg("%s: main() does not begin with sci_runtime_env_apply(argv)", g.gl_pathv[i]);
+        programs += r == 1;
+    }
+    print_message("  %d programs apply the runtime environment first\n", programs);
+    assert_true(programs >= 12);
+    globfree(&g);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {cmocka_unit_test(test_blas_core_choice),
-                                       cmocka_unit_test(test_programs_run_with_the_choice)};
+                                       cmocka_unit_test(test_programs_run_with_the_choice),
+                                       cmocka_unit_test(test_every_program_applies_it)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
