@@ -11,10 +11,11 @@
  * fast and balanced (measured: 9 min for the two fast presets and ≈ 15 for the balanced ones, evaluations
  * included), and the best presets about 16 minutes each more. `--quick`: part 1 only; `--curves-only
  * [--presets fast,balanced]`: part 2 only, for the presets named.
- * Part 3, `--ceiling [STEPS]` (alone; not in `make bench`): each method's fast preset run for STEPS steps
- * (default 10000, the learning rate decayed over all of them) on static3d_corridor, PSNR, the measurement residual
- * and the mean largest ray weight every STEPS/20 steps, written to bench/results/nerf_ceiling.md: where accuracy
- * stops following the fit. About 25 min for rayformer and 45 for scinerf on 2 cores.
+ * Part 3, `--ceiling [STEPS] [--scene NAME] [--methods a,b]` (alone; not in `make bench`): each method's fast
+ * preset run for STEPS steps (default 10000, the learning rate decayed over all of them) on etc/scenes/NAME.json
+ * (default static3d_corridor), PSNR, the measurement residual and the mean largest ray weight every STEPS/20 steps,
+ * written to bench/results/nerf_ceiling.md (the corridor) or nerf_ceiling_NAME.md: where accuracy stops following
+ * the fit. About 25 min for rayformer and 45 for scinerf on 2 cores at 128 × 128.
  */
 #include <errno.h>
 #include <math.h>
@@ -26,6 +27,7 @@
 #include <unistd.h>
 
 #include "base/file.h"
+#include "base/runtime_env.h"
 #include "bench/bench_load.h"
 #include "recon/solver.h"
 #include "sim/simulate.h"
@@ -274,24 +276,40 @@ static int part_curves(const char *const *methods, int n_methods, const char *co
     return table_close(&t, status);
 }
 
-/* Part 3: each method's fast preset run for `steps` steps on the corridor: the ceiling of the recipe. */
-static int part_ceiling(const char *const *methods, int n_methods, int steps)
+#define CEILING_SCENE "static3d_corridor"
+
+/* A scene name for --scene: a file name under etc/scenes/ without a path, a-z, 0-9 and _ only. */
+static int scene_name_ok(const char *name)
 {
+    size_t n = strlen(name);
+    return n > 0 && n < 64 && strspn(name, "abcdefghijklmnopqrstuvwxyz0123456789_") == n;
+}
+
+/* Part 3: each method's fast preset run for `steps` steps on etc/scenes/<scene>.json: the ceiling of the recipe.
+ * The table is bench/results/nerf_ceiling.md for the corridor, nerf_ceiling_<scene>.md for another scene. */
+static int part_ceiling(const char *const *methods, int n_methods, int steps, const char *scene)
+{
+    char json[160], mdpath[160];
+    snprintf(json, sizeof json, "etc/scenes/%s.json", scene);
+    if (strcmp(scene, CEILING_SCENE) == 0)
+        snprintf(mdpath, sizeof mdpath, "bench/results/nerf_ceiling.md");
+    else
+        snprintf(mdpath, sizeof mdpath, "bench/results/nerf_ceiling_%s.md", scene);
     table t;
-    if (table_open(&t, "bench/results/nerf_ceiling.md") < 0)
+    if (table_open(&t, mdpath) < 0)
         return 1;
     FILE *md = t.md;
     fprintf(md, "The ceiling of the recipe: each method's fast preset run for %d steps (the learning rate decayed over "
-                "all of them) on static3d_corridor (128×128×8, known poses, 2 threads), evaluated every %d steps "
+                "all of them) on %s (known poses, 2 threads), evaluated every %d steps "
                 "(renders excluded from the time). PSNR with peak 1; residual = ‖y − Σ Mᵢ Xᵢ‖ / ‖y‖ of the render; "
                 "largest weight = mean over the rays that hit something of the ray's largest sample weight.\n\n",
-            steps, (steps + 19) / 20);
+            steps, scene, (steps + 19) / 20);
     fprintf(md, "| method | step | wall s | PSNR dB | residual | largest weight |\n|---|---:|---:|---:|---:|---:|\n");
     int status = 0;
     for (int mi = 0; mi < n_methods; mi++) {
         measure m;
         long rss = 0;
-        int rc = measure_in_child(methods[mi], "fast", "etc/scenes/static3d_corridor.json", 1, steps, &m, &rss);
+        int rc = measure_in_child(methods[mi], "fast", json, 1, steps, &m, &rss);
         if (rc < 0 || !m.ok) {
             printf("%s ceiling run failed: %s\n", methods[mi], m.err);
             status = 1;
@@ -305,13 +323,16 @@ static int part_ceiling(const char *const *methods, int n_methods, int steps)
         }
         fflush(stdout);
     }
-    return table_close(&t, status);
+    status = table_close(&t, status);
+    printf("wrote %s\n", mdpath);
+    return status;
 }
 
 int main(int argc, char **argv)
 {
+    sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     int costs = 1, curves = 1, ceiling = 0;
-    char which[128] = "fast,balanced,best";
+    char which[128] = "fast,balanced,best", scene[64] = CEILING_SCENE, only[128] = "";
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--quick") == 0)
             curves = 0;
@@ -330,24 +351,33 @@ int main(int argc, char **argv)
                 }
                 ceiling = (int)v;
             }
-        } else {
+        } else if (strcmp(argv[i], "--scene") == 0 && i + 1 < argc && scene_name_ok(argv[i + 1]))
+            snprintf(scene, sizeof scene, "%s", argv[++i]);
+        else if (strcmp(argv[i], "--methods") == 0 && i + 1 < argc)
+            snprintf(only, sizeof only, ",%s,", argv[++i]);
+        else {
             fprintf(stderr, "usage: bench_nerf_recon [--quick | --curves-only [--presets fast,balanced,best] | "
-                            "--ceiling [STEPS]]\n");
+                            "--ceiling [STEPS] [--scene NAME] [--methods a,b]]\n"
+                            "  --scene: etc/scenes/NAME.json (a-z, 0-9 and _), default " CEILING_SCENE "\n");
             return 2;
         }
     }
-    /* the methods that train on a camera's views, every preset */
+    /* the methods that train on a camera's views, every preset; --methods keeps the ones it names */
     const char *methods[8], *const *presets = solver_preset_names;
     int n_methods = 0;
-    for (const solver_ops *const *m = solver_list(NULL); *m && n_methods < 8; m++)
-        if ((*m)->caps & SOLVER_NEEDS_CAMERA)
+    for (const solver_ops *const *m = solver_list(NULL); *m && n_methods < 8; m++) {
+        char key[SOLVER_NAME_MAX + 2];
+        snprintf(key, sizeof key, ",%s,", (*m)->name);
+        if (((*m)->caps & SOLVER_NEEDS_CAMERA) && (!only[0] || strstr(only, key)))
             methods[n_methods++] = (*m)->name;
-    int status = 0;
-    if (ceiling) {
-        status = part_ceiling(methods, n_methods, ceiling);
-        printf("wrote bench/results/nerf_ceiling.md\n");
-        return status;
     }
+    if (n_methods == 0) {
+        fprintf(stderr, "bench_nerf_recon: --methods names no method that trains on a camera's views\n");
+        return 2;
+    }
+    int status = 0;
+    if (ceiling)
+        return part_ceiling(methods, n_methods, ceiling, scene);
     if (costs)
         status |= part_costs(methods, n_methods, presets);
     if (curves)
