@@ -28,6 +28,7 @@
 #include "cli/commands.h"
 #include "io/problem_dir.h"
 #include "io/source.h"
+#include "io/staging.h"
 #include "recon/solver.h"
 #include "sim/simulate.h"
 
@@ -475,7 +476,7 @@ typedef struct bench_opts {
 typedef struct bench_run {
     bench_opts *o;
     char self[4096];           /* this executable, re-run per point */
-    char tmpdir[32];           /* the simulated scenes' problem folders */
+    char tmpdir[512];          /* the simulated scenes' problem folders, under $TMPDIR or /tmp */
     bench_scene sc[8];
     int ns;
     bench_point *pts;
@@ -550,7 +551,10 @@ static int bench_run_prepare(bench_run *r)
     }
     r->self[sl] = 0;
     mkdir(o->out, 0755);
-    snprintf(r->tmpdir, sizeof r->tmpdir, "/tmp/scicap-bench-XXXXXX");
+    const char *tmp = getenv("TMPDIR");
+    if (!tmp || !*tmp || strlen(tmp) > sizeof r->tmpdir - 32)
+        tmp = "/tmp";
+    snprintf(r->tmpdir, sizeof r->tmpdir, "%s/scicap-bench-XXXXXX", tmp);
     if (!mkdtemp(r->tmpdir)) {
         fprintf(stderr, "scicap bench: mkdtemp: %s\n", strerror(errno));
         return 1;
@@ -784,10 +788,9 @@ static int bench_report_write(const bench_run *r)
 /* Removes the temporary scenes and frees the points. */
 static void bench_run_finish(bench_run *r)
 {
-    char cmd[256];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", r->tmpdir);
-    if (system(cmd) != 0)
-        fprintf(stderr, "scicap bench: could not remove %s\n", r->tmpdir);
+    int rc = sci_staging_remove(r->tmpdir);
+    if (rc < 0)
+        fprintf(stderr, "scicap bench: could not remove %s: %s\n", r->tmpdir, strerror(-rc));
     for (int i = 0; i < r->np; i++)
         json_decref(r->pts[i].params);
     free(r->pts);
@@ -809,11 +812,14 @@ int cli_bench_main(int argc, char **argv)
         return 2;
     }
     bench_run r = {.o = &o};
-    if ((rc = bench_run_prepare(&r)) != 0 || (rc = bench_suite_build(&r)) != 0 || (rc = bench_grid_build(&r)) != 0)
+    if ((rc = bench_run_prepare(&r)) != 0)
         return rc;
-    bench_points_run(&r);
-    if ((rc = bench_csv_write(&r)) != 0 || (rc = bench_report_write(&r)) != 0)
-        return rc;
+    /* from here on the temporary scenes exist: every way out removes them */
+    if ((rc = bench_suite_build(&r)) == 0 && (rc = bench_grid_build(&r)) == 0) {
+        bench_points_run(&r);
+        if ((rc = bench_csv_write(&r)) == 0 && (rc = bench_report_write(&r)) == 0)
+            rc = r.failed ? 1 : 0;
+    }
     bench_run_finish(&r);
-    return r.failed ? 1 : 0;
+    return rc;
 }

@@ -180,9 +180,29 @@ static void test_methods_keep_the_others(void **state)
     assert_int_equal(system(cmd), 0);
 }
 
+/* A run refused after its scenes folder was made (an unknown --scene) exits 2 and leaves nothing in $TMPDIR. */
+static void test_refused_run_leaves_no_scenes(void **state)
+{
+    const char *build = getenv("BUILD");
+    char dir[] = "/tmp/scicap-test-bench-tmp-XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char cmd[1024];
+    snprintf(cmd, sizeof cmd, "TMPDIR=%s %s/scicap bench --quick --scene nosuchscene --out %s/out --csv %s/r.csv "
+             "2>%s/log; echo $? > %s/rc", dir, build ? build : "build", dir, dir, dir, dir);
+    assert_int_equal(system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "grep -qx 2 %s/rc && grep -q \"unknown scene 'nosuchscene'\" %s/log", dir, dir);
+    assert_int_equal(system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "ls -d %s/scicap-bench-* 2>/dev/null | grep -q .", dir);
+    if (system(cmd) == 0)
+        fail_msg("the refused run left its scenes folder in %s", dir);
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {cmocka_unit_test(test_quick_report),
-                                       cmocka_unit_test(test_methods_keep_the_others)};
+                                       cmocka_unit_test(test_methods_keep_the_others),
+                                       cmocka_unit_test(test_refused_run_leaves_no_scenes)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
