@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/un.h>
 #include <unistd.h>
 
 #include "base/json.h"
@@ -144,13 +145,15 @@ static int get_obj(const sci_json_doc *doc, const json_t *o, const char *op, con
     return 0;
 }
 
+/* a control socket path must fit sockaddr_un's sun_path, NUL included */
+#define SUN_PATH_BYTES sizeof(((struct sockaddr_un *)0)->sun_path)
 #define CFG(key, type, member, ...) {key, type, offsetof(scicapd_config, member), __VA_ARGS__}
 #define CFG_SIZE(member) sizeof(((scicapd_config *)0)->member)
 #define CFG_STR(key, member, bytes, line) \
     {key, SCI_JSON_STRING, offsetof(scicapd_config, member), .size = (bytes), .help = line}
 
 static const sci_json_field control_fields[] = {
-    CFG_STR("socket", socket_path, 108, "control socket path (sun_path holds 108 bytes)"),
+    CFG_STR("socket", socket_path, SUN_PATH_BYTES, "control socket path (at most 107 bytes: sun_path's size)"),
     CFG_STR("group", socket_group, SCICAPD_NAME_MAX, "group of the socket"),
     CFG_STR("admin_group", admin_group, SCICAPD_NAME_MAX, "group whose members may use admin commands"),
     CFG("max_clients", SCI_JSON_INT, max_clients, .lo = 1, .hi = 1024, .help = "connections at once"),
@@ -323,7 +326,7 @@ static int parse_devices(const sci_json_doc *doc, const json_t *o, scicapd_confi
     if (d && (rc = parse_dmd(doc, d, c, err)) < 0)
         return rc;
     const json_t *cam = json_object_get(o, "camera");
-    if (cam && (rc = sci_json_fields_read(doc, cam, "devices.camera", cam_fields, 1, c, err)) < 0)
+    if (cam && (rc = sci_json_fields_read(doc, cam, "devices.camera", cam_fields, SCI_JSON_FIELDS_COUNT(cam_fields), c, err)) < 0)
         return rc;
     const json_t *usb = cam ? json_object_get(cam, "usb") : NULL;
     if (usb) { /* the camera's USB ids, for `scicapd --udev-rules` only (daemon/udev_rules.h) */

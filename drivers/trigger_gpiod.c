@@ -74,6 +74,20 @@ static int v1_busy(gpiod_trig *g, struct gpiod_line *l, const char *role, int e,
                          gpiod_line_offset(l), sci_strerror(-e));
 }
 
+static void gpiod_trig_close(void *state)
+{
+    gpiod_trig *g = state;
+    if (!g)
+        return;
+    if (g->out)
+        gpiod_line_release(g->out);
+    for (int r = 0; r < TRIGGER_ROLE_COUNT; r++)
+        if (g->in[r])
+            gpiod_line_release(g->in[r]);
+    gpiod_chip_close(g->chip);
+    free(g);
+}
+
 static int gpiod_trig_open(void **state, const trigger_config *cfg, sci_error *err)
 {
     if (!cfg->chip)
@@ -123,28 +137,8 @@ static int gpiod_trig_open(void **state, const trigger_config *cfg, sci_error *e
     *state = g;
     return 0;
 fail:
-    if (g->out)
-        gpiod_line_release(g->out);
-    for (int r = 0; r < TRIGGER_ROLE_COUNT; r++)
-        if (g->in[r])
-            gpiod_line_release(g->in[r]);
-    gpiod_chip_close(g->chip);
-    free(g);
+    gpiod_trig_close(g);
     return rc;
-}
-
-static void gpiod_trig_close(void *state)
-{
-    gpiod_trig *g = state;
-    if (!g)
-        return;
-    if (g->out)
-        gpiod_line_release(g->out);
-    for (int r = 0; r < TRIGGER_ROLE_COUNT; r++)
-        if (g->in[r])
-            gpiod_line_release(g->in[r]);
-    gpiod_chip_close(g->chip);
-    free(g);
 }
 
 static int gpiod_trig_pulse(void *state, uint32_t width_us, int64_t *t_ns, sci_error *err)

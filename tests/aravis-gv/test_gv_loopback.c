@@ -23,7 +23,9 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "base/clock.h"
 #include "drivers/camera_aravis.h"
+#include "tests/helpers/camtest.h"
 
 #define SEC 1000000000LL
 #define MS 1000000LL
@@ -40,22 +42,15 @@ static int teardown(void **state)
     return 0;
 }
 
-static int64_t mono_ns(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (int64_t)t.tv_sec * SEC + t.tv_nsec;
-}
-
 /* The fake may still be binding its socket when the first test runs: retry -ENOENT for up to 5 s. */
 static camera *open_gv(camera_config *cfg)
 {
     cfg->device = g_device;
     sci_error err = {0};
     camera *cam = NULL;
-    int64_t until = mono_ns() + 5 * SEC;
+    int64_t until = sci_clock_mono_ns() + 5 * SEC;
     int rc;
-    while ((rc = camera_open(&cam, &camera_aravis_ops, cfg, &err)) == -ENOENT && mono_ns() < until)
+    while ((rc = camera_open(&cam, &camera_aravis_ops, cfg, &err)) == -ENOENT && sci_clock_mono_ns() < until)
         usleep(200 * 1000);
     if (rc < 0)
         fail_msg("camera_open(%s): %d %s", g_device, rc, err.msg);
@@ -63,24 +58,9 @@ static camera *open_gv(camera_config *cfg)
     return cam;
 }
 
-static uint64_t frame_id_of(camera *cam)
-{
-    camera_aravis_stream_stats st;
-    assert_int_equal(camera_aravis_stream_stats_get(cam, &st), 0);
-    return st.last_frame_id;
-}
-
 static uint16_t ramp_mono8(uint32_t x, uint32_t y, uint64_t id)
 {
     return (uint16_t)((x + id + y) % 255); /* gain 0, exposure 10 ms: scale 1 */
-}
-
-static void wait_ok(camera *cam, int64_t timeout_ns, camera_frame *fr)
-{
-    sci_error err = {0};
-    int rc = camera_wait_frame(cam, timeout_ns, fr, &err);
-    if (rc < 0)
-        fail_msg("camera_wait_frame: %d %s", rc, err.msg);
 }
 
 static camera_config small_mono8(void)
@@ -124,14 +104,14 @@ static void free_run_frames_are_the_ramp(void **state)
     int64_t prev = 0, first = 0;
     const int n = 10; /* the first frame leaves at acquisition start, off the period grid: timed from the second */
     for (int k = 0; k < n; k++) {
-        wait_ok(cam, 2 * SEC, &fr);
-        uint64_t id = frame_id_of(cam);
+        camtest_wait_frame(cam, 2 * SEC, &fr);
+        uint64_t id = camtest_aravis_frame_id(cam);
         for (uint32_t y = 0; y < fr.height; y++)
             for (uint32_t x = 0; x < fr.width; x++)
                 if (fr.data[y * fr.width + x] != ramp_mono8(x, y, id))
                     fail_msg("frame %llu (%u,%u) = %u, the fake's ramp says %u", (unsigned long long)id, x, y,
                              fr.data[y * fr.width + x], ramp_mono8(x, y, id));
-        int64_t now = mono_ns();
+        int64_t now = sci_clock_mono_ns();
         assert_true(fr.timestamp_ns <= now + MS && now - fr.timestamp_ns < SEC);
         if (k > 0)
             assert_true(fr.timestamp_ns > prev);
@@ -159,14 +139,14 @@ static void losses_equal_block_id_skips(void **state)
     sci_error err = {0};
     assert_int_equal(camera_start(cam, &err), 0);
     camera_frame fr = {0};
-    wait_ok(cam, 2 * SEC, &fr);
+    camtest_wait_frame(cam, 2 * SEC, &fr);
     usleep(500 * 1000);
-    uint64_t prev_id = frame_id_of(cam);
+    uint64_t prev_id = camtest_aravis_frame_id(cam);
     uint32_t prev_seq = fr.sequence;
     uint64_t lost = 0;
     for (int k = 0; k < 6; k++) {
-        wait_ok(cam, 2 * SEC, &fr);
-        uint64_t id = frame_id_of(cam);
+        camtest_wait_frame(cam, 2 * SEC, &fr);
+        uint64_t id = camtest_aravis_frame_id(cam);
         uint64_t skip = id > prev_id ? id - prev_id - 1 : id + 0xffff - prev_id - 1; /* 16-bit ids, no 0 */
         if (fr.lost_before != skip)
             fail_msg("frame id %llu after %llu: %llu skipped, backend says %u lost", (unsigned long long)id,
@@ -200,11 +180,11 @@ static void software_trigger_gates_frames(void **state)
     assert_non_null(strstr(err.msg, g_device));
     uint64_t prev_id = 0;
     for (int k = 0; k < 5; k++) {
-        int64_t t0 = mono_ns();
+        int64_t t0 = sci_clock_mono_ns();
         assert_int_equal(camera_aravis_trigger_software(cam, &err), 0);
-        wait_ok(cam, 2 * SEC, &fr);
+        camtest_wait_frame(cam, 2 * SEC, &fr);
         assert_true(fr.timestamp_ns >= t0 - MS); /* taken after the trigger, not an old frame */
-        uint64_t id = frame_id_of(cam);
+        uint64_t id = camtest_aravis_frame_id(cam);
         if (k > 0)
             assert_true(id == prev_id + 1 || (prev_id == 65535 && id == 1));
         prev_id = id;

@@ -23,7 +23,9 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "base/clock.h"
 #include "drivers/camera_aravis.h"
+#include "tests/helpers/camtest.h"
 
 #define FAKE "Fake_1"
 #define SEC 1000000000LL
@@ -36,13 +38,6 @@ static int teardown(void **state)
     camera_close(g_cam);
     g_cam = NULL;
     return 0;
-}
-
-static int64_t mono_ns(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (int64_t)t.tv_sec * SEC + t.tv_nsec;
 }
 
 static camera *open_fake(camera_config *cfg)
@@ -65,21 +60,6 @@ static ArvFakeCamera *fake_of(camera *cam)
     ArvDevice *dev = arv_camera_get_device(ac);
     assert_true(ARV_IS_FAKE_DEVICE(dev));
     return arv_fake_device_get_fake_camera(ARV_FAKE_DEVICE(dev));
-}
-
-static void wait_ok(camera *cam, camera_frame *fr)
-{
-    sci_error err = {0};
-    int rc = camera_wait_frame(cam, 2 * SEC, fr, &err);
-    if (rc < 0)
-        fail_msg("camera_wait_frame: %d %s", rc, err.msg);
-}
-
-static uint64_t frame_id_of(camera *cam)
-{
-    camera_aravis_stream_stats st;
-    assert_int_equal(camera_aravis_stream_stats_get(cam, &st), 0);
-    return st.last_frame_id;
 }
 
 /* The fake's diagonal ramp (arvfakecamera.c, arv_fake_camera_diagonal_ramp), written out again here. */
@@ -181,8 +161,8 @@ static void default_format_is_mono16_ramp(void **state)
     uint64_t prev_id = 0;
     int64_t prev_ts = 0;
     for (int n = 0; n < 6; n++) {
-        wait_ok(cam, &fr);
-        uint64_t id = frame_id_of(cam);
+        camtest_wait_frame(cam, 2 * SEC, &fr);
+        uint64_t id = camtest_aravis_frame_id(cam);
         assert_int_equal(fr.pixfmt, PIXFMT_Y16);
         assert_int_equal(fr.lost_before, 0);
         for (uint32_t y = 0; y < fr.height; y++)
@@ -242,9 +222,9 @@ static void exposure_gain_scale_mono8_and_timestamps(void **state)
     int64_t first = 0, prev = 0;
     const int n = 8;
     for (int k = 0; k < n; k++) {
-        wait_ok(cam, &fr);
-        int64_t now = mono_ns();
-        uint64_t id = frame_id_of(cam);
+        camtest_wait_frame(cam, 2 * SEC, &fr);
+        int64_t now = sci_clock_mono_ns();
+        uint64_t id = camtest_aravis_frame_id(cam);
         assert_int_equal(fr.exposure_us, 20000);
         assert_int_equal(fr.gain, 2);
         assert_int_equal(fr.bits_per_sample, 8);
@@ -301,8 +281,8 @@ static void bayer8_raw_mosaic(void **state)
         assert_int_equal(camera_start(cam, &err), 0);
         camera_frame fr = {0};
         for (int n = 0; n < 2; n++) {
-            wait_ok(cam, &fr);
-            uint64_t id = frame_id_of(cam);
+            camtest_wait_frame(cam, 2 * SEC, &fr);
+            uint64_t id = camtest_aravis_frame_id(cam);
             assert_int_equal(fr.pixfmt, cases[k].pf);
             assert_int_equal(pixfmt_info_get(fr.pixfmt)->cfa, cases[k].cfa);
             for (uint32_t y = 0; y < fr.height; y++)
@@ -416,13 +396,13 @@ static void underruns_counted_as_lost_frames(void **state)
     sci_error err = {0};
     assert_int_equal(camera_start(cam, &err), 0);
     camera_frame fr = {0};
-    wait_ok(cam, &fr);
+    camtest_wait_frame(cam, 2 * SEC, &fr);
     uint32_t seq0 = fr.sequence;
     usleep(500 * 1000);
     camera_frame a = {0}, b = {0}, c = {0};
-    wait_ok(cam, &a);
-    wait_ok(cam, &b);
-    wait_ok(cam, &c);
+    camtest_wait_frame(cam, 2 * SEC, &a);
+    camtest_wait_frame(cam, 2 * SEC, &b);
+    camtest_wait_frame(cam, 2 * SEC, &c);
     camera_aravis_stream_stats as;
     assert_int_equal(camera_aravis_stream_stats_get(cam, &as), 0);
     assert_int_equal(a.lost_before, 0);
@@ -445,7 +425,7 @@ static void underruns_counted_as_lost_frames(void **state)
     assert_int_equal(c.lost_total, c.lost_before);
     /* keeping up again: no further loss */
     for (int k = 0; k < 5; k++) {
-        wait_ok(cam, &fr);
+        camtest_wait_frame(cam, 2 * SEC, &fr);
         assert_true(fr.lost_before <= 1); /* at most the one in flight during the refill above */
     }
     camera_frame_release(&fr);
