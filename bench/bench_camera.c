@@ -150,7 +150,6 @@ static int run_snapshots(double seconds, double *per_s, double *cpu_us, int *bro
 
 int main(int argc, char **argv)
 {
-    (void)argc;
     sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     const enum pixfmt fmts[] = {PIXFMT_Y16, PIXFMT_Y12, PIXFMT_Y10, PIXFMT_Y10P, PIXFMT_GREY};
     result res[10];

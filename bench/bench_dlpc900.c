@@ -101,7 +101,6 @@ out:
 
 int main(int argc, char **argv)
 {
-    (void)argc;
     sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     static const struct { const char *name; int block; } kinds[] = {{"random", 1}, {"4×4 super-pixel", 4},
                                                                    {"8×8 super-pixel", 8}};

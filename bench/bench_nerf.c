@@ -477,7 +477,6 @@ static void bench_report(FILE *f, const step_result *st, int64_t rss_all, const 
 
 int main(int argc, char **argv)
 {
-    (void)argc;
     sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     sci_rng rng;
     sci_rng_seed(&rng, 1234, 9);

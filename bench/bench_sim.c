@@ -90,7 +90,6 @@ static double time_measure(const sim_scene *sc, const sci_cube *x, const sci_cub
 
 int main(int argc, char **argv)
 {
-    (void)argc;
     sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     sci_error err = {0};
     sim_scene *base = scene_with(0);

@@ -63,8 +63,6 @@ static int applies_first(const char *text)
         return -1; /* no main: not a program */
     body++;
     body += strspn(body, " \n");
-    if (strncmp(body, "(void)argc;", 11) == 0)
-        body += 11 + strspn(body + 11, " \n");
     return strncmp(body, "sci_runtime_env_apply(argv);", 28) == 0;
 }
 
