@@ -22,6 +22,7 @@
 #include "base/rng.h"
 #include "recon/nerf/mlp.h"
 #include "recon/nerf/ref.h"
+#include "tests/helpers/gradcheck.h"
 
 static uint64_t test_seed(void)
 {
@@ -54,8 +55,9 @@ typedef struct problem {
     double *P, *pos, *dir, *wsig, *wrgb;
 } problem;
 
-static double ref_loss(const problem *p)
+static double ref_loss(void *ctx)
 {
+    const problem *p = ctx;
     double *s = malloc(p->n * sizeof *s), *c = malloc(3 * p->n * sizeof *c), L = 0;
     nerf_ref_mlp_forward(p->net, p->P, p->n, p->pos, p->dir, p->every, s, c);
     for (int i = 0; i < p->n; i++) L += p->wsig[i] * s[i];
@@ -64,16 +66,6 @@ static double ref_loss(const problem *p)
     return L;
 }
 
-static double fd(double *v, const problem *p)
-{
-    const double h = 1e-6, x0 = *v;
-    *v = x0 + h;
-    double lp = ref_loss(p);
-    *v = x0 - h;
-    double lm = ref_loss(p);
-    *v = x0;
-    return (lp - lm) / (2 * h);
-}
 
 static void gradcheck(const nerf_mlp_config *cfg, const char *what)
 {
@@ -114,33 +106,22 @@ static void gradcheck(const nerf_mlp_config *cfg, const char *what)
     assert_int_equal(nerf_mlp_forward(net, P, ws, n, pos, dir, every, sig, rgb), 0);
     assert_int_equal(nerf_mlp_backward(net, P, ws, ws_, wr, G, dpos, ddir), 0);
 
-    double *rs = malloc(n * 8), *rc = malloc(3 * n * 8), fe = 0, fn = 0;
+    double *rs = malloc(n * 8), *rc = malloc(3 * n * 8);
     nerf_ref_mlp_forward(net, pr.P, n, pr.pos, pr.dir, every, rs, rc);
-    for (int i = 0; i < n; i++) fe += (sig[i] - rs[i]) * (sig[i] - rs[i]), fn += rs[i] * rs[i];
-    for (int i = 0; i < 3 * n; i++) fe += (rgb[i] - rc[i]) * (rgb[i] - rc[i]), fn += rc[i] * rc[i];
-    double e_fwd = sqrt(fe / fn);
+    gradcheck_err fwd = {0}, par = {0};
+    gradcheck_add_array(&fwd, sig, rs, (size_t)n);
+    gradcheck_add_array(&fwd, rgb, rc, 3 * (size_t)n);
+    double e_fwd = gradcheck_rel(&fwd);
 
-    double num = 0, den = 0;
     int checked = 0;
     for (size_t j = 0; j < np; j++) {
         if (!(j >= nh || G[j] != 0.0f || sci_rng_below(&rng, nh) < 64)) continue;
-        double g = fd(&pr.P[j], &pr);
-        num += (G[j] - g) * (G[j] - g), den += g * g;
+        gradcheck_add(&par, G[j], gradcheck_fd(&pr.P[j], ref_loss, &pr));
         checked++;
     }
-    double e_par = sqrt(num / den);
-    num = den = 0;
-    for (int i = 0; i < 3 * n; i++) {
-        double g = fd(&pr.pos[i], &pr);
-        num += (dpos[i] - g) * (dpos[i] - g), den += g * g;
-    }
-    double e_pos = sqrt(num / den);
-    num = den = 0;
-    for (int i = 0; i < 3 * nd; i++) {
-        double g = fd(&pr.dir[i], &pr);
-        num += (ddir[i] - g) * (ddir[i] - g), den += g * g;
-    }
-    double e_dir = sqrt(num / den);
+    double e_par = gradcheck_rel(&par);
+    double e_pos = gradcheck_inputs(dpos, pr.pos, 3 * (size_t)n, ref_loss, &pr);
+    double e_dir = gradcheck_inputs(ddir, pr.dir, 3 * (size_t)nd, ref_loss, &pr);
     printf("mlp %-28s forward %.2g; %d parameters %.3g, positions %.3g, directions %.3g (bound 1e-4)\n", what,
            e_fwd, checked, e_par, e_pos, e_dir);
     assert_true(e_fwd < 1e-5);

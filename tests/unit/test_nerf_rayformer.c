@@ -22,6 +22,7 @@
 #include "recon/nerf/block.h"
 #include "recon/nerf/rayformer.h"
 #include "recon/nerf/ref.h"
+#include "tests/helpers/gradcheck.h"
 
 static uint64_t test_seed(void)
 {
@@ -64,26 +65,23 @@ static void make_problem(problem *p, const nerf_rayformer_config *c, int P, sci_
 
 static void free_problem(problem *p) { free(p->pos), free(p->dir), free(p->wsig), free(p->wrgb); }
 
-static double ref_loss(const nerf_rayformer *net, const double *P, const problem *pr, const double *pos,
-                       const double *dir)
+/* What the double reference loss reads: the network, its parameters in double, the problem's inputs. */
+typedef struct loss_ctx {
+    const nerf_rayformer *net;
+    const double *P;
+    const problem *pr;
+} loss_ctx;
+
+static double ref_loss(void *ctx)
 {
+    const loss_ctx *x = ctx;
+    const problem *pr = x->pr;
     double *s = malloc(pr->N * sizeof *s), *c = malloc(3 * pr->N * sizeof *c), L = 0;
-    nerf_ref_rayformer_forward(net, P, pr->P, pos, dir, s, c);
+    nerf_ref_rayformer_forward(x->net, x->P, pr->P, pr->pos, pr->dir, s, c);
     for (int i = 0; i < pr->N; i++) L += pr->wsig[i] * s[i];
     for (int i = 0; i < 3 * pr->N; i++) L += pr->wrgb[i] * c[i];
     free(s), free(c);
     return L;
-}
-
-static double fd(double *v, const nerf_rayformer *net, double *P, const problem *pr, double *pos, double *dir)
-{
-    const double h = 1e-6, x0 = *v;
-    *v = x0 + h;
-    double lp = ref_loss(net, P, pr, pos, dir);
-    *v = x0 - h;
-    double lm = ref_loss(net, P, pr, pos, dir);
-    *v = x0;
-    return (lp - lm) / (2 * h);
 }
 
 static void gradcheck(const nerf_rayformer_config *cfg_in, const char *what)
@@ -126,36 +124,26 @@ static void gradcheck(const nerf_rayformer_config *cfg_in, const char *what)
     double *Pd = malloc(np * sizeof *Pd);
     for (size_t j = 0; j < np; j++) Pd[j] = P[j];
     /* forward agreement */
-    double *rs = malloc(N * sizeof *rs), *rc = malloc(3 * N * sizeof *rc), fe = 0, fn = 0;
+    double *rs = malloc(N * sizeof *rs), *rc = malloc(3 * N * sizeof *rc);
     nerf_ref_rayformer_forward(net, Pd, pr.P, pr.pos, pr.dir, rs, rc);
-    for (int i = 0; i < N; i++) fe += (sig[i] - rs[i]) * (sig[i] - rs[i]), fn += rs[i] * rs[i];
-    for (int i = 0; i < 3 * N; i++) fe += (rgb[i] - rc[i]) * (rgb[i] - rc[i]), fn += rc[i] * rc[i];
-    printf("forward: relative difference float vs double %.3g\n", sqrt(fe / fn));
-    assert_true(sqrt(fe / fn) < 1e-5);
+    gradcheck_err fwd = {0}, par = {0};
+    gradcheck_add_array(&fwd, sig, rs, (size_t)N);
+    gradcheck_add_array(&fwd, rgb, rc, 3 * (size_t)N);
+    printf("forward: relative difference float vs double %.3g\n", gradcheck_rel(&fwd));
+    assert_true(gradcheck_rel(&fwd) < 1e-5);
 
     /* parameters: every non-hash parameter, every hash entry with a gradient, 64 random hash entries */
-    double num = 0, den = 0;
+    loss_ctx lc = {.net = net, .P = Pd, .pr = &pr};
     int checked = 0;
     for (size_t j = 0; j < np; j++) {
         int pick = j >= nh || G[j] != 0.0f || sci_rng_below(&rng, nh) < 64;
         if (!pick) continue;
-        double g = fd(&Pd[j], net, Pd, &pr, pr.pos, pr.dir);
-        num += (G[j] - g) * (G[j] - g), den += g * g;
+        gradcheck_add(&par, G[j], gradcheck_fd(&Pd[j], ref_loss, &lc));
         checked++;
     }
-    double e_par = sqrt(num / den);
-    num = den = 0;
-    for (int i = 0; i < 3 * N; i++) {
-        double g = fd(&pr.pos[i], net, Pd, &pr, pr.pos, pr.dir);
-        num += (dpos[i] - g) * (dpos[i] - g), den += g * g;
-    }
-    double e_pos = sqrt(num / den);
-    num = den = 0;
-    for (int i = 0; i < 3 * nr; i++) {
-        double g = fd(&pr.dir[i], net, Pd, &pr, pr.pos, pr.dir);
-        num += (ddir[i] - g) * (ddir[i] - g), den += g * g;
-    }
-    double e_dir = sqrt(num / den);
+    double e_par = gradcheck_rel(&par);
+    double e_pos = gradcheck_inputs(dpos, pr.pos, 3 * (size_t)N, ref_loss, &lc);
+    double e_dir = gradcheck_inputs(ddir, pr.dir, 3 * (size_t)nr, ref_loss, &lc);
     printf("gradcheck (%s): %d parameters rel err %.3g; positions %.3g; directions %.3g (bound 1e-4)\n", what,
            checked, e_par, e_pos, e_dir);
     assert_true(e_par < 1e-4);
