@@ -38,6 +38,7 @@
 #include "bench/bench_load.h"
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
+#include "recon/sci_ops.h"
 #include "recon/pnp_ffdnet.h"
 #include "recon/nerf/rayformer_solve.h"
 #include "recon/nerf/scinerf_solve.h"
@@ -274,6 +275,49 @@ static void preset_steps(int *rf, int *sn)
     *rf = q.iters, *sn = v.iters;
 }
 
+/* The snapshots of scene `name` (etc/scenes/static3d_NAME.json, else etc/scenes/NAME.json) as the simulator makes
+ * them, *k of them; NULL (the error printed) when the scene does not load. Free with sci_problem_array_free. */
+static sci_problem **scene_simulate(const char *name, int *k)
+{
+    char path[256];
+    snprintf(path, sizeof path, "etc/scenes/static3d_%s.json", name); /* corridor, ...; else photo_llff, ... */
+    if (access(path, R_OK) != 0)
+        snprintf(path, sizeof path, "etc/scenes/%s.json", name);
+    sim_scene *sc = NULL;
+    sci_error err = {0};
+    sci_problem **ps = NULL;
+    if (sim_scene_load_file(&sc, path, &err) < 0 || sim_run(sc, &ps, k, NULL, NULL, NULL, &err) < 0) {
+        printf("%s: %s\n", path, err.msg);
+        ps = NULL;
+    }
+    sim_scene_free(sc);
+    return ps;
+}
+
+/* ‖y − ΦX‖/‖y‖ of the scene's own truth X: the part of the snapshot that is sensor noise, below which a
+ * reconstruction's residual only fits noise. NaN when the scene does not load. */
+static double truth_residual(const char *name)
+{
+    int k;
+    sci_problem **ps = scene_simulate(name, &k);
+    if (!ps)
+        return NAN;
+    double r = ps[0]->truth ? sci_op_residual(ps[0]->mask, ps[0]->truth, ps[0]->meas) : NAN;
+    sci_problem_array_free(ps, k);
+    return r;
+}
+
+/* The footer line that gives each scene's truth residual. */
+static void write_noise_floor(FILE *f)
+{
+    fprintf(f, "\nThe truth's own residual ‖y − ΦX_true‖/‖y‖, the measurement noise (a residual below it fits "
+               "noise):");
+    for (int i = 0; i < n_rows; i++)
+        if (i == 0 || strcmp(rows[i].scene, rows[i - 1].scene) != 0)
+            fprintf(f, "%s %s %.1f %%", i ? ";" : "", rows[i].scene, 100 * truth_residual(rows[i].scene));
+    fprintf(f, ".\n");
+}
+
 static int md_rows(FILE *f, void *user, sci_error *err)
 {
     (void)user, (void)err;
@@ -328,6 +372,7 @@ static int md_rows(FILE *f, void *user, sci_error *err)
                 fprintf(f, "| %s | %s | %.4f | %.4f |\n", rows[i].scene, rows[i].method, rows[i].pose_rot,
                         rows[i].pose_trans);
     }
+    write_noise_floor(f);
     fprintf(f, "\n1-minute load average when each row finished (2 cores; above 2 means another job shared them and "
                "the wall times are inflated):");
     for (int i = 0; i < n_rows; i++)
@@ -546,22 +591,12 @@ static void patch_study(const char *name, const sci_problem *p, const sci_rayfor
 
 static void one_scene(const char *name, const char *parts)
 {
-    char path[256];
-    snprintf(path, sizeof path, "etc/scenes/static3d_%s.json", name); /* corridor, ...; else photo_llff, ... */
-    if (access(path, R_OK) != 0)
-        snprintf(path, sizeof path, "etc/scenes/%s.json", name);
-    sim_scene *sc = NULL;
-    sci_error err = {0};
-    sci_problem **ps;
     int k;
-    if (sim_scene_load_file(&sc, path, &err) < 0 || sim_run(sc, &ps, &k, NULL, NULL, NULL, &err) < 0) {
-        printf("%s: %s\n", path, err.msg);
-        sim_scene_free(sc);
+    sci_problem **ps = scene_simulate(name, &k);
+    if (!ps)
         return;
-    }
-    sim_scene_free(sc);
     const sci_problem *p = ps[0];
-    printf("%s: %dx%dx%d\n", path, p->mask->w, p->mask->h, p->mask->n);
+    printf("%s: %dx%dx%d\n", name, p->mask->w, p->mask->h, p->mask->n);
 
     if (strstr(parts, "classic")) {
         sci_result r = {0};
