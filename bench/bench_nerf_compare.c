@@ -36,6 +36,7 @@
 #include "base/file.h"
 #include "base/runtime_env.h"
 #include "bench/bench_load.h"
+#include "bench/bench_scene.h"
 #include "recon/admmtv.h"
 #include "recon/gaptv.h"
 #include "recon/sci_ops.h"
@@ -275,35 +276,30 @@ static void preset_steps(int *rf, int *sn)
     *rf = q.iters, *sn = v.iters;
 }
 
-/* The snapshots of scene `name` (etc/scenes/static3d_NAME.json, else etc/scenes/NAME.json) as the simulator makes
- * them, *k of them; NULL (the error printed) when the scene does not load. Free with sci_problem_array_free. */
-static sci_problem **scene_simulate(const char *name, int *k)
+/* The first snapshot of scene `name` (etc/scenes/static3d_NAME.json, else etc/scenes/NAME.json) as the simulator
+ * makes it; NULL (the error printed) when the scene does not load. Free with sci_problem_free. */
+static sci_problem *scene_simulate(const char *name)
 {
     char path[256];
     snprintf(path, sizeof path, "etc/scenes/static3d_%s.json", name); /* corridor, ...; else photo_llff, ... */
     if (access(path, R_OK) != 0)
         snprintf(path, sizeof path, "etc/scenes/%s.json", name);
-    sim_scene *sc = NULL;
     sci_error err = {0};
-    sci_problem **ps = NULL;
-    if (sim_scene_load_file(&sc, path, &err) < 0 || sim_run(sc, &ps, k, NULL, NULL, NULL, &err) < 0) {
+    sci_problem *p = bench_scene_first(path, &err);
+    if (!p)
         printf("%s: %s\n", path, err.msg);
-        ps = NULL;
-    }
-    sim_scene_free(sc);
-    return ps;
+    return p;
 }
 
 /* ‖y − ΦX‖/‖y‖ of the scene's own truth X: the part of the snapshot that is sensor noise, below which a
  * reconstruction's residual only fits noise. NaN when the scene does not load. */
 static double truth_residual(const char *name)
 {
-    int k;
-    sci_problem **ps = scene_simulate(name, &k);
-    if (!ps)
+    sci_problem *p = scene_simulate(name);
+    if (!p)
         return NAN;
-    double r = ps[0]->truth ? sci_op_residual(ps[0]->mask, ps[0]->truth, ps[0]->meas) : NAN;
-    sci_problem_array_free(ps, k);
+    double r = p->truth ? sci_op_residual(p->mask, p->truth, p->meas) : NAN;
+    sci_problem_free(p);
     return r;
 }
 
@@ -591,11 +587,9 @@ static void patch_study(const char *name, const sci_problem *p, const sci_rayfor
 
 static void one_scene(const char *name, const char *parts)
 {
-    int k;
-    sci_problem **ps = scene_simulate(name, &k);
-    if (!ps)
+    sci_problem *p = scene_simulate(name);
+    if (!p)
         return;
-    const sci_problem *p = ps[0];
     printf("%s: %dx%dx%d\n", name, p->mask->w, p->mask->h, p->mask->n);
 
     if (strstr(parts, "classic")) {
@@ -662,7 +656,7 @@ static void one_scene(const char *name, const char *parts)
     if (strstr(parts, "patch"))
         patch_study(name, p, &q);
     if (!strstr(parts, "poses")) {
-        sci_problem_array_free(ps, k);
+        sci_problem_free(p);
         return;
     }
     /* only the intrinsics known: poses optimised from the identity */
@@ -673,7 +667,7 @@ static void one_scene(const char *name, const char *parts)
     sci_rayformer_params qp = q;
     optimised_poses_rf(&qp);
     rayformer_row(name, p, "rayformer full, poses optimised", &qp);
-    sci_problem_array_free(ps, k);
+    sci_problem_free(p);
 }
 
 int main(int argc, char **argv)

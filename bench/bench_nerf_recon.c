@@ -29,6 +29,7 @@
 #include "base/file.h"
 #include "base/runtime_env.h"
 #include "bench/bench_load.h"
+#include "bench/bench_scene.h"
 #include "recon/solver.h"
 #include "sim/simulate.h"
 
@@ -50,30 +51,13 @@ static int cmpd(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-static sci_problem *load_scene(const char *path, sci_error *err)
-{
-    sim_scene *sc = NULL;
-    if (sim_scene_load_file(&sc, path, err) < 0)
-        return NULL;
-    sci_problem **p;
-    int k;
-    int rc = sim_run(sc, &p, &k, NULL, NULL, NULL, err);
-    sim_scene_free(sc);
-    if (rc < 0)
-        return NULL;
-    for (int i = 1; i < k; i++)
-        sci_problem_free(p[i]);
-    sci_problem *one = p[0];
-    free(p);
-    return one;
-}
 
 /* Runs in the child: one preset of one method on one scene, `full` = the whole preset, else STEPS steps;
  * `steps` > 0 overrides the preset's step count (the ceiling runs: evaluated every steps/20, no SSIM). */
 static void run_child(const char *method, const char *preset, const char *scene, int full, int steps, measure *m)
 {
     sci_error err = {0};
-    sci_problem *p = load_scene(scene, &err);
+    sci_problem *p = bench_scene_first(scene, &err);
     if (!p) {
         snprintf(m->err, sizeof m->err, "%s", err.msg);
         return;
