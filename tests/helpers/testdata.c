@@ -39,3 +39,15 @@ sci_problem **testdata_read_mat(const char *name, int *k)
         fail_msg("%s", err.msg);
     return p;
 }
+
+void testdata_expect_real_levels(const json_t *result, const char *who)
+{
+    json_t *lv = json_object_get(result, "levels");
+    double p1 = json_number_value(json_object_get(lv, "p1")), p99 = json_number_value(json_object_get(lv, "p99"));
+    double res = json_number_value(json_object_get(result, "residual"));
+    printf("%s: frames 1st percentile %.3f, 99th %.3f of white; residual %.2g\n", who, p1, p99, res);
+    assert_true(p1 >= 0 && p1 < 0.2);
+    assert_true(p99 > 0.3 && p99 < 1.0);
+    assert_true(res > 0 && res < 0.05);
+    assert_null(json_object_get(result, "warnings"));
+}

@@ -29,4 +29,10 @@ int testdata_is_ci(void);
  * one that cannot be read fails the test. */
 sci_problem **testdata_read_mat(const char *name, int *k);
 
+#include <jansson.h>
+/* For use inside a cmocka test: the result.json (object `result`) of a reconstruction of data/real's capture shows the
+ * scene: frames neither black nor saturated (levels' 1st percentile in [0, 0.2), 99th in (0.3, 1)), the measurement
+ * fitted (0 < residual < 5 %), no warnings. Prints the levels under `who`; fails the test otherwise. */
+void testdata_expect_real_levels(const json_t *result, const char *who);
+
 #endif

@@ -6,6 +6,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <sys/stat.h>
 #include <cmocka.h>
 
@@ -80,4 +81,11 @@ void testfiles_mat_put(mat_t *m, const char *name, enum matio_classes cls, enum 
     assert_non_null(v);
     assert_int_equal(Mat_VarWrite(m, v, compression), 0);
     Mat_VarFree(v);
+}
+
+void testfiles_expect_all(const char *text, const char *const *want)
+{
+    for (; *want; want++)
+        if (!strstr(text, *want))
+            fail_msg("missing \"%s\" in:\n%s", *want, text);
 }

@@ -27,4 +27,8 @@ void testfiles_mat_put(mat_t *m, const char *name, enum matio_classes cls, enum 
  * nothing and left no staging folder behind. */
 void testfiles_assert_nothing_at(const char *out);
 
+/* Fails the test, quoting `text` and the first missing piece, unless text holds every string of `want` (a
+ * NULL-terminated list). For reports and usage texts whose lines a test names one by one. */
+void testfiles_expect_all(const char *text, const char *const *want);
+
 #endif

@@ -102,12 +102,7 @@ static void test_interrupt_and_resume_is_bitwise(void **state)
 
     /* resumed to the end */
     assert_int_equal(cli_child_shell("%s recon " OPTS " --resume %s -q %s -o %s >%s/res.log 2>&1", scicap, ck, prob, out, dir), 0);
-    char path[2048];
-    snprintf(path, sizeof path, "%s/result.json", out);
-    json_error_t je;
-    json_t *res = json_load_file(path, 0, &je);
-    if (!res)
-        fail_msg("%s: %s", path, je.text);
+    json_t *res = cli_child_load_json(out, "result.json");
     assert_true(json_is_true(json_object_get(json_object_get(res, "params"), "resumed")));
     json_decref(res);
 

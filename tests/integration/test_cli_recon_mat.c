@@ -61,6 +61,16 @@ static char *read_stderr(void)
     return buf;
 }
 
+/* The last run's stderr holds `needle`; with a label, the whole stderr is printed after it first. */
+static void expect_stderr(const char *label, const char *needle)
+{
+    const char *e = read_stderr();
+    if (label)
+        printf("%s%s", label, e);
+    if (!strstr(e, needle))
+        fail_msg("stderr lacks \"%s\":\n%s", needle, e);
+}
+
 /* out/result.json under the test's folder (fails the test when missing). */
 static json_t *result_of(const char *out)
 {
@@ -188,10 +198,9 @@ static void check_lab_layout(const char *tag, enum mat_ft ver, enum matio_classe
                          "-o %s/auto%s",
                          scicap, dir, tag, dir, tag, dir, tag),
                      0);
-    const char *e = read_stderr();
-    printf("%s auto: %s", tag, e);
-    assert_non_null(strstr(e, "truth 'X' peaks at 1"));
-    assert_non_null(strstr(e, "white is 1 "));
+    printf("%s auto: ", tag);
+    expect_stderr("", "truth 'X' peaks at 1");
+    expect_stderr(NULL, "white is 1 ");
     snprintf(out, sizeof out, "auto%s", tag);
     assert_true(fabs(psnr_of(out) - ref) < 1e-9);
 }
@@ -207,14 +216,10 @@ static void test_scale_auto_from_meas(void **state)
     assert_int_equal(run("%s recon %s/datam.mat --mask %s/maskm.mat --meas-var y --scale auto -o %s/nt", scicap, dir,
                          dir, dir),
                      0);
-    const char *e = read_stderr();
-    printf("no truth: %s", e);
-    assert_non_null(strstr(e, "meas 'y' over the sum of the 8 masks reaches"));
-    assert_non_null(strstr(e, "white is 1 "));
+    expect_stderr("no truth: ", "meas 'y' over the sum of the 8 masks reaches");
+    expect_stderr(NULL, "white is 1 ");
     assert_int_equal(run("%s recon %s --scale auto -o %s/orig-auto", scicap, drop40, dir), 0);
-    e = read_stderr();
-    printf("original: %s", e);
-    assert_non_null(strstr(e, "white is 255"));
+    expect_stderr("original: ", "white is 255");
     assert_true(fabs(psnr_of("orig-auto") - reference_psnr()) < 1e-9);
 }
 
@@ -248,15 +253,13 @@ static void test_scales_inferred_without_options(void **state)
     REQUIRE_DROP40();
     const double ref = reference_psnr();
     assert_int_equal(run("%s recon %s --iters 1 -o %s/one", scicap, drop40, dir), 0);
-    assert_non_null(strstr(read_stderr(), "scale: truth 'orig' peaks at 255, so white is 255"));
+    expect_stderr(NULL, "scale: truth 'orig' peaks at 255, so white is 255");
     write_scaled("unit.mat", 1, 1);
     write_scaled("grey.mat", 115, 255);
     assert_int_equal(run("%s recon %s/unit.mat -o %s/unit", scicap, dir, dir), 0);
-    printf("[0, 1]: %s", read_stderr());
-    assert_non_null(strstr(read_stderr(), "white is 1 "));
+    expect_stderr("[0, 1]: ", "white is 1 ");
     assert_int_equal(run("%s recon %s/grey.mat -o %s/grey", scicap, dir, dir), 0);
-    printf("grey masks: %s", read_stderr());
-    assert_non_null(strstr(read_stderr(), "masks 'mask' peak at 115, divided by it"));
+    expect_stderr("grey masks: ", "masks 'mask' peak at 115, divided by it");
     printf("PSNR: stored %.4f, [0, 1] %.4f, masks 0-115 %.4f dB\n", ref, psnr_of("unit"), psnr_of("grey"));
     assert_true(fabs(psnr_of("unit") - ref) < 1e-3);
     assert_true(fabs(psnr_of("grey") - ref) < 1e-3);
@@ -280,8 +283,7 @@ static void test_scales_inferred_without_options(void **state)
         sci_problem_array_free(p, k);
     }
     assert_int_equal(run("%s recon %s/both.mat -o %s/both", scicap, dir, dir), 0);
-    printf("meas x115 too: %s", read_stderr());
-    assert_non_null(strstr(read_stderr(), "times what the truth makes through the masks"));
+    expect_stderr("meas x115 too: ", "times what the truth makes through the masks");
     assert_true(fabs(psnr_of("both") - ref) < 1e-3);
 }
 
@@ -290,9 +292,8 @@ static void test_wrong_scale_warned(void **state)
 {
     REQUIRE_DROP40();
     assert_int_equal(run("%s recon %s --scale 65535 --iters 20 -o %s/dark", scicap, drop40, dir), 0);
-    printf("%s", read_stderr());
-    assert_non_null(strstr(read_stderr(), "WARNING: the frames' 99th percentile is"));
-    assert_non_null(strstr(read_stderr(), "nearly black"));
+    expect_stderr("", "WARNING: the frames' 99th percentile is");
+    expect_stderr(NULL, "nearly black");
     json_t *j = result_of("dark");
     assert_int_equal(json_array_size(json_object_get(j, "warnings")), 1);
     assert_true(json_number_value(json_object_get(json_object_get(j, "levels"), "p99")) < 0.05);
@@ -368,22 +369,20 @@ static void test_frames_of_a_longer_mask(void **state)
     write_cr10("cr10nt.mat", 0);
     /* a truth of 10 frames beside 50 masks: an error naming both counts and the option */
     assert_int_equal(run("%s recon %s/cr10.mat --iters 5 -o %s/x", scicap, dir, dir), 1);
-    printf("%s", read_stderr());
-    assert_non_null(strstr(read_stderr(), "has 10 frames but the masks 'mask' 50 per snapshot"));
-    assert_non_null(strstr(read_stderr(), "--frames 10"));
+    expect_stderr("", "has 10 frames but the masks 'mask' 50 per snapshot");
+    expect_stderr(NULL, "--frames 10");
     assert_int_equal(run("%s recon %s/cr10.mat --frames 10 -o %s/cr10", scicap, dir, dir), 0);
     assert_int_equal(count_frames("cr10"), 10);
     printf("--frames 10: %.2f dB\n", psnr_of("cr10"));
     assert_true(psnr_of("cr10") > 20);
     /* no truth: the measurement's pattern gives the count away; a warning names it before the work */
     assert_int_equal(run("%s recon %s/cr10nt.mat --iters 5 -o %s/nt50", scicap, dir, dir), 0);
-    printf("%s", read_stderr());
-    assert_non_null(strstr(read_stderr(), "WARNING: the measurement matches the first 10 of the 50 mask frames"));
+    expect_stderr("", "WARNING: the measurement matches the first 10 of the 50 mask frames");
     assert_int_equal(run("%s recon %s/cr10nt.mat --frames 10 --iters 5 -o %s/nt10", scicap, dir, dir), 0);
     assert_null(strstr(read_stderr(), "WARNING"));
     assert_int_equal(count_frames("nt10"), 10);
     assert_int_equal(run("%s recon %s/cr10nt.mat --frames 51 -o %s/x", scicap, dir, dir), 1);
-    assert_non_null(strstr(read_stderr(), "--frames 51, but the masks 'mask' hold 50 frames"));
+    expect_stderr(NULL, "--frames 51, but the masks 'mask' hold 50 frames");
 }
 
 /* The real capture of data/real (float counts to ~945, measured grey masks 0–113, no truth): no options, frames
@@ -393,17 +392,9 @@ static void test_real_capture(void **state)
     char real[4096];
     TESTDATA_REQUIRE("real/6fan14_cacti.mat", real);
     assert_int_equal(run("%s recon %s -o %s/real", scicap, real, dir), 0);
-    printf("%s", read_stderr());
-    assert_non_null(strstr(read_stderr(), "masks 'mask' peak at 113, divided by it"));
+    expect_stderr("", "masks 'mask' peak at 113, divided by it");
     json_t *j = result_of("real");
-    json_t *lv = json_object_get(j, "levels");
-    double p1 = json_number_value(json_object_get(lv, "p1")), p99 = json_number_value(json_object_get(lv, "p99"));
-    double res = json_number_value(json_object_get(j, "residual"));
-    printf("real capture: frames 1st percentile %.3f, 99th %.3f of white; residual %.2g\n", p1, p99, res);
-    assert_true(p1 >= 0 && p1 < 0.2);
-    assert_true(p99 > 0.3 && p99 < 1.0);
-    assert_true(res < 0.05);
-    assert_null(json_object_get(j, "warnings"));
+    testdata_expect_real_levels(j, "real capture");
     json_decref(j);
 }
 
@@ -413,21 +404,17 @@ static void test_missing_variable_lists_present(void **state)
     REQUIRE_DROP40();
     write_lab_files("e", MAT_FT_MAT5, MAT_C_DOUBLE);
     assert_int_equal(run("%s recon %s/datae.mat --mask %s/maske.mat -o %s/err", scicap, dir, dir, dir), 1);
-    const char *e = read_stderr();
-    printf("missing meas: %s", e);
-    assert_non_null(strstr(e, "no variable 'meas'"));
-    assert_non_null(strstr(e, "y 256x256x5 double"));
-    assert_non_null(strstr(e, "X 256x256x40 double"));
-    assert_non_null(strstr(e, "--meas-var"));
+    expect_stderr("missing meas: ", "no variable 'meas'");
+    expect_stderr(NULL, "y 256x256x5 double");
+    expect_stderr(NULL, "X 256x256x40 double");
+    expect_stderr(NULL, "--meas-var");
     assert_int_equal(run("%s recon %s/datae.mat --meas-var y -o %s/err", scicap, dir, dir), 1);
-    e = read_stderr();
-    printf("missing mask: %s", e);
-    assert_non_null(strstr(e, "no variable 'mask'"));
-    assert_non_null(strstr(e, "--mask FILE"));
+    expect_stderr("missing mask: ", "no variable 'mask'");
+    expect_stderr(NULL, "--mask FILE");
     assert_int_equal(run("%s recon %s/datae.mat --mask %s/maske.mat --meas-var y --truth-var orig -o %s/err", scicap,
                          dir, dir, dir),
                      1);
-    assert_non_null(strstr(read_stderr(), "--truth-var"));
+    expect_stderr(NULL, "--truth-var");
     /* Options that belong to .mat input are refused for a problem folder (usage error). (`dir` itself holds .mat
      * files, not a problem: scicap recon takes such a folder as a batch of its inputs.) */
     assert_int_equal(run("%s sim --default -o %s/prob", scicap, dir), 0);

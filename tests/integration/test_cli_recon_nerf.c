@@ -50,6 +50,7 @@ static void refused(const char *args, const char *pattern)
         fail_msg("scicap recon %s: stderr lacks '%s'", args, pattern);
 }
 
+/* The params of dir/OUT/result.json (the caller's reference). */
 static json_t *result_params(const char *out)
 {
     char name[1024];
@@ -61,6 +62,13 @@ static json_t *result_params(const char *out)
     json_incref(p);
     json_decref(j);
     return p;
+}
+
+/* `scicap recon ARGS` on the test's problem into dir/OUT must succeed; returns result_params(OUT). */
+static json_t *recon_params(const char *args, const char *out)
+{
+    assert_int_equal(cli_child_shell("%s recon %s -q %s/prob -o %s/%s >/dev/null 2>&1", scicap, args, dir, dir, out), 0);
+    return result_params(out);
 }
 
 static int setup(void **state)
@@ -156,22 +164,14 @@ static void test_interrupt_and_resume(void **state)
 static void test_ablation_and_usage(void **state)
 {
     (void)state;
-    assert_int_equal(cli_child_shell("%s recon --method rayformer " SMALL " --iters 2 --ablation baseline -q %s/prob -o %s/abl "
-                         ">/dev/null 2>&1",
-                         scicap, dir, dir),
-                     0);
-    json_t *p = result_params("abl");
+    json_t *p = recon_params("--method rayformer " SMALL " --iters 2 --ablation baseline", "abl");
     assert_true(json_is_false(json_object_get(p, "patch_sampling")));
     assert_true(json_is_false(json_object_get(p, "inter_ray")));
     assert_true(json_is_false(json_object_get(p, "intra_ray")));
     assert_true(json_is_real(json_object_get(p, "tv_weight")));
     assert_true(json_real_value(json_object_get(p, "tv_weight")) == 0);
     json_decref(p);
-    assert_int_equal(cli_child_shell("%s recon --method rayformer --ablation +inter --iters 2 " SMALL " -q %s/prob -o %s/abl2 "
-                         ">/dev/null 2>&1",
-                         scicap, dir, dir),
-                     0);
-    p = result_params("abl2");
+    p = recon_params("--method rayformer --ablation +inter --iters 2 " SMALL, "abl2");
     assert_true(json_is_true(json_object_get(p, "patch_sampling")));
     assert_true(json_is_true(json_object_get(p, "inter_ray")));
     assert_true(json_is_false(json_object_get(p, "intra_ray")));
@@ -188,11 +188,9 @@ static void test_ablation_and_usage(void **state)
 static void test_set_any_setting(void **state)
 {
     (void)state;
-    assert_int_equal(cli_child_shell("%s recon --method rayformer " SMALL " --iters 2 --set inter_gate=false --set inter_slope=2 "
-                         "--set spacing=log -q %s/prob -o %s/set >/dev/null 2>&1",
-                         scicap, dir, dir),
-                     0);
-    json_t *p = result_params("set");
+    json_t *p = recon_params("--method rayformer " SMALL " --iters 2 --set inter_gate=false --set inter_slope=2 "
+                             "--set spacing=log",
+                             "set");
     assert_true(json_is_false(json_object_get(p, "inter_gate")));
     assert_true(json_number_value(json_object_get(p, "inter_slope")) == 2);
     assert_string_equal(json_string_value(json_object_get(p, "spacing")), "log");

@@ -12,6 +12,7 @@
 #include <cmocka.h>
 
 #include "io/image.h"
+#include "tests/helpers/cli_child.h"
 #include "tests/integration/daemon_harness.h"
 
 #define W 64
@@ -37,17 +38,6 @@ static int cleanup(void **state)
     harness_cleanup(&daemon_h);
     memset(&daemon_h, 0, sizeof daemon_h);
     return 0;
-}
-
-static json_t *load_meta(const char *dir)
-{
-    char path[800];
-    snprintf(path, sizeof path, "%s/meta.json", dir);
-    json_error_t je;
-    json_t *m = json_load_file(path, 0, &je);
-    if (!m)
-        fail_msg("%s: %s", path, je.text);
-    return m;
 }
 
 static json_int_t jint(const json_t *o, const char *a, const char *b)
@@ -139,7 +129,7 @@ static void fake_camera_captured_by_daemon(void **state)
     json_int_t prev_ts = 0, prev_seq = -1, prev_lost = 0, prev_sent = 0, lost_sum = 0, stale_sum = 0;
     for (int i = 0; i < SNAPSHOTS; i++) {
         expect_fake_ramp(dirs[i]);
-        json_t *m = load_meta(dirs[i]);
+        json_t *m = cli_child_load_json(dirs[i], "meta.json");
         assert_int_equal(jint(m, "snapshot_index", NULL), i);
         assert_null(json_object_get(m, "simulated")); /* not the simulated bench */
         assert_string_equal(json_string_value(json_object_get(json_object_get(m, "camera"), "backend")), "aravis");

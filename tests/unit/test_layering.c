@@ -15,6 +15,7 @@
 #include <cmocka.h>
 
 #include "tests/helpers/layering.h"
+#include "tests/helpers/testfiles.h"
 
 /* The source tree: the folder this file was compiled from (the Makefile compiles from the root, so __FILE__ is
  * "tests/unit/test_layering.c" there and the tests run from the root too). */
@@ -45,12 +46,13 @@ static void test_tree_is_layered(void **state)
 
 static char tmp[] = "/tmp/scicap-layering-XXXXXX";
 
-static void put(const char *rel, const char *text)
+/* Writes `text` to root/rel, making the folders on the way. */
+static void put_in(const char *root, const char *rel, const char *text)
 {
     char path[4096], dir[4096];
-    snprintf(path, sizeof path, "%s/%s", tmp, rel);
+    snprintf(path, sizeof path, "%s/%s", root, rel);
     snprintf(dir, sizeof dir, "%s", path);
-    for (char *p = dir + strlen(tmp) + 1; (p = strchr(p, '/')); p++) {
+    for (char *p = dir + strlen(root) + 1; (p = strchr(p, '/')); p++) {
         *p = 0;
         mkdir(dir, 0755);
         *p = '/';
@@ -59,6 +61,15 @@ static void put(const char *rel, const char *text)
     assert_non_null(f);
     fputs(text, f);
     fclose(f);
+}
+
+static void put(const char *rel, const char *text) { put_in(tmp, rel, text); }
+
+static void remove_tree(const char *root)
+{
+    char cmd[256];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", root);
+    assert_int_equal(system(cmd), 0);
 }
 
 /* One violation of each kind, and the includes that must pass, in a tree of its own. */
@@ -80,19 +91,19 @@ static void test_upward_include_fails(void **state)
     printf("synthetic tree: %d files, %d violations:\n%s", files, bad, report);
     assert_int_equal(files, 5);
     assert_int_equal(bad, 5);
-    assert_non_null(strstr(report, "base/bad.c:2: includes \"recon/gaptv.h\": recon/ (layer 1) is above base/ (layer 0)"));
-    assert_non_null(strstr(report, "io/x.c:2: includes \"drivers/dmd.h\": drivers/ (layer 2) is beside io/"));
-    assert_non_null(strstr(report, "cli/y.c:1: includes \"nowhere/z.h\": nowhere/ is not a layer"));
-    assert_non_null(strstr(report, "cli/y.c:3: includes \"daemon/d.h\": daemon/ (layer 4) is beside cli/"));
-    assert_non_null(strstr(report, "stray/s.c:1: stray/ is not a layer"));
+    testfiles_expect_all(report, (const char *const[]){
+        "base/bad.c:2: includes \"recon/gaptv.h\": recon/ (layer 1) is above base/ (layer 0)",
+        "io/x.c:2: includes \"drivers/dmd.h\": drivers/ (layer 2) is beside io/",
+        "cli/y.c:1: includes \"nowhere/z.h\": nowhere/ is not a layer",
+        "cli/y.c:3: includes \"daemon/d.h\": daemon/ (layer 4) is beside cli/",
+        "stray/s.c:1: stray/ is not a layer",
+        NULL});
     assert_null(strstr(report, "io/x.c:1"));   /* io above recon: fine */
     assert_null(strstr(report, "ignored.c"));  /* build output */
     /* a missing root is an error, not a pass */
     assert_true(layering_check("/nonexistent-scicap-root", layering_tree, layering_tree_count, report, sizeof report,
                                NULL) < 0);
-    char cmd[256];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);
-    assert_int_equal(system(cmd), 0);
+    remove_tree(tmp);
 }
 
 static void test_daemon_has_no_cycle(void **state)
@@ -114,9 +125,6 @@ static void test_cycle_is_named(void **state)
     (void)state;
     char dir[] = "/tmp/scicap-cycles-XXXXXX";
     assert_non_null(mkdtemp(dir));
-    char path[4096];
-    snprintf(path, sizeof path, "%s/d", dir);
-    assert_int_equal(mkdir(path, 0755), 0);
     const char *files[][2] = {
         {"acq.h", "#include \"base/log.h\"\n"},
         {"acq.c", "#include \"d/acq.h\"\n#include \"d/cal.h\"\n"},
@@ -128,12 +136,10 @@ static void test_cycle_is_named(void **state)
         {"pkg.c", "#include \"d/pkg.h\"\n\n\n#include \"d/cal.h\"\n"},
         {"leaf.h", "#include \"d/leaf.h\"\n"}, /* itself: not a cycle */
     };
+    char rel[64];
     for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {
-        snprintf(path, sizeof path, "%s/d/%s", dir, files[i][0]);
-        FILE *f = fopen(path, "w");
-        assert_non_null(f);
-        fputs(files[i][1], f);
-        fclose(f);
+        snprintf(rel, sizeof rel, "d/%s", files[i][0]);
+        put_in(dir, rel, files[i][1]);
     }
     char report[4096];
     int modules = 0;
@@ -141,26 +147,20 @@ static void test_cycle_is_named(void **state)
     printf("synthetic folder: %d modules, %d cycles:\n%s", modules, cycles, report);
     assert_int_equal(modules, 5);
     assert_int_equal(cycles, 2);
-    assert_non_null(strstr(report, "d/acq.c includes d/cal.h (line 2)"));
-    assert_non_null(strstr(report, "d/cal.h includes d/acq.h (line 2)"));
-    assert_non_null(strstr(report, "d/cal.c includes d/job.h (line 2)"));
-    assert_non_null(strstr(report, "d/job.c includes d/pkg.h (line 2)"));
-    assert_non_null(strstr(report, "d/pkg.c includes d/cal.h (line 4)"));
+    testfiles_expect_all(report, (const char *const[]){
+        "d/acq.c includes d/cal.h (line 2)",
+        "d/cal.h includes d/acq.h (line 2)",
+        "d/cal.c includes d/job.h (line 2)",
+        "d/job.c includes d/pkg.h (line 2)",
+        "d/pkg.c includes d/cal.h (line 4)",
+        NULL});
     assert_null(strstr(report, "leaf"));
     /* the same folder without the two back edges is one-way */
-    snprintf(path, sizeof path, "%s/d/cal.h", dir);
-    FILE *f = fopen(path, "w");
-    assert_non_null(f);
-    fclose(f);
-    snprintf(path, sizeof path, "%s/d/pkg.c", dir);
-    assert_non_null(f = fopen(path, "w"));
-    fputs("#include \"d/pkg.h\"\n", f);
-    fclose(f);
+    put_in(dir, "d/cal.h", "");
+    put_in(dir, "d/pkg.c", "#include \"d/pkg.h\"\n");
     assert_int_equal(layering_cycles(dir, "d", report, sizeof report, NULL), 0);
     assert_true(layering_cycles(dir, "missing", report, sizeof report, NULL) < 0);
-    char cmd[256];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    assert_int_equal(system(cmd), 0);
+    remove_tree(dir);
 }
 
 int main(void)

@@ -60,9 +60,15 @@ static void small_rf(sci_rayformer_params *p, unsigned long long seed)
     p->pose_perturb_trans = 0.02;
 }
 
-static void expect_same_run(const sci_result *a, const sci_result *b, int from, const double (*pa)[12],
-                            const double (*pb)[12], int n)
+/* The resumed run b (its solver returned rc) from the checkpoint of step `from` equals the uninterrupted run a, poses
+ * pb and pa (n each) included; frees both results and both pose arrays. */
+static void expect_same_run(int rc, sci_result *a, sci_result *b, int from, double (*pa)[12], double (*pb)[12], int n,
+                            size_t ckpt_bytes)
 {
+    if (rc != 0)
+        fail_msg("%s", b->error.msg);
+    printf("checkpoint %zu bytes; resumed run: %zu steps, final loss %.9g vs %.9g\n", ckpt_bytes, b->trace.len,
+           b->trace.e[b->trace.len - 1].loss, a->trace.e[a->trace.len - 1].loss);
     assert_non_null(a->frames);
     assert_non_null(b->frames);
     assert_memory_equal(a->frames->data, b->frames->data, sci_cube_count(a->frames) * sizeof(float));
@@ -75,6 +81,8 @@ static void expect_same_run(const sci_result *a, const sci_result *b, int from, 
     assert_memory_equal(pa, pb, (size_t)n * 12 * sizeof(double));
     /* the resumed clock continues the first run's */
     assert_true(b->trace.e[0].wall_s >= 0);
+    free(pa), free(pb);
+    sci_result_free_contents(a), sci_result_free_contents(b);
 }
 
 /* RayFormer, poses optimised: canceled at step 7 (the checkpoint is handed over on cancel), resumed to 14, equals
@@ -107,14 +115,9 @@ static void test_rayformer_cancel_resume(void **state)
     prm.resume = st.blob;
     prm.resume_bytes = st.bytes;
     int rc = sci_rayformer_solve_ex(p, &prm, &b, NULL, NULL, poses_b);
-    if (rc != 0)
-        fail_msg("%s", b.error.msg);
-    printf("checkpoint %zu bytes; resumed run: %zu steps, final loss %.9g vs %.9g\n", st.bytes, b.trace.len,
-           b.trace.e[b.trace.len - 1].loss, a.trace.e[a.trace.len - 1].loss);
-    expect_same_run(&a, &b, 7, (const double(*)[12])poses_a, (const double(*)[12])poses_b, n);
+    expect_same_run(rc, &a, &b, 7, poses_a, poses_b, n, st.bytes);
     free(st.blob);
-    free(poses_a), free(poses_b);
-    sci_result_free_contents(&a), sci_result_free_contents(&half), sci_result_free_contents(&b);
+    sci_result_free_contents(&half);
     sci_problem_free(p);
 }
 
@@ -143,13 +146,8 @@ static void test_scinerf_periodic_resume(void **state)
     prm.resume = st.blob;
     prm.resume_bytes = st.bytes;
     int rc = sci_scinerf_solve_ex(p, &prm, &b, NULL, NULL, poses_b);
-    if (rc != 0)
-        fail_msg("%s", b.error.msg);
-    printf("checkpoint %zu bytes (two networks)\n", st.bytes);
-    expect_same_run(&a, &b, 5, (const double(*)[12])poses_a, (const double(*)[12])poses_b, n);
+    expect_same_run(rc, &a, &b, 5, poses_a, poses_b, n, st.bytes);
     free(st.blob);
-    free(poses_a), free(poses_b);
-    sci_result_free_contents(&a), sci_result_free_contents(&b);
     sci_problem_free(p);
 }
 

@@ -26,6 +26,15 @@ static uint64_t test_seed(void)
 
 static uint64_t g_seed;
 
+/* The four samples unpacked into px are a, b, c, d. */
+static void expect_px4(const uint16_t *px, uint16_t a, uint16_t b, uint16_t c, uint16_t d)
+{
+    const uint16_t want[4] = {a, b, c, d};
+    for (int i = 0; i < 4; i++)
+        if (px[i] != want[i])
+            fail_msg("sample %d: 0x%X, want 0x%X", i, px[i], want[i]);
+}
+
 static void y10p_known_bytes(void **state)
 {
     (void)state;
@@ -33,10 +42,7 @@ static void y10p_known_bytes(void **state)
     const uint8_t raw[5] = {0xFF, 0x00, 0x55, 0xAA, 0x93};
     uint16_t px[4] = {0};
     assert_int_equal(pixfmt_unpack(PIXFMT_Y10P, raw, sizeof raw, 5, 4, 1, px, NULL), 0);
-    assert_int_equal(px[0], 0x3FF);
-    assert_int_equal(px[1], 0x000);
-    assert_int_equal(px[2], 0x155);
-    assert_int_equal(px[3], 0x2AA);
+    expect_px4(px, 0x3FF, 0x000, 0x155, 0x2AA);
     uint8_t back[5];
     assert_int_equal(pixfmt_pack(PIXFMT_Y10P, px, 4, 1, back, sizeof back, 5, NULL), 0);
     assert_memory_equal(back, raw, 5);
@@ -203,10 +209,7 @@ static void bayer_known_bytes(void **state)
     const uint8_t rg12[8] = {0x23, 0xF1, 0xBC, 0x7A, 0x00, 0x00, 0xFF, 0xFF};
     uint16_t px[4] = {0};
     assert_int_equal(pixfmt_unpack(PIXFMT_SRGGB12, rg12, sizeof rg12, 4, 2, 2, px, NULL), 0);
-    assert_int_equal(px[0], 0x123);
-    assert_int_equal(px[1], 0xABC);
-    assert_int_equal(px[2], 0x000);
-    assert_int_equal(px[3], 0xFFF);
+    expect_px4(px, 0x123, 0xABC, 0x000, 0xFFF);
     /* 10-bit containers keep 10 bits; 16-bit keep all */
     assert_int_equal(pixfmt_unpack(PIXFMT_SGRBG10, rg12, sizeof rg12, 4, 2, 2, px, NULL), 0);
     assert_int_equal(px[0], 0x123);
@@ -218,17 +221,11 @@ static void bayer_known_bytes(void **state)
     /* 8-bit: bytes as they are, rows `stride` apart (2 pixels, stride 3: one padding byte per row) */
     const uint8_t g8[6] = {10, 200, 0xEE, 0, 255, 0xEE};
     assert_int_equal(pixfmt_unpack(PIXFMT_SGBRG8, g8, sizeof g8, 3, 2, 2, px, NULL), 0);
-    assert_int_equal(px[0], 10);
-    assert_int_equal(px[1], 200);
-    assert_int_equal(px[2], 0);
-    assert_int_equal(px[3], 255);
+    expect_px4(px, 10, 200, 0, 255);
     /* MIPI RAW10 Bayer: the Y10P example bytes give the same samples */
     const uint8_t raw[5] = {0xFF, 0x00, 0x55, 0xAA, 0x93};
     assert_int_equal(pixfmt_unpack(PIXFMT_SBGGR10P, raw, sizeof raw, 5, 4, 1, px, NULL), 0);
-    assert_int_equal(px[0], 0x3FF);
-    assert_int_equal(px[1], 0x000);
-    assert_int_equal(px[2], 0x155);
-    assert_int_equal(px[3], 0x2AA);
+    expect_px4(px, 0x3FF, 0x000, 0x155, 0x2AA);
     assert_int_equal(pixfmt_min_stride(PIXFMT_SRGGB10P, 1920), 2400);
     assert_int_equal(pixfmt_min_stride(PIXFMT_SRGGB16, 7), 14);
     assert_int_equal(pixfmt_min_stride(PIXFMT_SBGGR8, 7), 7);

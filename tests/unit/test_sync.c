@@ -28,15 +28,23 @@ static void edges_at_plan(int64_t *e, int64_t offset)
         e[i] = sync_timeline_pattern_start_ns(&g_tl, i) + offset;
 }
 
+/* The 8-pattern plan observed through edges e (n of them, `offset` ns after the plan) within an exposure of 9 ms from
+ * T0, measured or not; the report lands in g_rep. Returns the observation for a second look. */
+static sync_observation observe_plan8(int64_t e[8], int n, int64_t offset, int measured)
+{
+    plan8();
+    edges_at_plan(e, offset);
+    sync_observation obs = {.dmd_edges_ns = e, .dmd_edge_count = n, .exposure_start_ns = T0,
+                            .exposure_end_ns = T0 + 9000000, .exposure_measured = measured};
+    assert_int_equal(sync_report_compute(&g_tl, &obs, NULL, &g_rep, NULL), 0);
+    return obs;
+}
+
 static void perfect_sync(void **state)
 {
     (void)state;
-    plan8();
     int64_t e[8];
-    edges_at_plan(e, 0);
-    sync_observation obs = {.dmd_edges_ns = e, .dmd_edge_count = 8, .exposure_start_ns = T0,
-                            .exposure_end_ns = T0 + 9000000, .exposure_measured = 1};
-    assert_int_equal(sync_report_compute(&g_tl, &obs, NULL, &g_rep, NULL), 0);
+    observe_plan8(e, 8, 0, 1);
     assert_int_equal(g_rep.inside, 8);
     assert_int_equal(g_rep.partial + g_rep.outside, 0);
     assert_int_equal(g_rep.edges_matched, 8);
@@ -52,11 +60,8 @@ static void perfect_sync(void **state)
 static void constant_latency_is_offset_not_jitter(void **state)
 {
     (void)state;
-    plan8();
     int64_t e[8];
-    edges_at_plan(e, 30000); /* 30 µs late, every pattern */
-    sync_observation obs = {e, 8, T0, T0 + 9000000, 1};
-    assert_int_equal(sync_report_compute(&g_tl, &obs, NULL, &g_rep, NULL), 0);
+    sync_observation obs = observe_plan8(e, 8, 30000, 1); /* 30 µs late, every pattern */
     assert_int_equal(g_rep.offset_ns, 30000);
     assert_int_equal(g_rep.max_abs_error_ns, 30000);
     assert_int_equal(g_rep.jitter_ns, 0);
@@ -166,11 +171,8 @@ static void missing_and_extra_edges_pair_correctly(void **state)
 static void no_frame_and_estimated_exposure(void **state)
 {
     (void)state;
-    plan8();
     int64_t e[8];
-    edges_at_plan(e, 0);
-    sync_observation obs = {e, 8, T0, T0 + 9000000, 0};
-    assert_int_equal(sync_report_compute(&g_tl, &obs, NULL, &g_rep, NULL), 0);
+    observe_plan8(e, 8, 0, 0);
     assert_int_equal(g_rep.flags, SYNC_FLAG_EXPOSURE_ESTIMATED);
     assert_false(g_rep.broken); /* informational only */
     assert_int_equal(sync_report_compute(&g_tl, NULL, NULL, &g_rep, NULL), 0);
@@ -243,11 +245,8 @@ static void random_windows_match_reference(void **state)
 static void report_as_json(void **state)
 {
     (void)state;
-    plan8();
     int64_t e[8];
-    edges_at_plan(e, 0);
-    sync_observation obs = {e, 7, T0, T0 + 9000000, 1};
-    assert_int_equal(sync_report_compute(&g_tl, &obs, NULL, &g_rep, NULL), 0);
+    observe_plan8(e, 7, 0, 1);
     json_t *j = sync_report_to_json(&g_rep);
     assert_non_null(j);
     assert_true(json_is_true(json_object_get(j, "broken")));
