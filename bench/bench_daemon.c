@@ -35,7 +35,6 @@
 
 #include "base/clock.h"
 #include "base/runtime_env.h"
-#include "daemon/store.h"
 #include "io/staging.h"
 
 static int sock_fd = -1;

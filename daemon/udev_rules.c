@@ -48,12 +48,8 @@ static int usb_match(char *buf, size_t n, const scicapd_config *c, sci_error *er
     return 1;
 }
 
-static int dmd_rules(FILE *f, const scicapd_config *c, sci_error *err)
+static int dlpc900_rules(FILE *f, const scicapd_config *c, sci_error *err)
 {
-    if (strcmp(c->dmd_backend, "dlpc900") != 0) {
-        fprintf(f, "# dmd: backend \"%s\" needs no device node\n", c->dmd_backend);
-        return 0;
-    }
     if (c->dmd_emulator) {
         fprintf(f, "# dmd: the in-process DLPC900 emulator (uhid) and the hidraw node it creates\n"
                    "KERNEL==\"uhid\", " GM "\n"
@@ -107,44 +103,42 @@ static int v4l_match(char *buf, size_t n, const char *dev, sci_error *err)
     return 0;
 }
 
-static int camera_rules(FILE *f, const scicapd_config *c, sci_error *err)
+static int v4l2_rules(FILE *f, const scicapd_config *c, sci_error *err)
 {
     char m[512];
     int usb = usb_match(m, sizeof m, c, err);
     if (usb < 0)
         return usb;
-    if (strcmp(c->camera_backend, "v4l2") == 0) {
-        const char *dev = json_string_value(json_object_get(c->camera_json, "device"));
-        if (!usb) {
-            int rc = v4l_match(m, sizeof m, dev ? dev : "/dev/video0", err);
-            if (rc < 0)
-                return rc;
-        }
-        fprintf(f, "# camera: V4L2 %s\nSUBSYSTEM==\"video4linux\", %s, " GM "\n", dev ? dev : "(default device)", m);
-        return 0;
+    const char *dev = json_string_value(json_object_get(c->camera_json, "device"));
+    if (!usb) {
+        int rc = v4l_match(m, sizeof m, dev ? dev : "/dev/video0", err);
+        if (rc < 0)
+            return rc;
     }
-    if (strcmp(c->camera_backend, "aravis") == 0) {
-        const char *dev = json_string_value(json_object_get(c->camera_json, "device"));
-        if (!usb) {
-            fprintf(f, "# camera: GenICam \"%s\" through Aravis: a GigE Vision camera needs no device node; for a "
-                       "USB3 Vision camera add devices.camera.usb {\"vendor\", \"product\", \"serial\"}\n",
-                    dev ? dev : "(first found)");
-            return 0;
-        }
-        fprintf(f, "# camera: USB3 Vision \"%s\" through Aravis (libusb)\nSUBSYSTEM==\"usb\", %s, " GM "\n",
-                dev ? dev : "(first found)", m);
-        return 0;
-    }
-    fprintf(f, "# camera: backend \"%s\" needs no device node\n", c->camera_backend);
+    fprintf(f, "# camera: V4L2 %s\nSUBSYSTEM==\"video4linux\", %s, " GM "\n", dev ? dev : "(default device)", m);
     return 0;
 }
 
-static int trigger_rules(FILE *f, const scicapd_config *c, sci_error *err)
+static int aravis_rules(FILE *f, const scicapd_config *c, sci_error *err)
 {
-    if (strcmp(c->trigger_backend, "gpiod") != 0) {
-        fprintf(f, "# trigger: backend \"%s\" needs no device node\n", c->trigger_backend);
+    char m[512];
+    int usb = usb_match(m, sizeof m, c, err);
+    if (usb < 0)
+        return usb;
+    const char *dev = json_string_value(json_object_get(c->camera_json, "device"));
+    if (!usb) {
+        fprintf(f, "# camera: GenICam \"%s\" through Aravis: a GigE Vision camera needs no device node; for a "
+                   "USB3 Vision camera add devices.camera.usb {\"vendor\", \"product\", \"serial\"}\n",
+                dev ? dev : "(first found)");
         return 0;
     }
+    fprintf(f, "# camera: USB3 Vision \"%s\" through Aravis (libusb)\nSUBSYSTEM==\"usb\", %s, " GM "\n",
+            dev ? dev : "(first found)", m);
+    return 0;
+}
+
+static int gpiod_rules(FILE *f, const scicapd_config *c, sci_error *err)
+{
     const char *chip = json_string_value(json_object_get(c->trigger_json, "chip"));
     if (chip && strncmp(chip, "/dev/", 5) == 0)
         chip += 5;
@@ -158,14 +152,44 @@ static int trigger_rules(FILE *f, const scicapd_config *c, sci_error *err)
     return 0;
 }
 
+/* The backends that open a device node, one row each (a backend with none, the simulated ones, has no row): a new
+ * hardware backend adds its row here as well as in drivers/backends.c. */
+typedef struct udev_row {
+    const char *kind, *backend;
+    int (*rules)(FILE *f, const scicapd_config *c, sci_error *err);
+} udev_row;
+
+static const udev_row udev_rows[] = {
+    {"dmd", "dlpc900", dlpc900_rules},
+    {"camera", "v4l2", v4l2_rules},
+    {"camera", "aravis", aravis_rules},
+    {"trigger", "gpiod", gpiod_rules},
+};
+
+static const udev_row *udev_row_find(const char *kind, const char *backend)
+{
+    for (size_t i = 0; i < sizeof udev_rows / sizeof udev_rows[0]; i++)
+        if (strcmp(udev_rows[i].kind, kind) == 0 && strcmp(udev_rows[i].backend, backend) == 0)
+            return &udev_rows[i];
+    return NULL;
+}
+
 int scicapd_udev_rules_write(FILE *f, const scicapd_config *c, sci_error *err)
 {
     fprintf(f, "# udev rules for the devices of %s, made by `scicapd --udev-rules`.\n"
                "# Install as /etc/udev/rules.d/71-scicap-local.rules, then: udevadm control --reload-rules && "
                "udevadm trigger\n", c->path[0] ? c->path : "the built-in configuration");
-    int rc;
-    if ((rc = dmd_rules(f, c, err)) < 0 || (rc = camera_rules(f, c, err)) < 0 || (rc = trigger_rules(f, c, err)) < 0)
-        return rc;
+    const char *kinds[3][2] = {{"dmd", c->dmd_backend}, {"camera", c->camera_backend}, {"trigger", c->trigger_backend}};
+    for (int k = 0; k < 3; k++) {
+        const udev_row *r = udev_row_find(kinds[k][0], kinds[k][1]);
+        if (!r) {
+            fprintf(f, "# %s: backend \"%s\" needs no device node\n", kinds[k][0], kinds[k][1]);
+            continue;
+        }
+        int rc = r->rules(f, c, err);
+        if (rc < 0)
+            return rc;
+    }
     if (fflush(f) != 0 || ferror(f))
         return sci_error_set(err, -EIO, "writing the rules: %s", strerror(errno));
     return 0;
