@@ -79,7 +79,8 @@ static int tsv_rows(FILE *f, void *user, sci_error *err)
                "meas_res\tmax_w\n");
     for (int i = 0; i < n_rows; i++) {
         const row *r = &rows[i];
-        fprintf(f, "%s\t%s\t%d\t%d\t%.4f\t%.6f\t%.3f\t%.5f\t%.5f\t%s\t%d\t%.4f\t%.5f\t%.4f\n", r->scene, r->method,
+        /* the residual and weight at full float precision: --table rounds them for the Markdown once, as a run does */
+        fprintf(f, "%s\t%s\t%d\t%d\t%.4f\t%.6f\t%.3f\t%.5f\t%.5f\t%s\t%d\t%.4f\t%.9g\t%.9g\n", r->scene, r->method,
                 r->iters, r->rays, r->psnr, r->ssim, r->wall_s, r->pose_rot, r->pose_trans, r->load, r->seeds,
                 r->psnr_sd, r->meas_res, r->max_w);
     }

@@ -248,27 +248,40 @@ static json_t *bench_torch(const sci_problem *p, const char *weights, const sci_
     return tj;
 }
 
+/* v printed with fmt into one of a few rotating buffers, or "—" when it is not a number (PyTorch not run). */
+static const char *num(const char *fmt, double v)
+{
+    static char buf[8][32];
+    static int next;
+    char *b = buf[next++ % 8];
+    if (isnan(v))
+        return "—";
+    snprintf(b, sizeof buf[0], fmt, v);
+    return b;
+}
+
 static void bench_report(FILE *f, const pnp_bench *b)
 {
     const double c_frame = b->c_frame, flop = b->flop, peak = b->peak;
-    const double pt_frame = b->pt_frame, pt_batch = b->pt_batch;
+    const double pt_frame = b->pt_frame, pt_batch = b->pt_batch, pt_best = fmin(pt_frame, pt_batch);
     fprintf(f, "\nMeasured by `make bench` (bench/bench_pnp_ffdnet.c with bench/ffdnet_torch.py): drop40 snapshot "
                "1 (256×256×8), grey FFDNet (15 layers, 64 features, %.2f G multiply-adds a frame), %d threads "
                "for both; the machine's single-precision peak measured by %s chains: %.0f GFLOP/s.\n\n",
             cnn_ffdnet_macs(b->net, b->w, b->h) / 1e9, b->threads, b->isa, peak);
     fprintf(f, "| | C (%s) | PyTorch-CPU %s | C faster by |\n|---|---:|---:|---:|\n", cnn_ffdnet_plan_kernel(b->plan),
             b->tj ? json_string_value(json_object_get(b->tj, "torch")) : "(not run)");
-    fprintf(f, "| denoiser, s per 256×256 frame | %.4f | %.4f | %.2f× |\n", c_frame, pt_frame, pt_frame / c_frame);
-    fprintf(f, "| denoiser, s per frame in a batch of 8 | %.4f | %.4f | %.2f× |\n", c_frame, pt_batch,
-            pt_batch / c_frame);
-    fprintf(f, "| GFLOP/s (direct-convolution equivalent) | %.0f | %.0f | |\n", flop / c_frame / 1e9,
-            flop / fmin(pt_frame, pt_batch) / 1e9);
-    fprintf(f, "| fraction of the measured peak | %.0f %% | %.0f %% | |\n", 100 * flop / c_frame / 1e9 / peak,
-            100 * flop / fmin(pt_frame, pt_batch) / 1e9 / peak);
-    fprintf(f, "| whole solve (40 iterations), s | %.2f | %.2f | %.2f× |\n", b->c_solve, b->pt_solve,
-            b->pt_solve / b->c_solve);
-    fprintf(f, "| PSNR, dB (peak = frame max) | %.2f | %.2f | |\n", b->c_psnr, b->pt_psnr);
-    fprintf(f, "| peak RSS of the process, MiB | %.0f | %.0f | |\n", b->c_rss, b->pt_rss);
+    fprintf(f, "| denoiser, s per 256×256 frame | %.4f | %s | %s |\n", c_frame, num("%.4f", pt_frame),
+            num("%.2f×", pt_frame / c_frame));
+    fprintf(f, "| denoiser, s per frame in a batch of 8 | %.4f | %s | %s |\n", c_frame, num("%.4f", pt_batch),
+            num("%.2f×", pt_batch / c_frame));
+    fprintf(f, "| GFLOP/s (direct-convolution equivalent) | %.0f | %s | |\n", flop / c_frame / 1e9,
+            num("%.0f", flop / pt_best / 1e9));
+    fprintf(f, "| fraction of the measured peak | %.0f %% | %s | |\n", 100 * flop / c_frame / 1e9 / peak,
+            num("%.0f %%", 100 * flop / pt_best / 1e9 / peak));
+    fprintf(f, "| whole solve (40 iterations), s | %.2f | %s | %s |\n", b->c_solve, num("%.2f", b->pt_solve),
+            num("%.2f×", b->pt_solve / b->c_solve));
+    fprintf(f, "| PSNR, dB (peak = frame max) | %.2f | %s | |\n", b->c_psnr, num("%.2f", b->pt_psnr));
+    fprintf(f, "| peak RSS of the process, MiB | %.0f | %s | |\n", b->c_rss, num("%.0f", b->pt_rss));
     fprintf(f, "\nLoad average %.2f %.2f %.2f at the start, %.2f %.2f %.2f at the end (2 cores). The C "
                "convolution is Winograd F(4×4, 3×3): 4× fewer multiplications than the direct convolution "
                "PyTorch runs, so its direct-equivalent rate can exceed the peak.\n",
