@@ -503,10 +503,9 @@ static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config 
 {
     static const char *const keys[] = {"method", "preset", "auto", "workers", "threads", "curves",
                                        "checkpoint_every", NULL};
-    /* every method of the table; the presets, then their deprecated aliases */
-    static const char *const presets[] = {"fast", "balanced", "best", "default", "quality", NULL};
     const char *m = NULL;
-    int rc, p = 1;
+    solver_preset p;
+    int rc;
     if ((rc = sci_json_check_keys(doc, o, "reconstruction", keys, err)) < 0 ||
         (rc = sci_json_get_string(doc, o, "reconstruction", "method", 0, &m, err)) < 0)
         return rc;
@@ -517,10 +516,10 @@ static int parse_recon(const sci_json_doc *doc, const json_t *o, scicapd_config 
     }
     if (rc == 0)
         snprintf(c->recon_method, sizeof c->recon_method, "%s", m);
-    if ((rc = sci_json_get_enum(doc, o, "reconstruction", "preset", 0, presets, &p, err)) < 0)
+    if ((rc = solver_preset_get(doc, o, "reconstruction", "preset", &p, err)) < 0)
         return rc;
-    if (rc == 0)
-        snprintf(c->recon_preset, sizeof c->recon_preset, "%s", presets[p >= 3 ? p - 2 : p]); /* alias -> name */
+    if (rc == 0) /* an alias is stored as the preset it means */
+        snprintf(c->recon_preset, sizeof c->recon_preset, "%s", solver_preset_name(p));
     if ((rc = sci_json_fields_read(doc, o, "reconstruction", recon_fields, SCI_JSON_FIELDS_COUNT(recon_fields), c,
                                    err)) < 0)
         return rc;

@@ -236,12 +236,10 @@ json_t *scicapd_recon_spec_json_plain(const scicapd_recon_spec *s)
 static int get_recon(const scicapd_request *r, const json_t *obj, const char *path, const scicapd_config *cfg,
                      scicapd_recon_spec *out, sci_error *err)
 {
-    /* every method of the table; the presets, then their deprecated aliases */
-    static const char *const presets[] = {"fast", "balanced", "best", "default", "quality", NULL};
     const char *method = cfg->recon_method, *preset = cfg->recon_preset;
     const json_t *params = NULL;
     if (obj) {
-        int p, rc;
+        int rc;
         const char *m = NULL;
         if ((rc = sci_json_get_string(r->doc, obj, path, "method", 0, &m, err)) < 0)
             return rc;
@@ -252,10 +250,11 @@ static int get_recon(const scicapd_request *r, const json_t *obj, const char *pa
                                      "unknown method '%.32s' (%s)", m, solver_names_text(names, sizeof names, ", "));
             method = m;
         }
-        if ((rc = sci_json_get_enum(r->doc, obj, path, "preset", 0, presets, &p, err)) < 0)
+        solver_preset pr;
+        if ((rc = solver_preset_get(r->doc, obj, path, "preset", &pr, err)) < 0)
             return rc;
         if (rc == 0)
-            preset = presets[p];
+            preset = solver_preset_name(pr);
         params = json_object_get(obj, "params");
     }
     char pp[64];

@@ -63,6 +63,21 @@ int solver_preset_parse(const char *name, solver_preset *out, int *deprecated, s
     return sci_error_set(err, -EINVAL, "unknown preset '%.32s' (fast, balanced, best)", name ? name : "");
 }
 
+int solver_preset_get(const sci_json_doc *doc, const json_t *obj, const char *objpath, const char *key,
+                      solver_preset *out, sci_error *err)
+{
+    const char *name = NULL;
+    int rc = sci_json_get_string(doc, obj, objpath, key, 0, &name, err);
+    if (rc != 0)
+        return rc;
+    if (solver_preset_parse(name, out, NULL, NULL) < 0) {
+        char kp[256];
+        return sci_json_fail(doc, err, sci_json_path_key(kp, sizeof kp, objpath, key),
+                             "must be fast, balanced or best (got \"%.32s\")", name);
+    }
+    return 0;
+}
+
 const char *solver_preset_name(solver_preset p)
 {
     return (unsigned)p < SOLVER_PRESET_COUNT ? solver_preset_names[p] : "?";

@@ -47,6 +47,10 @@ extern const char *const solver_preset_names[SOLVER_PRESET_COUNT + 1];
  * set to 1 for an alias. -EINVAL naming the word and the three names. */
 int solver_preset_parse(const char *name, solver_preset *out, int *deprecated, sci_error *err);
 const char *solver_preset_name(solver_preset p);
+/* Member `key` of JSON object obj (at objpath in doc) read as a preset, aliases included: 0 with *out set, 1 when
+ * absent, or SCI_ECONFIG positioned in the document ("...: preset: must be fast, balanced or best (got ...)"). */
+int solver_preset_get(const sci_json_doc *doc, const json_t *obj, const char *objpath, const char *key,
+                      solver_preset *out, sci_error *err);
 
 /* What a method needs or offers (solver_ops.caps). */
 enum {

@@ -105,6 +105,19 @@ static void test_presets(void **state)
     assert_int_equal(p, SOLVER_PRESET_BEST);
     assert_int_equal(solver_preset_parse("turbo", &p, NULL, &err), -EINVAL);
     assert_non_null(strstr(err.msg, "fast, balanced, best"));
+    /* the same words read from JSON (scicapd's configuration and requests): an alias is the preset it means,
+     * absent is 1, anything else is refused at its path */
+    static const char text[] = "{\"a\": \"quality\",\n \"b\": \"turbo\", \"c\": 3}";
+    sci_json_doc *doc = NULL;
+    assert_int_equal(sci_json_doc_load_string(&doc, "r.json", text, sizeof text - 1, &err), 0);
+    const json_t *o = sci_json_doc_root(doc);
+    assert_int_equal(solver_preset_get(doc, o, "", "a", &p, &err), 0);
+    assert_int_equal(p, SOLVER_PRESET_BEST);
+    assert_int_equal(solver_preset_get(doc, o, "", "none", &p, &err), 1);
+    assert_int_equal(solver_preset_get(doc, o, "", "b", &p, &err), SCI_ECONFIG);
+    assert_string_equal(err.msg, "r.json:2:2: b: must be fast, balanced or best (got \"turbo\")");
+    assert_int_equal(solver_preset_get(doc, o, "", "c", &p, &err), SCI_ECONFIG);
+    sci_json_doc_free(doc);
 
     /* the presets are written once, in each method's file: here only their relations (GAP-TV and ADMM-TV share
      * the measured points; each preset costs more than the one before) */
