@@ -62,13 +62,16 @@ DEB_PKGS := build-essential pkg-config g++ libopenimageio-dev openimageio-tools 
             gnuplot-nox clang libclang-rt-14-dev libaravis-dev aravis-tools systemd zlib1g-dev \
             python3-dev python3-numpy python3-pytest slurm-wlm munge libgif-dev \
             libmicrohttpd-dev libjs-chart.js chromium
+# Only for `make bench`: the PyTorch side of bench_pnp_ffdnet's speed comparison (not needed to build or test).
+BENCH_PKGS := python3-torch
 
-.PHONY: all deps demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
+.PHONY: all deps deps-bench demo check check-asan check-gv check-vm bench bench-report fuzz install clean help tests benches
 .PHONY: python check-python check-slurm check-web
 all: $(BINS)
 
 help:
 	@echo "make deps      install missing Debian packages (apt-get)"
+	@echo "make deps-bench  also what make bench uses beyond the build (PyTorch, for one speed comparison)"
 	@echo "make demo      build and run the main job on its embedded default"
 	@echo "make check     build and run every test (C tests, then the Python module's pytest tests)"
 	@echo "make python    the Python module in BUILD/python (PYTHONPATH=BUILD/python python3 -c 'import scicap')"
@@ -85,13 +88,21 @@ help:
 # its own job server down; JOBS= builds serially).
 JOBS ?= $(if $(filter -j%,$(MAKEFLAGS)),,-j$(shell nproc))
 
-deps:
-	@missing=$$(for p in $(DEB_PKGS); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q '^install ok installed' || echo $$p; done); \
+# $(1): the packages; installs those not installed, with sudo unless root.
+define apt_install
+	@missing=$$(for p in $(1); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q '^install ok installed' || echo $$p; done); \
 	if [ -n "$$missing" ]; then \
 	  echo "deps: installing$$(echo $$missing | sed 's/^/ /')"; \
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
-	else echo "deps: all $(words $(DEB_PKGS)) Debian packages present"; fi
+	else echo "deps: all $(words $(1)) Debian packages present"; fi
+endef
+
+deps:
+	$(call apt_install,$(DEB_PKGS))
+
+deps-bench: deps
+	$(call apt_install,$(BENCH_PKGS))
 
 $(LIB): $(LIB_OBJ)
 	@rm -f $@
@@ -278,7 +289,7 @@ check-vm: deps
 	@$(MAKE) --no-print-directory $(JOBS) all tests
 	@BUILD=$(BUILD) VM_CACHE="$(VM_CACHE)" tests/vm/run
 
-bench: deps
+bench: deps-bench
 	@$(MAKE) --no-print-directory $(JOBS) benches
 	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" bench/run $(BENCH_BIN)
 
