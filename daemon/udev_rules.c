@@ -103,29 +103,24 @@ static int v4l_match(char *buf, size_t n, const char *dev, sci_error *err)
     return 0;
 }
 
-static int v4l2_rules(FILE *f, const scicapd_config *c, sci_error *err)
+/* A camera's rules: its devices.camera.usb match when given, else a V4L2 device's stable name (v4l2) or nothing for
+ * Aravis (a GigE Vision camera has no device node). */
+static int camera_rules(FILE *f, const scicapd_config *c, int v4l2, sci_error *err)
 {
     char m[512];
     int usb = usb_match(m, sizeof m, c, err);
     if (usb < 0)
         return usb;
     const char *dev = json_string_value(json_object_get(c->camera_json, "device"));
-    if (!usb) {
-        int rc = v4l_match(m, sizeof m, dev ? dev : "/dev/video0", err);
-        if (rc < 0)
-            return rc;
+    if (v4l2) {
+        if (!usb) {
+            int rc = v4l_match(m, sizeof m, dev ? dev : "/dev/video0", err);
+            if (rc < 0)
+                return rc;
+        }
+        fprintf(f, "# camera: V4L2 %s\nSUBSYSTEM==\"video4linux\", %s, " GM "\n", dev ? dev : "(default device)", m);
+        return 0;
     }
-    fprintf(f, "# camera: V4L2 %s\nSUBSYSTEM==\"video4linux\", %s, " GM "\n", dev ? dev : "(default device)", m);
-    return 0;
-}
-
-static int aravis_rules(FILE *f, const scicapd_config *c, sci_error *err)
-{
-    char m[512];
-    int usb = usb_match(m, sizeof m, c, err);
-    if (usb < 0)
-        return usb;
-    const char *dev = json_string_value(json_object_get(c->camera_json, "device"));
     if (!usb) {
         fprintf(f, "# camera: GenICam \"%s\" through Aravis: a GigE Vision camera needs no device node; for a "
                    "USB3 Vision camera add devices.camera.usb {\"vendor\", \"product\", \"serial\"}\n",
@@ -136,6 +131,10 @@ static int aravis_rules(FILE *f, const scicapd_config *c, sci_error *err)
             dev ? dev : "(first found)", m);
     return 0;
 }
+
+static int v4l2_rules(FILE *f, const scicapd_config *c, sci_error *err) { return camera_rules(f, c, 1, err); }
+
+static int aravis_rules(FILE *f, const scicapd_config *c, sci_error *err) { return camera_rules(f, c, 0, err); }
 
 static int gpiod_rules(FILE *f, const scicapd_config *c, sci_error *err)
 {
