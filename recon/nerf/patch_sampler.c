@@ -2,6 +2,25 @@
 
 #include <math.h>
 
+void nerf_strata_pick(int n, int span_x, int span_y, sci_rng *rng, int *x, int *y)
+{
+    int gx = (int)lround(sqrt((double)n * span_x / span_y));
+    gx = gx < 1 ? 1 : gx > span_x ? span_x : gx;
+    int gy = (n + gx - 1) / gx;
+    gy = gy > span_y ? span_y : gy;
+    const uint64_t cells = (uint64_t)gx * (uint64_t)gy, start = sci_rng_below(rng, cells);
+    /* cells are real intervals span/g wide, not whole pixels: a pixel split between two cells gets its share from
+     * each, so every pixel is equally likely however span divides by g */
+    const double sx = (double)span_x / gx, sy = (double)span_y / gy;
+    for (int k = 0; k < n; k++) {
+        const uint64_t c = (start + (uint64_t)k * cells / (uint64_t)n) % cells;
+        const double u = sci_rng_uniform(rng), v = sci_rng_uniform(rng);
+        const int px = (int)(((double)(c % (uint64_t)gx) + u) * sx), py = (int)(((double)(c / (uint64_t)gx) + v) * sy);
+        x[k] = px < span_x ? px : span_x - 1;
+        y[k] = py < span_y ? py : span_y - 1;
+    }
+}
+
 void nerf_patch_pixels(int x0, int y0, int pw, int ph, int *px, int *py)
 {
     for (int y = 0; y < ph; y++)

@@ -457,11 +457,24 @@ static double lr_at(double lr0, double lr1, int it, int iters)
     return lr0 * pow(lr1 / lr0, (double)(it - 1) / fmax(1, iters - 1));
 }
 
-static int train_step(nerf_trainer_run_state *r, int it, double *loss_out, double *residual)
+/* This step's pixels: B windows of R rays (patch sampling) or B·R scattered pixels, each uniform or stratified. */
+static void sample_pixels(nerf_trainer_run_state *r)
 {
     const nerf_train_config *c = r->c;
-    const int R = r->R, B = r->B, N = r->n, w = r->w;
-    const size_t P = (size_t)B * R, fs = (size_t)w * r->h;
+    const int R = r->R, B = r->B, w = r->w;
+    if (c->stratify && c->patch_sampling) {
+        /* the corners land in px[0..B), py[0..B); window b's pixels go to [b·R, b·R + R), at or after corner b, so
+         * filling from the last window back reads every corner before it is overwritten */
+        nerf_strata_pick(B, w - c->group_w + 1, r->h - c->group_h + 1, &r->rng, r->px, r->py);
+        for (int b = B - 1; b >= 0; b--)
+            nerf_patch_pixels(r->px[b], r->py[b], c->group_w, c->group_h, r->px + (size_t)b * R,
+                              r->py + (size_t)b * R);
+        return;
+    }
+    if (c->stratify) {
+        nerf_strata_pick(B * R, w, r->h, &r->rng, r->px, r->py);
+        return;
+    }
     for (int b = 0; b < B; b++) {
         int *px = r->px + (size_t)b * R, *py = r->py + (size_t)b * R;
         if (c->patch_sampling) {
@@ -475,6 +488,14 @@ static int train_step(nerf_trainer_run_state *r, int it, double *loss_out, doubl
             }
         }
     }
+}
+
+static int train_step(nerf_trainer_run_state *r, int it, double *loss_out, double *residual)
+{
+    const nerf_train_config *c = r->c;
+    const int R = r->R, B = r->B, N = r->n, w = r->w;
+    const size_t P = (size_t)B * R, fs = (size_t)w * r->h;
+    sample_pixels(r);
     nerf_trainer_pass *pc = &r->ps[0], *pf = &r->ps[1], *last = &r->ps[r->n_pass - 1];
     nerf_rays_camera(r->pb->camera, (int)P, r->px, r->py, pc->L, r->near, r->far, c->spacing, &r->rng,
                      c->window_jitter && c->patch_sampling ? R : 1, pc->pcam, r->dcam, pc->delta);

@@ -91,6 +91,8 @@ typedef struct nerf_train_config {
     int group_w, group_h;         /* rays per group: the window (patch sampling) or the batch shape */
     int groups_per_step;          /* B, each seen from all N poses */
     int patch_sampling;           /* 1: overlapping windows; 0: scattered random pixels */
+    int stratify;                 /* 1: a step's windows (or pixels) one per cell of a grid over the image
+                                     (nerf_strata_pick); 0: each uniform on its own */
     int samples;                  /* L (coarse) stratified samples per ray */
     int window_jitter;            /* patch sampling: 1 = the rays of a window share their depth jitter (sample s of
                                      every ray at one depth, as at inference: the points inter-ray attention

@@ -74,18 +74,26 @@ static void expect_finite_or_clear_error(const sci_problem *p, const sci_rayform
     sci_result_free_contents(&r);
 }
 
-/* Sizes that are not a multiple of the patch, and smaller than it: windows must be clipped or shifted inside the
- * image, never read past it. */
+/* Sizes that are not a multiple of the patch, the patch's own size (one place for a window: the stratified grid
+ * is a single cell that every window of a step shares) and smaller than it: windows must be clipped or shifted
+ * inside the image, never read past it, with uniform or stratified window positions, and stratified scattered rays
+ * on an image with fewer pixels than rays a step. */
 static void test_sizes_not_multiple_of_patch(void **state)
 {
-    const int sz[][2] = {{13, 11}, {5, 3}, {1, 1}};
-    for (int i = 0; i < 3; i++) {
+    const int sz[][2] = {{13, 11}, {4, 4}, {5, 3}, {1, 1}};
+    for (int i = 0; i < 4; i++) {
         sci_problem *p = scene(sz[i][0], sz[i][1], 3, 0.02, 0.05, 0.2, 0.8);
-        sci_rayformer_params q;
-        small(&q);
-        char what[64];
-        snprintf(what, sizeof what, "%dx%d, patch 4", sz[i][0], sz[i][1]);
-        expect_finite_or_clear_error(p, &q, what);
+        for (int stratify = 0; stratify <= 1; stratify++) {
+            sci_rayformer_params q;
+            small(&q);
+            q.stratify = stratify;
+            char what[64];
+            snprintf(what, sizeof what, "%dx%d, patch 4%s", sz[i][0], sz[i][1], stratify ? ", stratified" : "");
+            expect_finite_or_clear_error(p, &q, what);
+            q.patch_sampling = 0;
+            snprintf(what, sizeof what, "%dx%d, 32 rays%s", sz[i][0], sz[i][1], stratify ? ", stratified" : "");
+            expect_finite_or_clear_error(p, &q, what);
+        }
         sci_problem_free(p);
     }
 }

@@ -1,6 +1,6 @@
 /* The ray sampler (recon/nerf/patch_sampler.h): stratified depths inside their bins, midpoints without jitter, and
  * the shared jitter of a window (share = R: sample s of every ray of a run at one depth, a fresh depth per run, the
- * stream advanced by L draws per run; share = 1 the former per-ray draws). */
+ * stream advanced by L draws per run; share = 1 the former per-ray draws), and stratified window positions. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -103,6 +103,44 @@ static void test_midpoints_without_jitter(void **state)
             assert_float_equal(t[r * L + s], cam.near_m + (s + 0.5) * (cam.far_m - cam.near_m) / L, 1e-5);
 }
 
+/* Stratified positions: one per cell where the grid has exactly n cells (16 over 16 × 16: one in each 4 × 4 block,
+ * every step), in range for the 128² image's 2 × 2 windows (127 × 127, 132 cells for 128) and for a rectangle with
+ * fewer pixels than positions, and every pixel equally likely over many steps even where the span does not divide
+ * by the grid (6 × 5 with 4 cells: pixels split between cells; counts within 5 % of the mean, the binomial spread
+ * at 120,000 draws a pixel being 0.3 %). */
+static void test_strata(void **state)
+{
+    (void)state;
+    sci_rng rng;
+    sci_rng_seed(&rng, 11, 0);
+    int x[128], y[128];
+    for (int step = 0; step < 50; step++) {
+        int block[16] = {0};
+        nerf_strata_pick(16, 16, 16, &rng, x, y);
+        for (int k = 0; k < 16; k++)
+            block[(y[k] / 4) * 4 + x[k] / 4]++;
+        for (int b = 0; b < 16; b++)
+            assert_int_equal(block[b], 1);
+        nerf_strata_pick(128, 127, 127, &rng, x, y);
+        for (int k = 0; k < 128; k++)
+            assert_true(x[k] >= 0 && x[k] < 127 && y[k] >= 0 && y[k] < 127);
+        nerf_strata_pick(10, 2, 3, &rng, x, y);
+        for (int k = 0; k < 10; k++)
+            assert_true(x[k] >= 0 && x[k] < 2 && y[k] >= 0 && y[k] < 3);
+    }
+    enum { SX = 6, SY = 5, DRAWS = 900000 };
+    long count[SX * SY] = {0};
+    for (int d = 0; d < DRAWS; d++) {
+        nerf_strata_pick(4, SX, SY, &rng, x, y);
+        for (int k = 0; k < 4; k++)
+            count[y[k] * SX + x[k]]++;
+    }
+    const double mean = 4.0 * DRAWS / (SX * SY);
+    for (int p = 0; p < SX * SY; p++)
+        if (fabs(count[p] - mean) > 0.05 * mean)
+            fail_msg("pixel (%d, %d) drawn %ld times, the mean is %.0f", p % SX, p / SX, count[p], mean);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -110,6 +148,7 @@ int main(void)
         cmocka_unit_test(test_window_shares_jitter),
         cmocka_unit_test(test_stream_advance),
         cmocka_unit_test(test_midpoints_without_jitter),
+        cmocka_unit_test(test_strata),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

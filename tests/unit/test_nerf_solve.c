@@ -297,6 +297,32 @@ static void test_window_jitter(void **state)
     sci_problem_free(p);
 }
 
+/* Stratified window (or ray) positions change training from the first step, with windows and with scattered rays,
+ * and the run stays finite; the render is the same non-overlapping tiling either way. */
+static void test_stratify(void **state)
+{
+    (void)state;
+    sci_problem *p = nerf_tiny_problem(32, 3);
+    for (int patches = 0; patches <= 1; patches++) {
+        sci_result r[2];
+        for (int k = 0; k < 2; k++) {
+            sci_rayformer_params prm;
+            small_params(&prm, 3);
+            prm.iters = 20;
+            prm.patch_sampling = patches;
+            prm.stratify = k;
+            r[k] = (sci_result){0};
+            if (sci_rayformer_solve(p, &prm, &r[k], NULL, NULL) != 0)
+                fail_msg("%s", r[k].error.msg);
+            assert_int_equal(sci_cube_check_finite(r[k].frames, "frames", NULL), 0);
+        }
+        assert_true(r[0].trace.e[0].loss != r[1].trace.e[0].loss);
+        sci_result_free_contents(&r[0]);
+        sci_result_free_contents(&r[1]);
+    }
+    sci_problem_free(p);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -308,6 +334,7 @@ int main(void)
         cmocka_unit_test(test_ablation_ladder),
         cmocka_unit_test(test_render_tilings),
         cmocka_unit_test(test_window_jitter),
+        cmocka_unit_test(test_stratify),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
