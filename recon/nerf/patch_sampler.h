@@ -42,7 +42,7 @@ void nerf_patch_pixels(int x0, int y0, int pw, int ph, int *px, int *py);
  * (gx·gy ≥ n cells of about equal area and aspect), n cells evenly spaced in row-major order from a random start
  * are chosen, and each position is uniform in its cell, so every step's positions cover the whole rectangle while
  * each pixel stays equally likely. With fewer cells than n (a rectangle smaller than n pixels) cells repeat.
- * Advances rng by 1 + 2n draws. */
+ * n, span_x, span_y >= 1. Draws from rng: one bounded draw for the start, then two uniforms a position. */
 void nerf_strata_pick(int n, int span_x, int span_y, sci_rng *rng, int *x, int *y);
 /* World frame under camera-to-world pose T: pos = R·pcam + t (n_rays·L points), dir = R·dcam (n_rays). */
 void nerf_rays_to_world(const double T[12], int n_rays, int L, const float *pcam, const float *dcam, float *pos,

@@ -298,7 +298,7 @@ static void test_window_jitter(void **state)
 }
 
 /* Stratified window (or ray) positions change training from the first step, with windows and with scattered rays,
- * and the run stays finite; the render is the same non-overlapping tiling either way. */
+ * and the run stays finite. */
 static void test_stratify(void **state)
 {
     (void)state;
