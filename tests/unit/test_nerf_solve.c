@@ -219,6 +219,15 @@ static void test_ablation_ladder(void **state)
     sci_problem_free(p);
 }
 
+/* Solves p with prm into r; fails the test on an error or non-finite frames. */
+static void solve_finite(const sci_problem *p, const sci_rayformer_params *prm, sci_result *r)
+{
+    *r = (sci_result){0};
+    if (sci_rayformer_solve(p, prm, r, NULL, NULL) != 0)
+        fail_msg("%s", r->error.msg);
+    assert_int_equal(sci_cube_check_finite(r->frames, "frames", NULL), 0);
+}
+
 /* A 20-step run on the tiny scene with 4×4 windows, inter-ray attention on or off and one inference or training
  * option set (render_tilings, window_jitter); fails the test on an error or non-finite frames. */
 static void tiny_run(const sci_problem *p, int inter, int render_tilings, int window_jitter, sci_result *r)
@@ -232,10 +241,7 @@ static void tiny_run(const sci_problem *p, int inter, int render_tilings, int wi
     prm.inter_ray = inter;
     prm.render_tilings = render_tilings;
     prm.window_jitter = window_jitter;
-    *r = (sci_result){0};
-    if (sci_rayformer_solve(p, &prm, r, NULL, NULL) != 0)
-        fail_msg("%s", r->error.msg);
-    assert_int_equal(sci_cube_check_finite(r->frames, "frames", NULL), 0);
+    solve_finite(p, &prm, r);
 }
 
 static int same_loss(const sci_result *a, const sci_result *b)
@@ -311,10 +317,7 @@ static void test_stratify(void **state)
             prm.iters = 20;
             prm.patch_sampling = patches;
             prm.stratify = k;
-            r[k] = (sci_result){0};
-            if (sci_rayformer_solve(p, &prm, &r[k], NULL, NULL) != 0)
-                fail_msg("%s", r[k].error.msg);
-            assert_int_equal(sci_cube_check_finite(r[k].frames, "frames", NULL), 0);
+            solve_finite(p, &prm, &r[k]);
         }
         assert_true(r[0].trace.e[0].loss != r[1].trace.e[0].loss);
         sci_result_free_contents(&r[0]);
