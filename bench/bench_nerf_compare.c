@@ -5,9 +5,10 @@
  * intrinsics known). PSNR (peak = 1), SSIM, wall time and, for the NeRF rows, the measurement residual and the mean
  * largest ray weight (the fog diagnostics) per row; the table is rewritten after every row, so a long run
  * shows its progress and a killed one keeps what it finished. Tables: bench/results/nerf_compare_<preset>.md by
- * default, the presets' own comparison (`--scenes corridor,orbit,noisy,tabletop --parts classic,scinerf,full`: each
- * preset of scinerf takes rayformer's time at that preset, so these are equal-time comparisons), and `--out NAME` for
- * another (the ladder, patch and pose studies live in `--out nerf_ablation`, on the fast preset).
+ * default, the presets' own comparison (`--scenes corridor,orbit,noisy,tabletop --parts classic,scinerf,full`; each
+ * method's presets sit on its own ceiling curve, io/ceiling.h, so the two methods' rows of a preset differ in time:
+ * `bench_nerf_recon --place` compares them at equal wall time on the ceilings), and `--out NAME` for another (the
+ * ladder, patch and pose studies live in `--out nerf_ablation`, on the fast preset).
  *
  * It takes hours on the 2-core machine (every NeRF row trains a whole preset), so `make bench` only prints how to
  * run it:  build/bench/bench_nerf_compare --run [--preset fast|balanced|best] [--scenes corridor,orbit,noisy]

@@ -16,6 +16,9 @@
  * (default static3d_corridor), PSNR, the measurement residual and the mean largest ray weight every STEPS/20 steps,
  * written to bench/results/nerf_ceiling.md (the corridor) or nerf_ceiling_NAME.md: where accuracy stops following
  * the fit. About 25 min for rayformer and 45 for scinerf on 2 cores at 128 × 128.
+ * `--place TABLE...` (alone): where the preset rule of io/ceiling.h puts every preset on those ceiling tables, and
+ * the methods at equal wall time on each, to bench/results/nerf_presets.md (the presets are placed on
+ * bench/results/nerf_ceiling_photo_*.md; tests/unit/test_nerf_presets checks the same).
  */
 #include <errno.h>
 #include <math.h>
@@ -30,6 +33,7 @@
 #include "base/runtime_env.h"
 #include "bench/bench_load.h"
 #include "bench/bench_scene.h"
+#include "io/ceiling.h"
 #include "recon/solver.h"
 #include "sim/simulate.h"
 
@@ -312,10 +316,106 @@ static int part_ceiling(const char *const *methods, int n_methods, int steps, co
     return status;
 }
 
+/* `--place TABLE...`: where the preset rule (io/ceiling.h) puts each method's presets over the given ceiling tables,
+ * beside the steps each preset has now, and the methods at equal wall time on each table; written to
+ * bench/results/nerf_presets.md and stdout. Exit 1 when a preset is off its place or a table does not load. */
+static void place_presets(FILE *md, const char *method, const sci_ceiling *tabs, int nt, char **paths, int *status)
+{
+    const solver_ops *op = solver_find_err(method, NULL);
+    void *q = op ? solver_settings_new(op) : NULL;
+    for (int p = 0; q && p < SOLVER_PRESET_COUNT; p++) {
+        sci_ceiling_place at;
+        solver_settings_preset(op, q, (solver_preset)p);
+        const int now = solver_settings_iters(op, q);
+        const char *pn = solver_preset_name((solver_preset)p);
+        if (sci_ceiling_place_preset(tabs, nt, method, (solver_preset)p, &at) < 0) {
+            fprintf(md, "| %s | %s | %d | no ceiling row | | | | |\n", method, pn, now);
+            *status = 1;
+            continue;
+        }
+        double wall = 0, psnr = 0;
+        for (int k = 0; k < tabs[at.table].n; k++)
+            if (!strcmp(tabs[at.table].p[k].method, method) && tabs[at.table].p[k].step == at.step)
+                wall = tabs[at.table].p[k].wall_s, psnr = tabs[at.table].p[k].psnr_db;
+        const int ok = now > at.prev && now <= at.step;
+        const char *base = strrchr(paths[at.table], '/');
+        fprintf(md, "| %s | %s | %d | %s | %.2f | %.1f | (%d, %d] | %.2f dB, %.0f s%s |\n", method, pn, now,
+                base ? base + 1 : paths[at.table], at.plateau_db, sci_ceiling_margin_db((solver_preset)p), at.prev,
+                at.step, psnr, wall, ok ? "" : " — **off its place**");
+        *status |= !ok;
+    }
+    solver_settings_free(q);
+}
+
+static int part_place(const char *const *methods, int n_methods, char **paths, int n_paths)
+{
+    static sci_ceiling tabs[16];
+    int nt = 0, status = 0;
+    for (int i = 0; i < n_paths && nt < 16; i++) {
+        sci_error err = {0};
+        if (sci_ceiling_load(paths[i], &tabs[nt], &err) < 0) {
+            fprintf(stderr, "bench_nerf_recon: %s\n", err.msg);
+            return 1;
+        }
+        nt++;
+    }
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *md = open_memstream(&buf, &len);
+    if (!md)
+        return 1;
+    fprintf(md, "Written by `bench_nerf_recon --place` from the ceiling tables (io/ceiling.h): each preset at the least "
+                "evaluated step within its margin of the method's best PSNR on the table that asks for the most steps "
+                "(fast 1 dB, balanced 0.3 dB, best 0.1 dB); a preset must lie in (the step before, that step]. PSNR "
+                "with peak 1.\n\n| method | preset | steps | deciding table | plateau dB | margin dB | place | "
+                "the long run there |\n|---|---|---:|---|---:|---:|---|---|\n");
+    for (int mi = 0; mi < n_methods; mi++)
+        place_presets(md, methods[mi], tabs, nt, paths, &status);
+    /* equal wall time: every other method's PSNR where the first one was evaluated */
+    for (int t = 0; t < nt && n_methods > 1; t++) {
+        int others = 0;
+        for (int k = 0; k < tabs[t].n; k++)
+            others += strcmp(tabs[t].p[k].method, methods[0]) != 0;
+        if (!others)
+            continue;
+        fprintf(md, "\nAt equal wall time on %s (PSNR dB; the others interpolated at %s's evaluations):\n\n| wall s |",
+                paths[t], methods[0]);
+        for (int mi = 0; mi < n_methods; mi++)
+            fprintf(md, " %s |", methods[mi]);
+        fprintf(md, "\n|---:|");
+        for (int mi = 0; mi < n_methods; mi++)
+            fprintf(md, "---:|");
+        fprintf(md, "\n");
+        for (int k = 0; k < tabs[t].n; k++) {
+            const sci_ceiling_point *pt = &tabs[t].p[k];
+            if (strcmp(pt->method, methods[0]) != 0)
+                continue;
+            fprintf(md, "| %.0f | %.2f |", pt->wall_s, pt->psnr_db);
+            for (int mi = 1; mi < n_methods; mi++) {
+                double v;
+                if (sci_ceiling_psnr_at(&tabs[t], methods[mi], pt->wall_s, &v) == 0)
+                    fprintf(md, " %.2f |", v);
+                else
+                    fprintf(md, " |");
+            }
+            fprintf(md, "\n");
+        }
+    }
+    fclose(md);
+    fwrite(buf, 1, len, stdout);
+    sci_error err = {0};
+    if (sci_file_write_atomic("bench/results/nerf_presets.md", buf, len, 0644, 0, &err) < 0) {
+        fprintf(stderr, "%s\n", err.msg);
+        status = 1;
+    }
+    free(buf);
+    return status;
+}
+
 int main(int argc, char **argv)
 {
     sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
-    int costs = 1, curves = 1, ceiling = 0;
+    int costs = 1, curves = 1, ceiling = 0, place = 0;
     char which[128] = "fast,balanced,best", scene[64] = CEILING_SCENE, only[128] = "";
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--quick") == 0)
@@ -339,9 +439,12 @@ int main(int argc, char **argv)
             snprintf(scene, sizeof scene, "%s", argv[++i]);
         else if (strcmp(argv[i], "--methods") == 0 && i + 1 < argc)
             snprintf(only, sizeof only, ",%s,", argv[++i]);
-        else {
+        else if (strcmp(argv[i], "--place") == 0 && i + 1 < argc) {
+            place = i + 1; /* the tables run to the end of the arguments */
+            break;
+        } else {
             fprintf(stderr, "usage: bench_nerf_recon [--quick | --curves-only [--presets fast,balanced,best] | "
-                            "--ceiling [STEPS] [--scene NAME] [--methods a,b]]\n"
+                            "--ceiling [STEPS] [--scene NAME] [--methods a,b] | [--methods a,b] --place TABLE...]\n"
                             "  --scene: etc/scenes/NAME.json (a-z, 0-9 and _), default " CEILING_SCENE "\n");
             return 2;
         }
@@ -360,6 +463,8 @@ int main(int argc, char **argv)
         return 2;
     }
     int status = 0;
+    if (place)
+        return part_place(methods, n_methods, argv + place, argc - place);
     if (ceiling)
         return part_ceiling(methods, n_methods, ceiling, scene);
     if (costs)

@@ -654,10 +654,9 @@ static int bench_grid_build(bench_run *r)
     for (int m = 0; m < r->n_methods; m++)
         r->methods[m] = r->table[m]->name;
     /* Each method's grid is its own (solver_ops.bench_quick / bench_full): the classical methods over iterations ×
-     * TV passes; the NeRF methods on the fast preset (rayformer 900 steps, scinerf 700: ≈ 4 min each here) with
-     * fewer steps, and at 300 steps one other knob at a time — about 10 minutes per scene on 2 cores; the presets
-     * balanced/best (9–30 min each) are measured by bench_nerf_recon instead, to keep this report under 30
-     * minutes. A method that needs a camera runs on the scenes that have one. */
+     * TV passes; the NeRF methods on the fast preset (4–7 min each here) with fewer steps, and at 300 steps one
+     * other knob at a time — about 15 minutes per scene on 2 cores; the presets balanced/best (10–17 min each) are
+     * measured by bench_nerf_recon instead. A method that needs a camera runs on the scenes that have one. */
     for (int s = 0; s < r->ns; s++)
         for (int m = 0; m < r->n_methods; m++) {
             const solver_ops *op = r->table[m];

@@ -14,8 +14,8 @@
 
 void sci_scinerf_params_default(sci_scinerf_params *p)
 {
-    *p = (sci_scinerf_params){.iters = 800,
-                              .rays_per_step = 2048,
+    *p = (sci_scinerf_params){.iters = 2400, /* the balanced preset's */
+                              .rays_per_step = 1024,
                               .samples = 32,
                               .fine_samples = 0,
                               .pos_enc = NERF_MLP_POS_HASH,
@@ -44,23 +44,23 @@ void sci_scinerf_params_default(sci_scinerf_params *p)
 int sci_scinerf_params_preset(sci_scinerf_params *p, const char *name)
 {
     /* all three on the hash-encoded field: SCINeRF's own 8 × 256 frequency network runs at ≈ 0.05 Mpoints/s on the
-     * two cores (docs/nerf-methods.md), minutes per hundred steps; set pos_enc etc. to use it. Fast and balanced
-     * take RayFormer's time at the same preset (0.34 s a step at 1024 rays, 0.59 at 2048, corridor, 2 threads,
-     * 2026-11-27), so that each preset's comparison is at equal wall time. Best likewise takes RayFormer's best
-     * time (880 s, corridor): with 32 fine samples (1000 × 2048 rays) a step cost 1.44 s and the run 1441 s for
-     * 23.83 dB, no better than the fast settings run that long (23.83 dB at 1094 s, bench/results/nerf_ceiling.md),
-     * so best spends the time on steps instead: 1900 × 2048 rays took 916 s for 23.92 dB on the corridor */
+     * two cores (docs/nerf-methods.md), minutes per hundred steps; set pos_enc etc. to use it. Placed on the
+     * photographic scenes' ceilings by io/ceiling.h's rule (tests/unit/test_nerf_presets), at evaluated steps of the
+     * photo_llff ceiling (plateau 31.62 dB, bench/results/nerf_ceiling_photo_llff.md): fast within 1 dB (30.89 at
+     * 1500; 30.59 at 1200), balanced within 0.3 dB (31.33 at 2400), best within 0.1 dB (31.56 at 3600). The
+     * presets differ in steps only. At 0.29 s a step of 1024 rays there (2 threads) fast takes 7 min, balanced 11,
+     * best 17; a fine network (32 importance samples) cost 1.44 s a step on the corridor for no gain */
     static const struct {
         const char *name;
-        int iters, rays, fine;
+        int iters;
     } t[] = {
-        {"fast", 700, 1024, 0},
-        {"balanced", 800, 2048, 0},
-        {"best", 1900, 2048, 0},
+        {"fast", 1500},
+        {"balanced", 2400},
+        {"best", 3600},
     };
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (strcmp(name, t[i].name) == 0) {
-            p->iters = t[i].iters, p->rays_per_step = t[i].rays, p->samples = 32, p->fine_samples = t[i].fine;
+            p->iters = t[i].iters, p->rays_per_step = 1024, p->samples = 32, p->fine_samples = 0;
             p->pos_enc = NERF_MLP_POS_HASH, p->log2_table = 19, p->finest_res = 512;
             p->depth = 2, p->width = 64, p->skip = -1, p->feature_dim = 15, p->color_hidden = 64;
             p->dir_enc = NERF_MLP_DIR_SH, p->sh_degree = 1, p->lr = 1e-2, p->lr_final = 1e-3;
@@ -262,12 +262,13 @@ static int sn_run(const sci_problem *p, const void *s, const solver_io *io, sci_
     return nerf_solve_run_io(&sn_method, p, s, io, r);
 }
 
-/* The bench grid on the fast preset: fewer steps, and samples per ray at 300 steps. */
+/* The bench grid on the fast preset: fewer steps (100, 300, 700), and samples per ray at 300 steps. */
 static const char *const sn_bench_quick[] = {"{\"preset\":\"fast\",\"iters\":10}", NULL};
 static const char *const sn_bench_full[] = {
     "{\"preset\":\"fast\"}",
     "{\"preset\":\"fast\",\"iters\":100}",
     "{\"preset\":\"fast\",\"iters\":300}",
+    "{\"preset\":\"fast\",\"iters\":700}",
     "{\"preset\":\"fast\",\"iters\":300,\"samples\":16}",
     NULL,
 };
