@@ -337,7 +337,7 @@ static void place_presets(FILE *md, const char *method, const sci_ceiling *tabs,
         for (int k = 0; k < tabs[at.table].n; k++)
             if (!strcmp(tabs[at.table].p[k].method, method) && tabs[at.table].p[k].step == at.step)
                 wall = tabs[at.table].p[k].wall_s, psnr = tabs[at.table].p[k].psnr_db;
-        const int ok = now > at.prev && now <= at.step;
+        const int ok = sci_ceiling_place_holds(&at, now);
         const char *base = strrchr(paths[at.table], '/');
         fprintf(md, "| %s | %s | %d | %s | %.2f | %.1f | (%d, %d] | %.2f dB, %.0f s%s |\n", method, pn, now,
                 base ? base + 1 : paths[at.table], at.plateau_db, sci_ceiling_margin_db((solver_preset)p), at.prev,
@@ -351,7 +351,11 @@ static int part_place(const char *const *methods, int n_methods, char **paths, i
 {
     static sci_ceiling tabs[16];
     int nt = 0, status = 0;
-    for (int i = 0; i < n_paths && nt < 16; i++) {
+    if (n_paths > 16) {
+        fprintf(stderr, "bench_nerf_recon: --place takes at most 16 tables (%d given)\n", n_paths);
+        return 2;
+    }
+    for (int i = 0; i < n_paths; i++) {
         sci_error err = {0};
         if (sci_ceiling_load(paths[i], &tabs[nt], &err) < 0) {
             fprintf(stderr, "bench_nerf_recon: %s\n", err.msg);

@@ -128,3 +128,5 @@ int sci_ceiling_psnr_at(const sci_ceiling *c, const char *method, double wall_s,
     }
     return prev ? -ERANGE : -ENOENT;
 }
+
+int sci_ceiling_place_holds(const sci_ceiling_place *at, int steps) { return steps > at->prev && steps <= at->step; }

@@ -60,4 +60,7 @@ typedef struct sci_ceiling_place {
 int sci_ceiling_place_preset(const sci_ceiling *tabs, int n_tabs, const char *method, solver_preset p,
                              sci_ceiling_place *out);
 
+/* 1 when a preset of `steps` steps lies in its place (prev, step], else 0. */
+int sci_ceiling_place_holds(const sci_ceiling_place *at, int steps);
+
 #endif
