@@ -110,6 +110,39 @@ static int adam_factors(nerf_adam *a, double lr)
     return 0;
 }
 
+/* clang before 16 exports a target_clones function as NAME.ifunc, which other files' calls do not link to
+ * (the fuzzers are built with clang): a single version there */
+#if defined(__clang__) && __clang_major__ < 16
+#define CLONES
+#else
+#define CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#endif
+
+/* The step of parameters [begin, end) with the factor table kt[0..hi] (every t[j] + 1 <= hi). Branch-free, so it
+ * vectorises: a parameter the lazy step skips gets its own values written back (in a hash table the skipped ones
+ * are scattered, and the branch mispredicted). The arithmetic is the scalar loop's, in the same order (ISO C: no
+ * contraction), so the bits are too. */
+CLONES static void adam_range(nerf_adam *a, float *params, const float *grad, size_t begin, size_t end,
+                              const double *kt, int lazy, double wd)
+{
+    const double b1 = a->cfg.beta1, b2 = a->cfg.beta2, eps = a->cfg.eps;
+    float *restrict pm = a->m, *restrict ps = a->s, *restrict pp = params;
+    uint32_t *restrict pt = a->t;
+    for (size_t j = begin; j < end; j++) {
+        const double g0 = grad[j];
+        const int on = !(lazy && g0 == 0.0);
+        const double g = g0 + wd * pp[j];
+        const uint32_t t = pt[j] + (uint32_t)on;
+        const double m = b1 * pm[j] + (1.0 - b1) * g;
+        const double sv = sqrt(b2 * (double)ps[j] * ps[j] + (1.0 - b2) * g * g);
+        const float p = (float)(pp[j] - kt[t] * m / (sv + eps));
+        pt[j] = t;
+        pm[j] = on ? (float)m : pm[j];
+        ps[j] = on ? (float)sv : ps[j];
+        pp[j] = on ? p : pp[j];
+    }
+}
+
 void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin, size_t end, double lr, int lazy,
                     int decay)
 {
@@ -117,10 +150,15 @@ void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin
     const double lb1 = log(b1), lb2 = log(b2);
     /* the factor depends on the parameter's own step count, and in a lazily stepped hash table neighbours rarely
      * share it: two expm1 per parameter were a third of its time; a table by step count replaces them (same bits) */
-    const double *kt = adam_factors(a, lr) == 0 ? a->k : NULL;
-    const uint32_t n_k = kt ? a->t_hi : 0;
-#pragma omp parallel for schedule(dynamic, 16384) /* elementwise: any schedule gives the same bits */
-    for (size_t j = begin; j < end; j++) {
+    if (adam_factors(a, lr) == 0) {
+        a->k[0] = 0.0; /* read (not used) for a parameter with no step yet that the lazy step skips */
+#pragma omp parallel for schedule(dynamic, 1) /* elementwise: any schedule gives the same bits */
+        for (size_t j0 = begin; j0 < end; j0 += 16384)
+            adam_range(a, params, grad, j0, end - j0 < 16384 ? end : j0 + 16384, a->k, lazy, wd);
+        return;
+    }
+#pragma omp parallel for schedule(dynamic, 16384)
+    for (size_t j = begin; j < end; j++) { /* no factor table (out of memory): each factor computed */
         double g = grad[j];
         if (lazy && g == 0.0) continue;
         g += wd * params[j];
@@ -129,14 +167,8 @@ void nerf_adam_step(nerf_adam *a, float *params, const float *grad, size_t begin
         double s = sqrt(b2 * (double)a->s[j] * a->s[j] + (1.0 - b2) * g * g);
         a->m[j] = (float)m;
         a->s[j] = (float)s;
-        double k;
-        if (t <= n_k)
-            k = kt[t];
-        else {
-            double c1 = b1 > 0.0 ? -expm1(t * lb1) : 1.0, c2 = b2 > 0.0 ? -expm1(t * lb2) : 1.0;
-            k = lr * sqrt(c2) / c1;
-        }
-        params[j] = (float)(params[j] - k * m / (s + eps));
+        double c1 = b1 > 0.0 ? -expm1(t * lb1) : 1.0, c2 = b2 > 0.0 ? -expm1(t * lb2) : 1.0;
+        params[j] = (float)(params[j] - lr * sqrt(c2) / c1 * m / (s + eps));
     }
 }
 

@@ -143,31 +143,58 @@ static inline __attribute__((always_inline)) void level_corners(const level *v, 
 }
 
 #define BLK 256 /* points per block of level_cells */
+#define AHEAD 16  /* points between a corner's prefetch and its use */
 
-/* Level-major loops: one level's table slice (at most T·F floats, 512 KiB for the RayFormer grid) stays in L2
- * while every point visits it; point-major order would sweep the whole table (8 MiB) per point. The order in
- * which points add into one gradient entry is still the point order, so results equal the point-major ones. */
-/* Points in order at one level, their cells computed a block of BLK at a time. */
+/* Level-major loops: one level's table slice stays in the caches while every point visits it; point-major order
+ * would sweep the whole table per point. The order in which points add into one gradient entry is still the point
+ * order, so results equal the point-major ones. A block's corners are computed first and fetched AHEAD points before
+ * their use: the gathers then overlap instead of each waiting on its cache miss (the hashed levels of a 2^19 table
+ * are 4 MiB each, larger than L2). */
 typedef struct level_walk {
     const level *v;
     uint64_t T;
+    int i0, cnt; /* the block held: points [i0, i0 + cnt) */
     uint32_t cell[3 * BLK];
     float frac[3 * BLK];
+    uint64_t idx[BLK][8];
+    float w[BLK][8];
 } level_walk;
 
 static inline void walk_start(level_walk *lw, const nerf_hashgrid *g, int l)
 {
     lw->v = &g->lv[l];
     lw->T = (uint64_t)1 << g->cfg.log2_table;
+    lw->i0 = lw->cnt = 0;
 }
 
-/* The corners of point i of x[3n]; points must come in order 0, 1, … (a new block is filled at each BLK). */
-static inline __attribute__((always_inline)) corners walk_corners(level_walk *lw, int n, const float *x, int i)
+/* Fills the block that starts at point i of x[3n] with its corners. */
+static inline __attribute__((always_inline)) void walk_block(level_walk *lw, int n, const float *x, int i)
 {
-    if (i % BLK == 0) level_cells(lw->v, 3 * (n - i < BLK ? n - i : BLK), x + 3 * (size_t)i, lw->cell, lw->frac);
-    corners c;
-    corners_from(lw->v, lw->T, lw->cell + 3 * (i % BLK), lw->frac + 3 * (i % BLK), &c);
-    return c;
+    lw->i0 = i;
+    lw->cnt = n - i < BLK ? n - i : BLK;
+    level_cells(lw->v, 3 * lw->cnt, x + 3 * (size_t)i, lw->cell, lw->frac);
+    for (int j = 0; j < lw->cnt; j++) {
+        corners c;
+        corners_from(lw->v, lw->T, lw->cell + 3 * j, lw->frac + 3 * j, &c);
+        memcpy(lw->idx[j], c.idx, sizeof c.idx);
+        memcpy(lw->w[j], c.w, sizeof c.w);
+    }
+}
+
+/* Corner indices and weights of point i (points in order 0, 1, …; a new block is filled at each BLK), after
+ * prefetching point i + AHEAD's entries in table (F floats each; write: for a scatter-add). */
+static inline __attribute__((always_inline)) int walk_next(level_walk *lw, int n, const float *x, int i,
+                                                           const float *table, int F, int write)
+{
+    if (i == lw->i0 + lw->cnt || i == 0) walk_block(lw, n, x, i);
+    const int j = i - lw->i0;
+    if (j + AHEAD < lw->cnt)
+        for (int k = 0; k < 8; k++) {
+            const float *e = table + lw->idx[j + AHEAD][k] * F;
+            if (write) __builtin_prefetch(e, 1, 3);
+            else __builtin_prefetch(e, 0, 3);
+        }
+    return j;
 }
 
 /* clang before 16 exports a target_clones function as NAME.ifunc, which other files' calls do not link to
@@ -186,21 +213,23 @@ CLONES static void level_forward(const nerf_hashgrid *g, const float *table, int
     level_walk lw;
     walk_start(&lw, g, l);
     for (int i = 0; i < n; i++) {
-        const corners c = walk_corners(&lw, n, x, i);
+        const int j = walk_next(&lw, n, x, i, table, F, 0);
+        const uint64_t *idx = lw.idx[j];
+        const float *w = lw.w[j];
         float *yi = y + (size_t)i * ldy + l * F;
         if (F == 2) {
             float a0 = 0.0f, a1 = 0.0f;
             for (int k = 0; k < 8; k++) {
-                const float *e = table + c.idx[k] * 2;
-                a0 += c.w[k] * e[0];
-                a1 += c.w[k] * e[1];
+                const float *e = table + idx[k] * 2;
+                a0 += w[k] * e[0];
+                a1 += w[k] * e[1];
             }
             yi[0] = a0, yi[1] = a1;
         } else {
             float acc[8] = {0};
             for (int k = 0; k < 8; k++) {
-                const float *e = table + c.idx[k] * F;
-                for (int f = 0; f < F; f++) acc[f] += c.w[k] * e[f];
+                const float *e = table + idx[k] * F;
+                for (int f = 0; f < F; f++) acc[f] += w[k] * e[f];
             }
             for (int f = 0; f < F; f++) yi[f] = acc[f];
         }
@@ -215,19 +244,21 @@ CLONES static void level_backward_table(const nerf_hashgrid *g, int n, const flo
     level_walk lw;
     walk_start(&lw, g, l);
     for (int i = 0; i < n; i++) {
-        const corners c = walk_corners(&lw, n, x, i);
+        const int j = walk_next(&lw, n, x, i, dtable, F, 1);
+        const uint64_t *idx = lw.idx[j];
+        const float *w = lw.w[j];
         const float *gl = dy + (size_t)i * lddy + l * F;
         if (F == 2) {
             const float g0 = gl[0], g1 = gl[1];
             for (int k = 0; k < 8; k++) {
-                float *e = dtable + c.idx[k] * 2;
-                e[0] += c.w[k] * g0;
-                e[1] += c.w[k] * g1;
+                float *e = dtable + idx[k] * 2;
+                e[0] += w[k] * g0;
+                e[1] += w[k] * g1;
             }
         } else {
             for (int k = 0; k < 8; k++) {
-                float *e = dtable + c.idx[k] * F;
-                for (int f = 0; f < F; f++) e[f] += c.w[k] * gl[f];
+                float *e = dtable + idx[k] * F;
+                for (int f = 0; f < F; f++) e[f] += w[k] * gl[f];
             }
         }
     }

@@ -14,10 +14,11 @@
  * the upper cell is used, so the position gradient there is the one-sided derivative from above.
  * Table gradients are sparse: only the 8·L entries a point touches are written, accumulated (+=) into the
  * caller's buffer (one per thread, summed in a fixed order, for determinism).
- * Cost: both directions run level-major (one level's slice of the table, at most T·F floats = 512 KiB for the
- * RayFormer grid, stays in L2 while every point visits it), so call them with many points at once — a thread's
- * whole range, not one patch (4× faster than point-major on 65,536 random points). The position gradient is
- * summed over levels in float.
+ * Cost: both directions run level-major (one level's slice of the table, at most T·F floats, stays in the caches
+ * while every point visits it), so call them with many points at once — a thread's whole range, not one patch (4×
+ * faster than point-major on 65,536 random points). A slice of RayFormer's 2^19-entry table is 4 MiB, more than
+ * L2: each point's 8 corners are prefetched 16 points ahead of their use. The position gradient is summed over
+ * levels in float.
  */
 #ifndef SCICAP_RECON_NERF_HASHGRID_H
 #define SCICAP_RECON_NERF_HASHGRID_H

@@ -6,11 +6,16 @@
 #include <string.h>
 
 #include "base/rng.h"
+#include "recon/nerf/smallgemm.h"
 
 void nerf_linear_forward(int n, int in, int out, const float *W, const float *b, const float *x, int ldx,
                          float *y, int ldy)
 {
     if (n <= 0) return;
+    if (nerf_smallgemm_fits(in, out)) {
+        nerf_smallgemm_rows(n, in, out, x, ldx, W, in, 1, b, 0, y, ldy);
+        return;
+    }
     float beta = 0.0f;
     if (b) {
         for (int i = 0; i < n; i++) memcpy(y + (size_t)i * ldy, b, (size_t)out * sizeof *y);
@@ -23,6 +28,10 @@ void nerf_linear_forward_add(int n, int in, int out, const float *W, const float
                              float *y, int ldy)
 {
     if (n <= 0) return;
+    if (nerf_smallgemm_fits(in, out)) {
+        nerf_smallgemm_rows(n, in, out, x, ldx, W, in, 1, b, 1, y, ldy);
+        return;
+    }
     if (b)
         for (int i = 0; i < n; i++)
             for (int o = 0; o < out; o++) y[(size_t)i * ldy + o] += b[o];
@@ -33,10 +42,15 @@ void nerf_linear_backward(int n, int in, int out, const float *W, const float *x
                           int ldy, float *dx, int lddx, int accumulate_dx, float *dW, float *db)
 {
     if (n <= 0) return;
-    if (dx)
+    const int small = nerf_smallgemm_fits(in, out);
+    if (dx && small)
+        nerf_smallgemm_rows(n, out, in, dy, ldy, W, in, 0, NULL, accumulate_dx, dx, lddx);
+    else if (dx)
         cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, n, in, out, 1.0f, dy, ldy, W, in,
                     accumulate_dx ? 1.0f : 0.0f, dx, lddx);
-    if (dW)
+    if (dW && small)
+        nerf_smallgemm_atb(n, out, in, dy, ldy, x, ldx, dW, in);
+    else if (dW)
         cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, out, in, n, 1.0f, dy, ldy, x, ldx, 1.0f, dW, in);
     if (db) {
         /* row-wise so the inner loop runs over contiguous outputs and vectorises; the sum per output is still

@@ -1,4 +1,5 @@
-/* recon/nerf/linear.h — dense layer y = x·Wᵀ + b through OpenBLAS cblas_sgemm.
+/* recon/nerf/linear.h — dense layer y = x·Wᵀ + b: narrow layers (in and out at most 128) through the register
+ * kernels of smallgemm.h, wider ones through OpenBLAS cblas_sgemm.
  *
  * Shapes (row-major): x n×in (leading dimension ldx >= in), W out×in, b out, y n×out (ldy >= out).
  * Weights are borrowed pointers into the caller's parameter array; gradients are *accumulated* (+=) into the
@@ -9,7 +10,7 @@
  * Inside an OpenMP region call nerf_blas_single_thread() first: Debian's OpenBLAS is the pthread build and would
  * otherwise oversubscribe the cores. Reentrant on disjoint outputs.
  *
- * Precision: float32 storage and sgemm arithmetic; the bias gradient is summed in double.
+ * Precision: float32 storage and arithmetic; the bias gradient is summed in double.
  */
 #ifndef SCICAP_RECON_NERF_LINEAR_H
 #define SCICAP_RECON_NERF_LINEAR_H

@@ -25,13 +25,15 @@
  *     adam step: [0, hash_params) lazy without decay, the rest with (nerf_rayformer_hash_param_count).
  *
  * Parameters: one float array; the hash table first, then the blocks, the final LN, the head and the colour MLP.
- * Workspace: activations for max_patches (nerf_rayformer_ws_bytes) and one gradient slice per patch for the
- * parameters after the hash table (~75 KB each for the default network).
- * Threads: forward/backward run an OpenMP team of n_threads that takes patches (and hash-encoding chunks of 8192
- * points) dynamically, so a thread whose core is shared with another job takes less work. Each patch writes its
- * own gradient slice, summed in patch order; the table gradient is split by level (disjoint slices, points in
- * order): bitwise identical results for the same inputs whatever the thread count and schedule. Both set
- * OpenBLAS to one thread (its pthread pool would oversubscribe inside the team).
+ * Workspace: activations for max_patches (nerf_rayformer_ws_bytes) and one gradient slice per group of patches for
+ * the parameters after the hash table (~75 KB each for the default network).
+ * Threads: forward/backward run an OpenMP team of n_threads. The hash encoding is split by level (levels write
+ * disjoint columns and, backward, disjoint slices of the table gradient, points in order); the rest of the network
+ * takes groups of patches of about 1024 rows (8 patches of 2 × 2 rays × 32 samples, one of 8 × 8 × 32)
+ * dynamically, so a thread whose core is shared with another job takes less work. Each group writes its own
+ * gradient slice, summed in group order: bitwise identical results for the same inputs whatever the thread count
+ * and schedule (the grouping depends only on the patch shape). Both set OpenBLAS to one thread (its pthread pool
+ * would oversubscribe inside the team).
  * The network object is immutable after _new (thread-safe); a workspace serves one call at a time.
  * Errors: -EINVAL for n_patches outside 1 … max_patches; nothing else fails after _new.
  */

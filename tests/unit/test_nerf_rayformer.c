@@ -304,6 +304,75 @@ static void test_rayformer_deterministic(void **state)
     deterministic_check(&cfg, 40);
 }
 
+/* Patches are taken in groups of about 1024 rows (rayformer.c): 2 full groups and a partial one in one call give
+ * the outputs of one call per patch, and the gradient of their sum (float rounding only: the sums' order
+ * differs). A group that ran a wrong number of patches, or wrote another group's rows, fails by O(1). */
+static double rel_diff(const float *a, const double *b, size_t n)
+{
+    double d = 0.0, s = 0.0;
+    for (size_t i = 0; i < n; i++) d += (a[i] - b[i]) * (a[i] - b[i]), s += b[i] * b[i];
+    return sqrt(d / (s > 0 ? s : 1));
+}
+
+static void test_rayformer_groups(void **state)
+{
+    (void)state;
+    sci_rng rng;
+    sci_rng_seed(&rng, test_seed(), 3);
+    nerf_rayformer_config cfg = small_config();
+    nerf_rayformer *net;
+    sci_error err = {0};
+    assert_int_equal(nerf_rayformer_new(&net, &cfg, &err), 0);
+    const int R = cfg.patch_w * cfg.patch_h, L = cfg.samples, group = 1024 / (R * L), Pn = 2 * group + 7;
+    const int N = Pn * R * L;
+    const size_t np = nerf_rayformer_param_count(net);
+    float *P = malloc(np * 4), *pos = malloc(3 * (size_t)N * 4), *dir = malloc(3 * (size_t)Pn * R * 4);
+    float *ds = malloc((size_t)N * 4), *dc = malloc(3 * (size_t)N * 4), *sig = malloc((size_t)N * 4);
+    float *rgb = malloc(3 * (size_t)N * 4), *G = malloc(np * 4), *dpos = malloc(3 * (size_t)N * 4);
+    float *ddir = malloc(3 * (size_t)Pn * R * 4), *G1 = malloc(np * 4);
+    double *sig1 = malloc((size_t)N * 8), *rgb1 = malloc(3 * (size_t)N * 8), *Gs = calloc(np, 8);
+    double *dpos1 = malloc(3 * (size_t)N * 8), *ddir1 = malloc(3 * (size_t)Pn * R * 8);
+    nerf_rayformer_init(net, P, 11);
+    for (size_t j = 0; j < nerf_rayformer_hash_param_count(net); j++) P[j] = (float)(sci_rng_uniform(&rng) - 0.5);
+    for (int i = 0; i < 3 * N; i++) pos[i] = (float)(2 * sci_rng_uniform(&rng) - 1), dc[i] = (float)sci_rng_normal(&rng);
+    for (int i = 0; i < N; i++) ds[i] = (float)sci_rng_normal(&rng);
+    for (int r = 0; r < Pn * R; r++) dir[3 * r] = 0.6f, dir[3 * r + 1] = 0.0f, dir[3 * r + 2] = -0.8f;
+
+    nerf_rayformer_ws *ws;
+    assert_int_equal(nerf_rayformer_ws_new(&ws, net, Pn, 2, &err), 0);
+    assert_int_equal(nerf_rayformer_forward(net, P, ws, Pn, pos, dir, sig, rgb), 0);
+    assert_int_equal(nerf_rayformer_backward(net, P, ws, ds, dc, G, dpos, ddir), 0);
+    nerf_rayformer_ws_free(ws);
+
+    assert_int_equal(nerf_rayformer_ws_new(&ws, net, 1, 1, &err), 0);
+    for (int p = 0; p < Pn; p++) {
+        const size_t r0 = (size_t)p * R * L;
+        float s1[64], c1[192], dp1[192], dd1[12];
+        assert_true(R * L <= 64 && R <= 4);
+        assert_int_equal(nerf_rayformer_forward(net, P, ws, 1, pos + 3 * r0, dir + 3 * (size_t)p * R, s1, c1), 0);
+        assert_int_equal(nerf_rayformer_backward(net, P, ws, ds + r0, dc + 3 * r0, G1, dp1, dd1), 0);
+        for (int i = 0; i < R * L; i++) {
+            sig1[r0 + i] = s1[i], dpos1[3 * (r0 + i)] = dp1[3 * i];
+            dpos1[3 * (r0 + i) + 1] = dp1[3 * i + 1], dpos1[3 * (r0 + i) + 2] = dp1[3 * i + 2];
+            for (int c = 0; c < 3; c++) rgb1[3 * (r0 + i) + c] = c1[3 * i + c];
+        }
+        for (int i = 0; i < 3 * R; i++) ddir1[3 * (size_t)p * R + i] = dd1[i];
+        for (size_t j = 0; j < np; j++) Gs[j] += G1[j];
+    }
+    nerf_rayformer_ws_free(ws);
+    printf("%d patches in groups of %d against one call each: sigma %.2g, rgb %.2g, gradient %.2g, positions %.2g, "
+           "directions %.2g\n", Pn, group, rel_diff(sig, sig1, (size_t)N), rel_diff(rgb, rgb1, 3 * (size_t)N),
+           rel_diff(G, Gs, np), rel_diff(dpos, dpos1, 3 * (size_t)N), rel_diff(ddir, ddir1, 3 * (size_t)Pn * R));
+    assert_true(rel_diff(sig, sig1, (size_t)N) < 1e-6);
+    assert_true(rel_diff(rgb, rgb1, 3 * (size_t)N) < 1e-6);
+    assert_true(rel_diff(G, Gs, np) < 1e-5);
+    assert_true(rel_diff(dpos, dpos1, 3 * (size_t)N) < 1e-6);
+    assert_true(rel_diff(ddir, ddir1, 3 * (size_t)Pn * R) < 1e-6);
+    free(P), free(pos), free(dir), free(ds), free(dc), free(sig), free(rgb), free(G), free(dpos), free(ddir);
+    free(G1), free(sig1), free(rgb1), free(Gs), free(dpos1), free(ddir1);
+    nerf_rayformer_free(net);
+}
+
 static void test_rayformer_config_errors(void **state)
 {
     (void)state;
@@ -339,6 +408,7 @@ int main(void)
         cmocka_unit_test(test_rayformer_gate_closed_is_pass_through),
         cmocka_unit_test(test_rayformer_gradcheck_head_hidden),
         cmocka_unit_test(test_rayformer_deterministic),
+        cmocka_unit_test(test_rayformer_groups),
         cmocka_unit_test(test_rayformer_config_errors),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
