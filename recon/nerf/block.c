@@ -81,9 +81,11 @@ static void gate_apply(const nerf_block_shape *s, const float *gate, int n, cons
     for (size_t r = 0; r < (size_t)n; r++) {
         const float *v = qkv + r * 3 * C + 2 * C, *a = att + r * C;
         float *o = og + r * C;
-        memcpy(o, a, (size_t)half * sizeof *o);
-        for (int c = half; c < C; c++)
-            o[c] = v[c] + gate[(c - half) / d] * (a[c] - v[c]);
+        for (int c = 0; c < half; c++) o[c] = a[c];
+        for (int h = 0; h < s->att.heads; h++) { /* one gate per head: no division per channel */
+            const float g = gate[h];
+            for (int c = half + h * d; c < half + (h + 1) * d; c++) o[c] = v[c] + g * (a[c] - v[c]);
+        }
     }
 }
 

@@ -205,9 +205,9 @@ static inline __attribute__((always_inline)) int walk_next(level_walk *lw, int n
 #define CLONES __attribute__((target_clones("avx2", "default")))
 #endif
 
-/* One level of the forward: y[i·ldy + l·F + f] for every point. */
+/* One level of the forward: y[i·ldy + col + f] for every point. */
 CLONES static void level_forward(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y,
-                                 int ldy, int l)
+                                 int ldy, int col, int l)
 {
     const int F = g->cfg.n_features;
     level_walk lw;
@@ -216,7 +216,7 @@ CLONES static void level_forward(const nerf_hashgrid *g, const float *table, int
         const int j = walk_next(&lw, n, x, i, table, F, 0);
         const uint64_t *idx = lw.idx[j];
         const float *w = lw.w[j];
-        float *yi = y + (size_t)i * ldy + l * F;
+        float *yi = y + (size_t)i * ldy + col;
         if (F == 2) {
             float a0 = 0.0f, a1 = 0.0f;
             for (int k = 0; k < 8; k++) {
@@ -236,9 +236,9 @@ CLONES static void level_forward(const nerf_hashgrid *g, const float *table, int
     }
 }
 
-/* One level of the table gradient: the entries of level l only, points in order. */
+/* One level of the table gradient (dy[i·lddy + col + f]): the entries of level l only, points in order. */
 CLONES static void level_backward_table(const nerf_hashgrid *g, int n, const float *x, const float *dy, int lddy,
-                                        float *dtable, int l)
+                                        int col, float *dtable, int l)
 {
     const int F = g->cfg.n_features;
     level_walk lw;
@@ -247,7 +247,7 @@ CLONES static void level_backward_table(const nerf_hashgrid *g, int n, const flo
         const int j = walk_next(&lw, n, x, i, dtable, F, 1);
         const uint64_t *idx = lw.idx[j];
         const float *w = lw.w[j];
-        const float *gl = dy + (size_t)i * lddy + l * F;
+        const float *gl = dy + (size_t)i * lddy + col;
         if (F == 2) {
             const float g0 = gl[0], g1 = gl[1];
             for (int k = 0; k < 8; k++) {
@@ -296,13 +296,13 @@ CLONES static void level_backward_pos(const nerf_hashgrid *g, const float *table
 
 void nerf_hashgrid_forward(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y, int ldy)
 {
-    for (int l = 0; l < g->cfg.n_levels; l++) level_forward(g, table, n, x, y, ldy, l);
+    for (int l = 0; l < g->cfg.n_levels; l++) level_forward(g, table, n, x, y, ldy, l * g->cfg.n_features, l);
 }
 
 void nerf_hashgrid_forward_level(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y,
                                  int ldy, int l)
 {
-    level_forward(g, table, n, x, y, ldy, l);
+    level_forward(g, table, n, x, y, ldy, 0, l);
 }
 
 void nerf_hashgrid_backward(const nerf_hashgrid *g, const float *table, int n, const float *x, const float *dy,
@@ -310,7 +310,7 @@ void nerf_hashgrid_backward(const nerf_hashgrid *g, const float *table, int n, c
 {
     if (dx) memset(dx, 0, 3 * (size_t)n * sizeof *dx);
     for (int l = 0; l < g->cfg.n_levels; l++) {
-        if (dtable) level_backward_table(g, n, x, dy, lddy, dtable, l);
+        if (dtable) level_backward_table(g, n, x, dy, lddy, l * g->cfg.n_features, dtable, l);
         if (dx) level_backward_pos(g, table, n, x, dy, lddy, dx, l);
     }
 }
@@ -318,5 +318,5 @@ void nerf_hashgrid_backward(const nerf_hashgrid *g, const float *table, int n, c
 void nerf_hashgrid_backward_level(const nerf_hashgrid *g, int n, const float *x, const float *dy, int lddy,
                                   float *dtable, int l)
 {
-    level_backward_table(g, n, x, dy, lddy, dtable, l);
+    level_backward_table(g, n, x, dy, lddy, 0, dtable, l);
 }

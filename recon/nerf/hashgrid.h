@@ -60,10 +60,11 @@ void nerf_hashgrid_forward(const nerf_hashgrid *g, const float *table, int n, co
 void nerf_hashgrid_backward(const nerf_hashgrid *g, const float *table, int n, const float *x, const float *dy,
                             int lddy, float *dtable, float *dx);
 
-/* One level at a time, for splitting the work between threads by level: levels write disjoint output columns
- * (forward) and disjoint slices of the table gradient (backward), so any assignment of levels to threads gives
- * the same bits with no per-thread buffer and no reduction. The level's table-gradient entries get the points'
- * contributions in point order, as in nerf_hashgrid_backward. */
+/* One level at a time, for splitting the work between threads by level: levels write disjoint outputs (forward)
+ * and disjoint slices of the table gradient (backward), so any assignment of levels to threads gives the same bits
+ * with no per-thread buffer and no reduction. y and dy hold this level's F features only: y[i·ldy + f] (a
+ * level-major buffer with ldy = F keeps each level's outputs contiguous). The level's table-gradient entries get
+ * the points' contributions in point order, as in nerf_hashgrid_backward. */
 void nerf_hashgrid_forward_level(const nerf_hashgrid *g, const float *table, int n, const float *x, float *y,
                                  int ldy, int level);
 void nerf_hashgrid_backward_level(const nerf_hashgrid *g, int n, const float *x, const float *dy, int lddy,

@@ -32,12 +32,14 @@ struct nerf_rayformer_ws {
     float *mem;
     /* saved activations (rows_max rows each) */
     float *u, *xhatf, *rstdf, *hpre, *hout, *cin, *c1pre, *rgb, *dir;
+    float *enc; /* the hash features level-major (level l's n×F block at l·n·F): each level writes or reads one
+                 * contiguous block instead of F floats of every 128-byte row */
     nerf_block_saved sv[MAX_BLOCKS];
     float *act[2];
     float **scratch;   /* per thread */
     float *pgrad;      /* per group: gradient of the parameters after the hash table (n_params − n_hash) */
     size_t scratch_floats;
-    int n_levels, n_features, levels_partial; /* coarse-to-fine: levels_partial = 1 when some weight is < 1 */
+    int n_levels, n_features;
     float level_w[NERF_HASHGRID_MAX_LEVELS];
 };
 
@@ -215,7 +217,7 @@ int nerf_rayformer_ws_new(nerf_rayformer_ws **out, const nerf_rayformer *n, int 
     w->group = n->R * n->L >= GROUP_ROWS ? 1 : GROUP_ROWS / (n->R * n->L);
     const size_t chunk = (size_t)w->group * n->R * n->L, n_groups = ((size_t)max_patches + w->group - 1) / w->group;
     w->rows_max = rows;
-    size_t per_row = 3 + C + 1 + (size_t)n->Hh + (size_t)n->G + 1 + (size_t)n->cin + (size_t)n->Hc + 3 + 2 * C +
+    size_t per_row = 3 + C + C + 1 + (size_t)n->Hh + (size_t)n->G + 1 + (size_t)n->cin + (size_t)n->Hc + 3 + 2 * C +
                      (size_t)n->cfg.n_blocks * nerf_block_saved_floats(&n->bs);
     size_t bs = nerf_block_scratch_floats(&n->bs, chunk), hs = head_scratch_floats(n, chunk);
     w->scratch_floats = (bs > hs ? bs : hs) + 16;
@@ -232,6 +234,7 @@ int nerf_rayformer_ws_new(nerf_rayformer_ws **out, const nerf_rayformer *n, int 
     float *m = w->mem;
     w->u = m, m += rows * 3;
     w->xhatf = m, m += rows * C;
+    w->enc = m, m += rows * C;
     w->rstdf = m, m += rows;
     w->hpre = m, m += rows * (size_t)n->Hh;
     w->hout = m, m += rows * ((size_t)n->G + 1);
@@ -264,24 +267,37 @@ size_t nerf_rayformer_ws_bytes(const nerf_rayformer_ws *w) { return w->bytes; }
 void nerf_rayformer_ws_set_levels(nerf_rayformer_ws *w, double alpha)
 {
     if (!(alpha >= 1.0)) alpha = 1.0;
-    w->levels_partial = 0;
     for (int l = 0; l < w->n_levels; l++) {
         double a = alpha - l, x = a <= 0 ? 0.0 : a >= 1 ? 1.0 : a;
         w->level_w[l] = (float)((1.0 - cos(M_PI * x)) / 2.0);
-        if (w->level_w[l] < 1.0f) w->levels_partial = 1;
     }
 }
 
-/* Scale the columns of n rows (stride C) level by level: the coarse-to-fine weights on features or gradients. */
-static void scale_levels(const nerf_rayformer_ws *w, long n, float *y, int C, int only_level)
+/* Level-major features enc (level l: n×F at l·n·F) → rows y (n×C), scaled by the coarse-to-fine weights; rows
+ * [i0, i1). */
+static void levels_to_rows(const nerf_rayformer_ws *w, long n, long i0, long i1, const float *enc, float *y, int C)
 {
     const int F = w->n_features;
     for (int l = 0; l < w->n_levels; l++) {
-        if (only_level >= 0 && l != only_level) continue;
+        const float s = w->level_w[l], *e = enc + (size_t)l * n * F;
+        for (long i = i0; i < i1; i++)
+            for (int f = 0; f < F; f++) y[(size_t)i * C + l * F + f] = s * e[(size_t)i * F + f];
+    }
+}
+
+/* The reverse: rows of gradients → level-major, scaled by the same weights; a level whose weight is below 1 is
+ * scaled in y too, where the position gradient reads it. */
+static void rows_to_levels(const nerf_rayformer_ws *w, long n, long i0, long i1, float *y, int C, float *enc)
+{
+    const int F = w->n_features;
+    for (int l = 0; l < w->n_levels; l++) {
         const float s = w->level_w[l];
-        if (s == 1.0f) continue;
-        for (long i = 0; i < n; i++)
-            for (int f = 0; f < F; f++) y[(size_t)i * C + l * F + f] *= s;
+        float *e = enc + (size_t)l * n * F;
+        for (long i = i0; i < i1; i++)
+            for (int f = 0; f < F; f++) e[(size_t)i * F + f] = s * y[(size_t)i * C + l * F + f];
+        if (s != 1.0f)
+            for (long i = i0; i < i1; i++)
+                for (int f = 0; f < F; f++) y[(size_t)i * C + l * F + f] *= s;
     }
 }
 
@@ -363,10 +379,12 @@ int nerf_rayformer_forward(const nerf_rayformer *n, const float *P, nerf_rayform
             for (int d = 0; d < 3; d++)
                 w->u[3 * i + d] = (pos[i * 3 + d] - cf->aabb_min[d]) / (cf->aabb_max[d] - cf->aabb_min[d]);
 #pragma omp for schedule(dynamic, 1)
-        for (int l = 0; l < levels; l++) {
-            nerf_hashgrid_forward_level(n->grid, P, (int)N, w->u, w->act[0], n->C, l);
-            if (w->levels_partial) scale_levels(w, N, w->act[0], n->C, l);
-        }
+        for (int l = 0; l < levels; l++)
+            nerf_hashgrid_forward_level(n->grid, P, (int)N, w->u, w->enc + (size_t)l * N * w->n_features,
+                                        w->n_features, l);
+#pragma omp for schedule(static)
+        for (long c0 = 0; c0 < N; c0 += HASH_CHUNK)
+            levels_to_rows(w, N, c0, N - c0 < HASH_CHUNK ? N : c0 + HASH_CHUNK, w->enc, w->act[0], n->C);
 #pragma omp for schedule(dynamic, 1)
         for (int p = 0; p < n_patches; p += w->group)
             patch_forward(n, P, w, p, n_patches - p < w->group ? n_patches - p : w->group, sigma, rgb,
@@ -474,11 +492,13 @@ int nerf_rayformer_backward(const nerf_rayformer *n, const float *P, nerf_rayfor
         }
 #pragma omp for schedule(static)
         for (size_t j = 0; j < nh; j += 4096) memset(grad + j, 0, (nh - j < 4096 ? nh - j : 4096) * sizeof *grad);
+#pragma omp for schedule(static)
+        for (long c0 = 0; c0 < N; c0 += HASH_CHUNK)
+            rows_to_levels(w, N, c0, N - c0 < HASH_CHUNK ? N : c0 + HASH_CHUNK, w->act[0], C, w->enc);
 #pragma omp for schedule(dynamic, 1)
-        for (int l = 0; l < levels; l++) {
-            if (w->levels_partial) scale_levels(w, N, w->act[0], C, l); /* this level's columns only */
-            nerf_hashgrid_backward_level(n->grid, (int)N, w->u, w->act[0], C, grad, l);
-        }
+        for (int l = 0; l < levels; l++)
+            nerf_hashgrid_backward_level(n->grid, (int)N, w->u, w->enc + (size_t)l * N * w->n_features,
+                                         w->n_features, grad, l);
         if (d_pos) {
 #pragma omp for schedule(dynamic, 1)
             for (long c0 = 0; c0 < N; c0 += HASH_CHUNK) {

@@ -95,8 +95,8 @@ int sci_rayformer_params_preset(sci_rayformer_params *p, const char *name)
      * the long run has 31.21 dB at step 1500 and 31.38 at 1800, and a run of its own 1600 steps ends at 31.37.
      * Balanced within 0.3 dB: 32.00 at 3300, 32.09 at 3600, its own 3400 steps 32.11. Best within 0.1 dB: 32.21
      * at 4500. The presets differ in steps only, so the ceiling, a long run of fast's settings, is the curve they sit
-     * on. At 0.17–0.25 s a step (128×128×8, 2 threads, AMD EPYC hosts) fast takes 4.5–7 min, balanced 10–14, best
-     * 13–19 (413 s and 836 s measured for fast and balanced on photo_llff on the slower host) */
+     * on. At 0.16–0.17 s a step (128×128×8, 2 threads, AMD EPYC host) fast takes 4.3–4.7 min, balanced about 9.5,
+     * best about 12.5 (fast on photo_llff / orbit / noisy 261 / 280 / 259 s, docs/benchmarks.md) */
     static const struct {
         const char *name;
         int iters;

@@ -48,8 +48,9 @@ int sci_scinerf_params_preset(sci_scinerf_params *p, const char *name)
      * photographic scenes' ceilings by io/ceiling.h's rule (tests/unit/test_nerf_presets), at evaluated steps of the
      * photo_llff ceiling (plateau 31.62 dB, bench/results/nerf_ceiling_photo_llff.md): fast within 1 dB (30.89 at
      * 1500; 30.59 at 1200), balanced within 0.3 dB (31.33 at 2400), best within 0.1 dB (31.56 at 3600). The
-     * presets differ in steps only. At 0.29 s a step of 1024 rays there (2 threads) fast takes 7 min, balanced 11,
-     * best 17; a fine network (32 importance samples) cost 1.44 s a step on the corridor for no gain */
+     * presets differ in steps only. At 0.24 s a step of 1024 rays (2 threads; fast on photo_llff 362 s) fast takes
+     * 6 min, balanced 10, best 14.5; a fine network (32 importance samples) cost 1.44 s a step on the corridor for no
+     * gain */
     static const struct {
         const char *name;
         int iters;

@@ -126,11 +126,54 @@ static void test_atb_match_double(void **state)
     printf("%d shapes of D += Aᵀ·X match the double product\n", cases + 1);
 }
 
+/* Hard cases: a NaN in A reaches exactly its own row of C (and its own column of D), a padded lane never leaks
+ * into a real one; products of 1e30 overflow to ±inf as float arithmetic does; denormal inputs give their exact
+ * (tiny) sums; zero rows give zeros (or the bias). */
+static void test_hard_cases(void **state)
+{
+    (void)state;
+    enum { M = 9, KA = 19, NB = 33 };
+    float A[M * KA], B[KA * NB], C[M * NB], bias[NB];
+    for (int i = 0; i < M * KA; i++) A[i] = (float)((i % 7) - 3) * 0.25f;
+    for (int i = 0; i < KA * NB; i++) B[i] = (float)((i % 5) - 2) * 0.5f;
+    for (int o = 0; o < NB; o++) bias[o] = (float)o;
+    A[4 * KA + 7] = NAN;
+    for (int j = 0; j < KA; j++) A[6 * KA + j] = 0.0f; /* a zero row */
+    nerf_smallgemm_rows(M, KA, NB, A, KA, B, NB, 0, bias, 0, C, NB);
+    for (int i = 0; i < M; i++)
+        for (int o = 0; o < NB; o++) {
+            if (i == 4) assert_true(isnan(C[i * NB + o]));
+            else assert_true(isfinite(C[i * NB + o]));
+            if (i == 6) assert_true(C[i * NB + o] == bias[o]);
+        }
+    /* overflow: 1e30 · 1e30 is +inf in float, −inf where a factor is negative; +inf + (−inf) is NaN */
+    float a2[2] = {1e30f, 1e30f}, b2[2 * 3] = {1e30f, -1e30f, 1e30f, 1e30f, -1e30f, -1e30f}, c2[3];
+    nerf_smallgemm_rows(1, 2, 3, a2, 2, b2, 3, 0, NULL, 0, c2, 3);
+    assert_true(isinf(c2[0]) && c2[0] > 0);
+    assert_true(isinf(c2[1]) && c2[1] < 0);
+    assert_true(isnan(c2[2])); /* +inf + (−inf) */
+    /* denormals: 1e-39 · 1 summed 3 times */
+    float a3[3] = {1e-39f, 1e-39f, 1e-39f}, b3[3] = {1.0f, 1.0f, 1.0f}, c3[1];
+    nerf_smallgemm_rows(1, 3, 1, a3, 3, b3, 1, 0, NULL, 0, c3, 1);
+    assert_true(c3[0] == (1e-39f + 1e-39f) + 1e-39f && c3[0] > 0.0f);
+    /* D += Aᵀ·X with a NaN in X: only its column of D */
+    float X[M * KA], D[NB * KA];
+    for (int i = 0; i < M * KA; i++) X[i] = (float)((i % 3) - 1);
+    for (int i = 0; i < NB * KA; i++) D[i] = 0.0f;
+    X[2 * KA + 5] = NAN;
+    float Aw[M * NB];
+    for (int i = 0; i < M * NB; i++) Aw[i] = 0.5f;
+    nerf_smallgemm_atb(M, NB, KA, Aw, NB, X, KA, D, KA);
+    for (int o = 0; o < NB; o++)
+        for (int c = 0; c < KA; c++) assert_true(c == 5 ? isnan(D[o * KA + c]) : isfinite(D[o * KA + c]));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rows_match_double),
         cmocka_unit_test(test_atb_match_double),
+        cmocka_unit_test(test_hard_cases),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
