@@ -2,7 +2,7 @@
  * the SCINeRF-style MLP field.
  *
  * Prints, per block and for the whole networks, forward + backward points per second on both threads, the memory
- * per point and the process peak RSS, and writes bench/results/nerf.md. The RayFormer step is the issue-5 target:
+ * per point and the process peak RSS, and writes bench/results/nerf.md. The RayFormer step is the throughput target:
  * network forward, volume rendering, measurement + TV loss, backward and Adam at 65,536 points per step
  * (4 patches × 64 pixels × 8 poses × 32 samples). Each figure is the best and the median of repeated runs after a
  * warm-up (the machine is shared: the best is the machine's speed, the median what the load left of it); the

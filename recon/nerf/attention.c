@@ -19,6 +19,7 @@
 #pragma GCC optimize("no-trapping-math")
 
 #include "recon/nerf/attention.h"
+#include "recon/nerf/vec16.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -33,26 +34,10 @@
 #endif
 #define INLINE static inline __attribute__((always_inline))
 
-/* The vector helpers are always inlined: the psABI warning about returning 64-byte vectors never applies. */
-#pragma GCC diagnostic ignored "-Wpsabi"
-
-#define VW 16
 #define MAXD 128 /* d = C/(2·heads) <= 128 since C <= 256 */
-typedef float vf __attribute__((vector_size(4 * VW)));
 typedef int32_t vi __attribute__((vector_size(4 * VW)));
 
-INLINE vf vload(const float *p)
-{
-    vf v;
-    memcpy(&v, p, sizeof v);
-    return v;
-}
-/* Stores and selects are macros and vexp takes a pointer: no function has a 64-byte vector parameter, which
- * would make gcc print a psABI note on every build even though everything here is inlined. */
-typedef struct vbox {
-    vf v;
-} vbox;
-#define vstore(p, x) memcpy((p), &(vbox){(x)}.v, sizeof(vf))
+/* Selects are macros and vexp takes a pointer: no function has a 64-byte vector parameter (vec16.h) */
 #define vsel(m, a, b) ((vf)(((vi)(a) & (m)) | ((vi)(b) & ~(m))))
 typedef float v8 __attribute__((vector_size(32)));
 INLINE v8 v8load(const float *p)
@@ -65,7 +50,6 @@ typedef struct v8box {
     v8 v;
 } v8box;
 #define v8store(p, x) memcpy((p), &(v8box){(x)}.v, sizeof(v8))
-INLINE vf vsplat(float x) { return (vf){0} + x; }
 
 /* Lane-wise nerf_expf (fastmath.h), the same operations in the same order. */
 INLINE vf vexp(const vf *xp)

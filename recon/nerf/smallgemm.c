@@ -8,6 +8,7 @@
  * become registers.
  */
 #include "recon/nerf/smallgemm.h"
+#include "recon/nerf/vec16.h"
 
 #include <string.h>
 
@@ -20,23 +21,7 @@
 #endif
 #define INLINE static inline __attribute__((always_inline))
 
-/* The vector helpers are always inlined: the psABI warning about returning 64-byte vectors never applies. */
-#pragma GCC diagnostic ignored "-Wpsabi"
-
-#define VW 16
 #define MAXV (NERF_SMALLGEMM_MAX / VW)
-typedef float vf __attribute__((vector_size(4 * VW)));
-typedef struct vbox {
-    vf v;
-} vbox;
-
-INLINE vf vload(const float *p)
-{
-    vf v;
-    memcpy(&v, p, sizeof v);
-    return v;
-}
-#define vstore(p, x) memcpy((p), &(vbox){(x)}.v, sizeof(vf))
 
 /* Vector v of a row of n floats: the tail vector through a zero-padded copy, so nothing past the row is read. */
 INLINE vf vload_row(const float *row, int n, int v)
