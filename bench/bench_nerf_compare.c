@@ -1,6 +1,7 @@
 /* bench/bench_nerf_compare.c — the README's comparison on static3d scenes: GAP-TV, ADMM-TV, scinerf and
  * rayformer with each ablation step added in the paper's order (baseline → +patch sampling → +inter-ray →
- * +intra-ray → +TV), the patch-size study (2, 4, 8, 16), and scinerf / rayformer with the camera poses optimised
+ * +intra-ray → +TV), the patch-size study (2, 4, 8, 16), the window-stride study (the + patch rung and the full
+ * method with windows of stride 2 and 3, part "stride"), and scinerf / rayformer with the camera poses optimised
  * from a SCINeRF-style start (start/end on SE(3) from the identity plus a small perturbation: only the
  * intrinsics known). PSNR (peak = 1), SSIM, wall time and, for the NeRF rows, the measurement residual and the mean
  * largest ray weight (the fog diagnostics) per row; the table is rewritten after every row, so a long run
@@ -13,7 +14,7 @@
  * It takes hours on the 2-core machine (every NeRF row trains a whole preset), so `make bench` only prints how to
  * run it:  build/bench/bench_nerf_compare --run [--preset fast|balanced|best] [--scenes corridor,orbit,noisy]
  *          (a scene is etc/scenes/static3d_NAME.json, else etc/scenes/NAME.json: photo_llff, photo_orbit, photo_noisy)
- *                                         [--parts classic,scinerf,ladder,patch,poses]
+ *                                         [--parts classic,scinerf,ladder,patch,stride,poses]
  *                                         [--seeds N | --more-seeds N]
  *        build/bench/bench_nerf_compare --table [--preset P] [--out NAME]   (only rewrites a table from its rows)
  * (part "attention": only the ladder's rungs from + inter-ray on, the ones a change to the attention or TV moves;
@@ -105,6 +106,8 @@ static const char *row_part(const char *method)
         return "classic";
     if (strstr(method, "poses optimised"))
         return "poses";
+    if (strstr(method, ", stride "))
+        return "stride";
     /* the SCINeRF rows are labelled by the method's name (its row in recon/solver.h) */
     if (strncmp(method, sci_scinerf_solver.name, strlen(sci_scinerf_solver.name)) == 0)
         return sci_scinerf_solver.name;
@@ -136,11 +139,11 @@ static int redone(const char *method, const char *parts)
  * then as measured. */
 static int part_rank(const char *method)
 {
-    const char *const order[] = {"classic", sci_scinerf_solver.name, "ladder", "patch", "poses"};
-    for (int i = 0; i < 5; i++)
+    const char *const order[] = {"classic", sci_scinerf_solver.name, "ladder", "patch", "stride", "poses"};
+    for (int i = 0; i < 6; i++)
         if (strcmp(row_part(method), order[i]) == 0)
             return i;
-    return 5;
+    return 6;
 }
 
 static void sort_rows(void)
@@ -587,6 +590,23 @@ static void patch_study(const char *name, const sci_problem *p, const sci_rayfor
     }
 }
 
+/* window-stride study: the + patch rung and the full method with windows of stride 2 and 3 (the stride-1 rows are
+ * the ladder's), the same rays per step: what the rungs trade in coverage of the image a step */
+static void stride_study(const char *name, const sci_problem *p, const sci_rayformer_params *qf, double tv)
+{
+    for (int d = 2; d <= 3; d++)
+        for (int rung = 1; rung <= 4; rung += 3) {
+            sci_rayformer_params v = *qf;
+            sci_rayformer_params_ablation(&v, rung, tv);
+            v.patch_stride = d;
+            if (p->mask->w < v.patch * d || p->mask->h < v.patch * d)
+                continue;
+            char label[96];
+            snprintf(label, sizeof label, "rayformer %s, stride %d", rung == 1 ? "+ patch sampling" : "full", d);
+            rayformer_row(name, p, label, &v);
+        }
+}
+
 static void one_scene(const char *name, const char *parts)
 {
     sci_problem *p = scene_simulate(name);
@@ -657,6 +677,8 @@ static void one_scene(const char *name, const char *parts)
     }
     if (strstr(parts, "patch"))
         patch_study(name, p, &q);
+    if (strstr(parts, "stride"))
+        stride_study(name, p, &q, tv);
     if (!strstr(parts, "poses")) {
         sci_problem_free(p);
         return;
@@ -698,7 +720,7 @@ int main(int argc, char **argv)
             ;
         else {
             fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c]\n"
-                            "         [--parts classic,scinerf,ladder,attention,full,patch,poses] [--seeds 1…16 | --more-seeds 1…16]\n"
+                            "         [--parts classic,scinerf,ladder,attention,full,patch,stride,poses] [--seeds 1…16 | --more-seeds 1…16]\n"
                             "         [--out NAME]   (bench/results/NAME.{tsv,md}, a-z and _, up to 31; default nerf_compare_<preset>)\n"
                             "       bench_nerf_compare --table [--preset P] [--out NAME]   (the table from its stored rows)\n"
                             "  the ablation study (ladder, patch sizes, poses) lives in --out nerf_ablation\n");

@@ -21,13 +21,29 @@ void nerf_strata_pick(int n, int span_x, int span_y, sci_rng *rng, int *x, int *
     }
 }
 
-void nerf_patch_pixels(int x0, int y0, int pw, int ph, int *px, int *py)
+void nerf_patch_pixels(int x0, int y0, int pw, int ph, int d, int *px, int *py)
 {
     for (int y = 0; y < ph; y++)
         for (int x = 0; x < pw; x++) {
-            px[y * pw + x] = x0 + x;
-            py[y * pw + x] = y0 + y;
+            px[y * pw + x] = x0 + d * x;
+            py[y * pw + x] = y0 + d * y;
         }
+}
+
+int nerf_tile_count(int w, int h, int pw, int ph, int d, int ox, int oy)
+{
+    const int bw = pw * d, bh = ph * d;
+    return (w + ox + bw - 1) / bw * ((h + oy + bh - 1) / bh) * d * d;
+}
+
+void nerf_tile_window(int t, int w, int h, int pw, int ph, int d, int ox, int oy, int *x0, int *y0)
+{
+    const int bw = pw * d, bh = ph * d, nx = (w + ox + bw - 1) / bw, blk = t / (d * d), off = t % (d * d);
+    int bx = blk % nx * bw - ox, by = blk / nx * bh - oy;
+    bx = bx < 0 ? 0 : bx > w - bw ? w - bw : bx;
+    by = by < 0 ? 0 : by > h - bh ? h - bh : by;
+    *x0 = bx + off % d;
+    *y0 = by + off / d;
 }
 
 double nerf_depth_at(nerf_spacing sp, double near, double far, double s)

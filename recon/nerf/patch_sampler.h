@@ -1,6 +1,8 @@
 /* recon/nerf/patch_sampler.h — rays of pixel patches (RayFormer's patch-level sampling) or of scattered pixels.
  *
- * A patch is pw × ph pixels whose top-left pixel is (x0, y0); ray r = y·pw + x sees pixel (x0 + x, y0 + y). A
+ * A patch is pw × ph pixels whose top-left pixel is (x0, y0); ray r = y·pw + x sees pixel (x0 + d·x, y0 + d·y),
+ * d >= 1 the window's stride (1: adjacent pixels; d > 1 spreads the same rays over ((pw − 1)·d + 1)² pixels, as
+ * GRAF's dilated patches do, for more of the image a step at the same rays). A
  * "scattered" patch has the same shape but its rays are arbitrary pixels (the random-ray baseline: the network still
  * sees pw·ph rays at a time). Samples along a ray lie at depths t_s = near + (s + u_s)·(far − near)/L along −z in the
  * camera frame (linear spacing; nerf_spacing for the others), u_s = 0.5 at inference and U(0, 1) (stratified
@@ -36,8 +38,17 @@ void nerf_rays_camera(const sci_camera *cam, int n_rays, const int *px, const in
  * clamped at 0. The depth of a point of nerf_rays_camera is −pcam_z. */
 void nerf_rays_camera_depths(const sci_camera *cam, int n_rays, const int *px, const int *py, int L, const float *t,
                              double far, float *pcam, float *dcam, float *delta);
-/* Pixels of a patch: px, py (pw·ph each) for the patch at (x0, y0). */
-void nerf_patch_pixels(int x0, int y0, int pw, int ph, int *px, int *py);
+/* Pixels of a patch: px, py (pw·ph each) for the patch at (x0, y0) with stride d >= 1. */
+void nerf_patch_pixels(int x0, int y0, int pw, int ph, int d, int *px, int *py);
+/* Pixels a patch of side p with stride d spans along one axis: (p − 1)·d + 1. */
+static inline int nerf_patch_span(int p, int d) { return (p - 1) * d + 1; }
+/* Window t of the inference tiling of a w × h image by pw × ph windows of stride d, shifted (ox, oy) pixels up and
+ * left (0 <= ox < pw·d, 0 <= oy < ph·d): blocks of pw·d × ph·d pixels, nerf_tile_count(...) windows, each block
+ * d² windows offset (0 … d − 1)² that interleave to cover it. Blocks are clamped inside the image, never single
+ * windows, so every pixel belongs to at least one window (overlaps only where a clamped block meets its neighbour);
+ * needs w >= pw·d and h >= ph·d. Writes the window's top-left pixel. */
+int nerf_tile_count(int w, int h, int pw, int ph, int d, int ox, int oy);
+void nerf_tile_window(int t, int w, int h, int pw, int ph, int d, int ox, int oy, int *x0, int *y0);
 /* n positions (x[k], y[k]) in [0, span_x) × [0, span_y), stratified: the rectangle is cut into a gx × gy grid
  * (gx·gy ≥ n cells of about equal area and aspect), n cells evenly spaced in row-major order from a random start
  * are chosen, and each position is uniform in its cell, so every step's positions cover the whole rectangle while

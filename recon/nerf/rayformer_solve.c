@@ -38,6 +38,7 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
      * their depth jitter (noisy +0.21 dB, corridor and orbit −0.14 … −0.31; docs/nerf-methods.md, "The recipe") */
     *p = (sci_rayformer_params){.iters = 3400, /* the balanced preset's */
                                 .patch = 2,
+                                .patch_stride = 1,
                                 .patches_per_step = 128,
                                 .samples = 32,
                                 .blocks = 1,
@@ -130,6 +131,7 @@ static void rf_config(const void *params, nerf_train_config *c)
 {
     const sci_rayformer_params *p = params;
     c->group_w = c->group_h = p->patch;
+    c->group_stride = p->patch_stride;
     c->groups_per_step = p->patches_per_step;
     c->patch_sampling = p->patch_sampling;
     c->stratify = p->stratify;
@@ -150,6 +152,8 @@ static int rf_check(const void *params, sci_error *err)
     const sci_rayformer_params *p = params;
     if (p->patch != 2 && p->patch != 4 && p->patch != 8 && p->patch != 16)
         return sci_error_set(err, -EINVAL, "rayformer: patch must be 2, 4, 8 or 16 (got %d)", p->patch);
+    if (p->patch_stride < 1 || p->patch_stride > 8)
+        return sci_error_set(err, -EINVAL, "rayformer: patch-stride must be in [1, 8] (got %d)", p->patch_stride);
     if (p->log2_table < 10 || p->log2_table > 24)
         return sci_error_set(err, -EINVAL, "rayformer: log2-table must be in [10, 24] (got %d)", p->log2_table);
     if (!(p->finest_res >= 16) || !(p->finest_res <= 1e6))
@@ -293,6 +297,7 @@ static const char *const ablation_steps[] = {"baseline", step_patch + 1, step_in
 #define RF(k, t, f, lo, hi, help) {k, t, offsetof(sci_rayformer_params, f), lo, hi, NULL, 0, help}
 static const solver_field rf_fields[] = {
     RF("patch", SOLVER_FIELD_INT, patch, 2, 16, "patch side: 2, 4, 8 or 16"),
+    RF("patch_stride", SOLVER_FIELD_INT, patch_stride, 1, 8, "pixels between a window's neighbouring rays (1: next)"),
     RF("patches_per_step", SOLVER_FIELD_INT, patches_per_step, 1, 65536, "patch locations per step"),
     RF("blocks", SOLVER_FIELD_INT, blocks, 0, 8, "I²R transformer blocks (0: 2)"),
     RF("log2_table", SOLVER_FIELD_INT, log2_table, 10, 24, "hash table entries per level, log2"),

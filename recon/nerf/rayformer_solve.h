@@ -61,6 +61,9 @@ typedef struct sci_rayformer_params {
                                     window (trainer.h); only inter-ray attention makes them differ */
     int inter_gate;              /* 1: the inter-ray path's output is v + g·(attention − v), g learned per head from 0
                                     (the path starts as the + patch rung's pass-through; block.h); 0: the attention */
+    int patch_stride;            /* pixels between neighbouring rays of a window, 1 … 8, in training and at
+                                    inference (1: adjacent, the paper's patches; d > 1: dilated windows spanning
+                                    (patch − 1)·d + 1 pixels a side, patch_sampler.h) */
     int stratify;                /* 1: a training step's windows (scattered rays without patch sampling) one per cell of
                                     a grid over the image; 0: each uniform (trainer.h) */
     int window_jitter;           /* with inter-ray attention: 1 = in training the rays of a window share their depth

@@ -26,6 +26,9 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
         return sci_error_set(err, -EINVAL, "%s: iters must be in [1, 1e7] (got %d)", m, c->iters);
     if (c->group_w < 1 || c->group_h < 1 || c->group_w * c->group_h > 4096)
         return sci_error_set(err, -EINVAL, "%s: ray group %dx%d out of range", m, c->group_w, c->group_h);
+    if (c->group_stride < 0 || c->group_stride > 64)
+        return sci_error_set(err, -EINVAL, "%s: window stride must be in [0, 64] (0: 1) (got %d)", m,
+                             c->group_stride);
     if (c->groups_per_step < 1 || c->groups_per_step > 4096)
         return sci_error_set(err, -EINVAL, "%s: groups per step must be in [1, 4096] (got %d)", m,
                              c->groups_per_step);
@@ -457,17 +460,24 @@ static double lr_at(double lr0, double lr1, int it, int iters)
     return lr0 * pow(lr1 / lr0, (double)(it - 1) / fmax(1, iters - 1));
 }
 
+/* The window's stride (patch sampling; scattered rays have none). */
+static int stride_of(const nerf_train_config *c)
+{
+    return c->patch_sampling && c->group_stride > 1 ? c->group_stride : 1;
+}
+
 /* This step's pixels: B windows of R rays (patch sampling) or B·R scattered pixels, each uniform or stratified. */
 static void sample_pixels(nerf_trainer_run_state *r)
 {
     const nerf_train_config *c = r->c;
     const int R = r->R, B = r->B, w = r->w;
+    const int d = stride_of(c), sw = nerf_patch_span(c->group_w, d), sh = nerf_patch_span(c->group_h, d);
     if (c->stratify && c->patch_sampling) {
         /* the corners land in px[0..B), py[0..B); window b's pixels go to [b·R, b·R + R), at or after corner b, so
          * filling from the last window back reads every corner before it is overwritten */
-        nerf_strata_pick(B, w - c->group_w + 1, r->h - c->group_h + 1, &r->rng, r->px, r->py);
+        nerf_strata_pick(B, w - sw + 1, r->h - sh + 1, &r->rng, r->px, r->py);
         for (int b = B - 1; b >= 0; b--)
-            nerf_patch_pixels(r->px[b], r->py[b], c->group_w, c->group_h, r->px + (size_t)b * R,
+            nerf_patch_pixels(r->px[b], r->py[b], c->group_w, c->group_h, d, r->px + (size_t)b * R,
                               r->py + (size_t)b * R);
         return;
     }
@@ -478,9 +488,9 @@ static void sample_pixels(nerf_trainer_run_state *r)
     for (int b = 0; b < B; b++) {
         int *px = r->px + (size_t)b * R, *py = r->py + (size_t)b * R;
         if (c->patch_sampling) {
-            int x0 = (int)sci_rng_below(&r->rng, (uint64_t)(w - c->group_w + 1));
-            int y0 = (int)sci_rng_below(&r->rng, (uint64_t)(r->h - c->group_h + 1));
-            nerf_patch_pixels(x0, y0, c->group_w, c->group_h, px, py);
+            int x0 = (int)sci_rng_below(&r->rng, (uint64_t)(w - sw + 1));
+            int y0 = (int)sci_rng_below(&r->rng, (uint64_t)(r->h - sh + 1));
+            nerf_patch_pixels(x0, y0, c->group_w, c->group_h, d, px, py);
         } else {
             for (int k = 0; k < R; k++) {
                 px[k] = (int)sci_rng_below(&r->rng, (uint64_t)w);
@@ -581,17 +591,15 @@ static int render_tiling(nerf_trainer_run_state *r, const double T[1][12], int o
                          long *wcnt)
 {
     const nerf_train_config *c = r->c;
-    const int pw = c->group_w, ph = c->group_h, R = r->R;
-    const int nx = (r->w + ox + pw - 1) / pw, ny = (r->h + oy + ph - 1) / ph, tiles = nx * ny;
-    const int chunk = r->G;
+    const int pw = c->group_w, ph = c->group_h, R = r->R, d = stride_of(c);
+    const int tiles = nerf_tile_count(r->w, r->h, pw, ph, d, ox, oy), chunk = r->G;
     nerf_trainer_pass *pc = &r->ps[0], *last = &r->ps[r->n_pass - 1];
     for (int t0 = 0; t0 < tiles; t0 += chunk) {
         int cnt = tiles - t0 < chunk ? tiles - t0 : chunk;
         for (int b = 0; b < cnt; b++) {
-            int x0 = (t0 + b) % nx * pw - ox, y0 = (t0 + b) / nx * ph - oy;
-            x0 = x0 < 0 ? 0 : x0 > r->w - pw ? r->w - pw : x0;
-            y0 = y0 < 0 ? 0 : y0 > r->h - ph ? r->h - ph : y0;
-            nerf_patch_pixels(x0, y0, pw, ph, r->px + (size_t)b * R, r->py + (size_t)b * R);
+            int x0, y0;
+            nerf_tile_window(t0 + b, r->w, r->h, pw, ph, d, ox, oy, &x0, &y0);
+            nerf_patch_pixels(x0, y0, pw, ph, d, r->px + (size_t)b * R, r->py + (size_t)b * R);
         }
         nerf_rays_camera(r->pb->camera, cnt * R, r->px, r->py, pc->L, r->near, r->far, c->spacing, NULL, 1, pc->pcam,
                          r->dcam, pc->delta);
@@ -618,7 +626,7 @@ static int render_all(nerf_trainer_run_state *r, sci_cube *x, double *max_weight
     double wsum = 0.0;
     long wcnt = 0;
     const nerf_train_config *c = r->c;
-    const int K = c->render_tilings == 4 ? 4 : 1;
+    const int K = c->render_tilings == 4 ? 4 : 1, d = stride_of(c);
     const size_t npix = (size_t)r->w * r->h;
     float *tmp = K > 1 ? malloc(npix * sizeof *tmp) : NULL;
     if (K > 1 && !tmp)
@@ -631,8 +639,8 @@ static int render_all(nerf_trainer_run_state *r, sci_cube *x, double *max_weight
         double *ws = max_weight ? &wsum : NULL;
         rc = render_tiling(r, (const double(*)[12])T, 0, 0, frame, ws, &wcnt);
         for (int k = 1; k < K && rc == 0; k++) {
-            rc = render_tiling(r, (const double(*)[12])T, k & 1 ? c->group_w / 2 : 0, k & 2 ? c->group_h / 2 : 0, tmp,
-                               ws, &wcnt);
+            rc = render_tiling(r, (const double(*)[12])T, k & 1 ? c->group_w * d / 2 : 0,
+                               k & 2 ? c->group_h * d / 2 : 0, tmp, ws, &wcnt);
             for (size_t p = 0; p < npix && rc == 0; p++)
                 frame[p] += tmp[p];
         }
@@ -684,9 +692,11 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
     const sci_camera *cam = pb->camera;
     if (!cam || cam->n != pb->mask->n)
         return sci_error_set(err, -EINVAL, "%s: %s: needs a camera with one pose per frame", c->method, pb->name);
-    if (pb->mask->w < c->group_w || pb->mask->h < c->group_h)
-        return sci_error_set(err, SCI_ESHAPE, "%s: %s: image %dx%d is smaller than the %dx%d window", c->method,
-                             pb->name, pb->mask->w, pb->mask->h, c->group_w, c->group_h);
+    const int d = stride_of(c);
+    if (pb->mask->w < c->group_w * d || pb->mask->h < c->group_h * d)
+        return sci_error_set(err, SCI_ESHAPE, "%s: %s: image %dx%d is smaller than the %dx%d window (stride %d: its "
+                             "tiling needs %dx%d)", c->method, pb->name, pb->mask->w, pb->mask->h, c->group_w,
+                             c->group_h, d, c->group_w * d, c->group_h * d);
     if (!(cam->far_m > cam->near_m) || !(cam->near_m >= 0))
         return sci_error_set(err, -EINVAL, "%s: %s: camera near/far %g/%g", c->method, pb->name, cam->near_m,
                              cam->far_m);

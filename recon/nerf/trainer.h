@@ -89,6 +89,8 @@ typedef struct nerf_train_config {
     const char *method;           /* "rayformer", "scinerf": messages and checkpoints */
     int iters;                    /* training steps */
     int group_w, group_h;         /* rays per group: the window (patch sampling) or the batch shape */
+    int group_stride;             /* patch sampling: pixels between neighbouring rays of a window, in training and
+                                     at inference (patch_sampler.h; 0 or 1: adjacent) */
     int groups_per_step;          /* B, each seen from all N poses */
     int patch_sampling;           /* 1: overlapping windows; 0: scattered random pixels */
     int stratify;                 /* 1: a step's windows (or pixels) one per cell of a grid over the image

@@ -1,6 +1,7 @@
 /* The ray sampler (recon/nerf/patch_sampler.h): stratified depths inside their bins, midpoints without jitter, and
  * the shared jitter of a window (share = R: sample s of every ray of a run at one depth, a fresh depth per run, the
- * stream advanced by L draws per run; share = 1 the former per-ray draws), and stratified window positions. */
+ * stream advanced by L draws per run; share = 1 the former per-ray draws), stratified window positions, and the
+ * pixels of strided windows and of their inference tiling (every pixel in some window, every window inside). */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -21,7 +22,7 @@ static void rays(sci_rng *rng, int share, nerf_spacing sp, float *t)
 {
     int px[NR], py[NR];
     for (int b = 0; b < RUNS; b++)
-        nerf_patch_pixels(3 * b, 5 * b, W, H, px + b * R, py + b * R);
+        nerf_patch_pixels(3 * b, 5 * b, W, H, 1, px + b * R, py + b * R);
     float pcam[NR * L * 3], dcam[NR * 3], delta[NR * L];
     nerf_rays_camera(&cam, NR, px, py, L, cam.near_m, cam.far_m, sp, rng, share, pcam, dcam, delta);
     for (int k = 0; k < NR * L; k++)
@@ -141,6 +142,59 @@ static void test_strata(void **state)
             fail_msg("pixel (%d, %d) drawn %ld times, the mean is %.0f", p % SX, p / SX, count[p], mean);
 }
 
+static void test_strided_window(void **state)
+{
+    (void)state;
+    int px[8], py[8];
+    nerf_patch_pixels(5, 7, 4, 2, 3, px, py); /* ray r = y·4 + x at (5 + 3x, 7 + 3y) */
+    const int ex[8] = {5, 8, 11, 14, 5, 8, 11, 14}, ey[8] = {7, 7, 7, 7, 10, 10, 10, 10};
+    for (int r = 0; r < 8; r++) {
+        assert_int_equal(px[r], ex[r]);
+        assert_int_equal(py[r], ey[r]);
+    }
+    assert_int_equal(nerf_patch_span(4, 3), 10);
+    assert_int_equal(nerf_patch_span(2, 1), 2);
+}
+
+/* Every tiling (sizes not multiples of the block, every stride and shift) covers each pixel, keeps each window
+ * inside the image, and overlaps only where a clamped block meets its neighbour (the first and the last block of
+ * an axis: a pixel in at most 3 × 3 windows of one tiling); with stride 1 and no shift a tiling of a multiple of
+ * the window is a partition. */
+static void test_tiling_covers(void **state)
+{
+    (void)state;
+    enum { MAXW = 41 };
+    static int hits[MAXW * MAXW];
+    const int sizes[][2] = {{16, 16}, {17, 13}, {41, 23}, {8, 9}};
+    for (size_t si = 0; si < sizeof sizes / sizeof sizes[0]; si++)
+        for (int pw = 2; pw <= 4; pw += 2)
+            for (int d = 1; d <= 4; d++) {
+                const int w = sizes[si][0], h = sizes[si][1];
+                if (w < pw * d || h < pw * d)
+                    continue;
+                for (int ox = 0; ox < pw * d; ox += pw * d / 2 > 0 ? pw * d / 2 : 1) {
+                    const int oy = ox, n = nerf_tile_count(w, h, pw, pw, d, ox, oy);
+                    memset(hits, 0, sizeof hits);
+                    for (int t = 0; t < n; t++) {
+                        int x0, y0, px[16], py[16];
+                        nerf_tile_window(t, w, h, pw, pw, d, ox, oy, &x0, &y0);
+                        nerf_patch_pixels(x0, y0, pw, pw, d, px, py);
+                        for (int r = 0; r < pw * pw; r++) {
+                            assert_true(px[r] >= 0 && px[r] < w && py[r] >= 0 && py[r] < h);
+                            hits[py[r] * w + px[r]]++;
+                        }
+                    }
+                    for (int p = 0; p < w * h; p++)
+                        if (hits[p] < 1 || hits[p] > 9)
+                            fail_msg("%dx%d, window %d stride %d shift %d: pixel (%d, %d) in %d windows", w, h, pw, d,
+                                     ox, p % w, p / w, hits[p]);
+                    if (d == 1 && ox == 0 && w % pw == 0 && h % pw == 0)
+                        for (int p = 0; p < w * h; p++)
+                            assert_int_equal(hits[p], 1);
+                }
+            }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -149,6 +203,8 @@ int main(void)
         cmocka_unit_test(test_stream_advance),
         cmocka_unit_test(test_midpoints_without_jitter),
         cmocka_unit_test(test_strata),
+        cmocka_unit_test(test_strided_window),
+        cmocka_unit_test(test_tiling_covers),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

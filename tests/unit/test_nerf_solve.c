@@ -326,6 +326,55 @@ static void test_stratify(void **state)
     sci_problem_free(p);
 }
 
+/* Strided windows: scattered rays ignore the stride (bitwise the run without it); windows of stride 3 train on
+ * other pixels from the first step, render every pixel (finite frames, one tiling or four) and cover the image; a
+ * stride whose tiling block outgrows the image is refused with a message naming it, as are strides outside 1 … 8. */
+static void test_patch_stride(void **state)
+{
+    (void)state;
+    sci_problem *p = nerf_tiny_problem(32, 3);
+    for (int patches = 0; patches <= 1; patches++) {
+        sci_result r[2];
+        for (int k = 0; k < 2; k++) {
+            sci_rayformer_params prm;
+            small_params(&prm, 3);
+            prm.patch = 4;
+            prm.patches_per_step = 8;
+            prm.samples = 8;
+            prm.iters = 20;
+            prm.patch_sampling = patches;
+            prm.patch_stride = k ? 3 : 1;
+            prm.render_tilings = 4;
+            solve_finite(p, &prm, &r[k]);
+        }
+        if (patches)
+            assert_true(r[0].trace.e[0].loss != r[1].trace.e[0].loss);
+        else
+            assert_true(same_loss(&r[0], &r[1]) && same_frames(&r[0], &r[1]));
+        const size_t n = (size_t)r[1].frames->w * r[1].frames->h * r[1].frames->n;
+        size_t zeros = 0; /* an unrendered pixel stays 0; a rendered one has the field's colour, never exactly 0 */
+        for (size_t i = 0; i < n; i++)
+            zeros += r[1].frames->data[i] == 0.0f;
+        assert_int_equal(zeros, 0);
+        sci_result_free_contents(&r[0]);
+        sci_result_free_contents(&r[1]);
+    }
+    sci_rayformer_params prm;
+    small_params(&prm, 3);
+    prm.patch = 8;
+    prm.patch_stride = 5; /* blocks of 40 pixels on a 32-pixel image */
+    prm.iters = 2;
+    sci_result r = {0};
+    assert_true(sci_rayformer_solve(p, &prm, &r, NULL, NULL) < 0);
+    assert_non_null(strstr(r.error.msg, "stride 5"));
+    sci_result_free_contents(&r);
+    prm.patch_stride = 9;
+    assert_int_equal(sci_rayformer_params_check(&prm, NULL), -EINVAL);
+    prm.patch_stride = 0;
+    assert_int_equal(sci_rayformer_params_check(&prm, NULL), -EINVAL);
+    sci_problem_free(p);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -338,6 +387,7 @@ int main(void)
         cmocka_unit_test(test_render_tilings),
         cmocka_unit_test(test_window_jitter),
         cmocka_unit_test(test_stratify),
+        cmocka_unit_test(test_patch_stride),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
