@@ -228,16 +228,22 @@ static void solve_finite(const sci_problem *p, const sci_rayformer_params *prm, 
     assert_int_equal(sci_cube_check_finite(r->frames, "frames", NULL), 0);
 }
 
+/* The tiny runs' settings: small_params with 8 windows of 4×4, 8 samples, 20 steps. */
+static void tiny_params(sci_rayformer_params *prm)
+{
+    small_params(prm, 3);
+    prm->patch = 4;
+    prm->patches_per_step = 8;
+    prm->samples = 8;
+    prm->iters = 20;
+}
+
 /* A 20-step run on the tiny scene with 4×4 windows, inter-ray attention on or off and one inference or training
  * option set (render_tilings, window_jitter); fails the test on an error or non-finite frames. */
 static void tiny_run(const sci_problem *p, int inter, int render_tilings, int window_jitter, sci_result *r)
 {
     sci_rayformer_params prm;
-    small_params(&prm, 3);
-    prm.patch = 4;
-    prm.patches_per_step = 8;
-    prm.samples = 8;
-    prm.iters = 20;
+    tiny_params(&prm);
     prm.inter_ray = inter;
     prm.render_tilings = render_tilings;
     prm.window_jitter = window_jitter;
@@ -338,11 +344,7 @@ static void test_patch_stride(void **state)
         sci_result r[2];
         for (int k = 0; k < 2; k++) {
             sci_rayformer_params prm;
-            small_params(&prm, 3);
-            prm.patch = 4;
-            prm.patches_per_step = 8;
-            prm.samples = 8;
-            prm.iters = 20;
+            tiny_params(&prm);
             prm.patch_sampling = patches;
             prm.patch_stride = k ? 3 : 1;
             solve_finite(p, &prm, &r[k]);
@@ -360,11 +362,7 @@ static void test_patch_stride(void **state)
         sci_result_free_contents(&r[1]);
     }
     sci_rayformer_params prm;
-    small_params(&prm, 3);
-    prm.patch = 4;
-    prm.patches_per_step = 8;
-    prm.samples = 8;
-    prm.iters = 20;
+    tiny_params(&prm);
     prm.patch_stride = 3;
     prm.render_tilings = 4;
     sci_result r4;
