@@ -11,11 +11,12 @@
  * fast and balanced (measured: 9 min for the two fast presets and ≈ 15 for the balanced ones, evaluations
  * included), and the best presets about 16 minutes each more. `--quick`: part 1 only; `--curves-only
  * [--presets fast,balanced]`: part 2 only, for the presets named.
- * Part 3, `--ceiling [STEPS] [--scene NAME] [--methods a,b]` (alone; not in `make bench`): each method's fast
- * preset run for STEPS steps (default 10000, the learning rate decayed over all of them) on etc/scenes/NAME.json
- * (default static3d_corridor), PSNR, the measurement residual and the mean largest ray weight every STEPS/20 steps,
- * written to bench/results/nerf_ceiling.md (the corridor) or nerf_ceiling_NAME.md: where accuracy stops following
- * the fit. About 25 min for rayformer and 45 for scinerf on 2 cores at 128 × 128.
+ * Part 3, `--ceiling [STEPS] [--scene NAME] [--out NAME] [--methods a,b]` (alone; not in `make bench`): each
+ * method's fast preset run for STEPS steps (default 10000, the learning rate decayed over all of them) on
+ * etc/scenes/NAME.json (default static3d_corridor), PSNR, the measurement residual and the mean largest ray weight
+ * every STEPS/20 steps, written to bench/results/nerf_ceiling.md (the corridor) or nerf_ceiling_NAME.md: where
+ * accuracy stops following the fit; `--out NAME` writes bench/results/NAME.md instead, for a curve the preset rule
+ * is not to read. About 25 min for rayformer and 45 for scinerf on 2 cores at 128 × 128.
  * `--place TABLE...` (alone): where the preset rule of io/ceiling.h puts every preset on those ceiling tables, and
  * the methods at equal wall time on each, to bench/results/nerf_presets.md (the presets are placed on
  * bench/results/nerf_ceiling_photo_*.md; tests/unit/test_nerf_presets checks the same).
@@ -274,12 +275,15 @@ static int scene_name_ok(const char *name)
 }
 
 /* Part 3: each method's fast preset run for `steps` steps on etc/scenes/<scene>.json: the ceiling of the recipe.
- * The table is bench/results/nerf_ceiling.md for the corridor, nerf_ceiling_<scene>.md for another scene. */
-static int part_ceiling(const char *const *methods, int n_methods, int steps, const char *scene)
+ * The table is bench/results/nerf_ceiling.md for the corridor, nerf_ceiling_<scene>.md for another scene, or
+ * bench/results/<out>.md when `out` is not empty (a curve the preset rule must not read: see --out below). */
+static int part_ceiling(const char *const *methods, int n_methods, int steps, const char *scene, const char *out)
 {
     char json[160], mdpath[160];
     snprintf(json, sizeof json, "etc/scenes/%s.json", scene);
-    if (strcmp(scene, CEILING_SCENE) == 0)
+    if (out[0])
+        snprintf(mdpath, sizeof mdpath, "bench/results/%s.md", out);
+    else if (strcmp(scene, CEILING_SCENE) == 0)
         snprintf(mdpath, sizeof mdpath, "bench/results/nerf_ceiling.md");
     else
         snprintf(mdpath, sizeof mdpath, "bench/results/nerf_ceiling_%s.md", scene);
@@ -420,7 +424,7 @@ int main(int argc, char **argv)
 {
     sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     int costs = 1, curves = 1, ceiling = 0, place = 0;
-    char which[128] = "fast,balanced,best", scene[64] = CEILING_SCENE, only[128] = "";
+    char which[128] = "fast,balanced,best", scene[64] = CEILING_SCENE, only[128] = "", out[64] = "";
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--quick") == 0)
             curves = 0;
@@ -441,6 +445,8 @@ int main(int argc, char **argv)
             }
         } else if (strcmp(argv[i], "--scene") == 0 && i + 1 < argc && scene_name_ok(argv[i + 1]))
             snprintf(scene, sizeof scene, "%s", argv[++i]);
+        else if (strcmp(argv[i], "--out") == 0 && i + 1 < argc && scene_name_ok(argv[i + 1]))
+            snprintf(out, sizeof out, "%s", argv[++i]);
         else if (strcmp(argv[i], "--methods") == 0 && i + 1 < argc)
             snprintf(only, sizeof only, ",%s,", argv[++i]);
         else if (strcmp(argv[i], "--place") == 0 && i + 1 < argc) {
@@ -448,8 +454,9 @@ int main(int argc, char **argv)
             break;
         } else {
             fprintf(stderr, "usage: bench_nerf_recon [--quick | --curves-only [--presets fast,balanced,best] | "
-                            "--ceiling [STEPS] [--scene NAME] [--methods a,b] | [--methods a,b] --place TABLE...]\n"
-                            "  --scene: etc/scenes/NAME.json (a-z, 0-9 and _), default " CEILING_SCENE "\n");
+                            "--ceiling [STEPS] [--scene NAME] [--out NAME] [--methods a,b] | [--methods a,b] --place TABLE...]\n"
+                            "  --scene: etc/scenes/NAME.json (a-z, 0-9 and _), default " CEILING_SCENE "\n"
+                            "  --out: the ceiling's table is bench/results/NAME.md\n");
             return 2;
         }
     }
@@ -470,7 +477,7 @@ int main(int argc, char **argv)
     if (place)
         return part_place(methods, n_methods, argv + place, argc - place);
     if (ceiling)
-        return part_ceiling(methods, n_methods, ceiling, scene);
+        return part_ceiling(methods, n_methods, ceiling, scene, out);
     if (costs)
         status |= part_costs(methods, n_methods, presets);
     if (curves)
