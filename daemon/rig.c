@@ -248,18 +248,13 @@ int scicapd_rig_take(scicapd_rig *a, int n, uint32_t exposure_us, enum sync_mode
     p.dmd_latency_ns = scicapd_devices_dmd_latency_ns(a->dev);
     p.readout_ns = scicapd_devices_readout_ns(a->dev);
     p.frame_timeout_ns = (int64_t)e * 1000 + 500000000;
-    if (mode == SYNC_MODE_CAMERA_MASTER) {
-        /* A free-running camera has frames waiting: drain them before arming, so that the first strobe after
-         * the arm belongs to an exposure capture_snapshot_take keeps (draining takes time on the simulator). */
-        sci_error e0 = {0};
-        for (int k = 0; k < 4 * CAMERA_MAX_BUFFERS && camera_wait_frame(a->cam, 0, &a->snap->frame, &e0) == 0; k++)
-            ;
-    }
-    if (mode != SYNC_MODE_DMD_MASTER) {
+    if (mode == SYNC_MODE_HOST_MASTER) {
         /* armed: the sequence starts at the trigger input's edge */
         if (!dark && (rc = dmd_start(a->dmd, err)) < 0)
             goto out;
-    } else {
+    } else if (mode == SYNC_MODE_DMD_MASTER || !dark) {
+        /* DMD master starts it; camera master arms it after draining the free-running camera, so that the
+         * exposure whose strobe starts the sequence cannot be drained as stale */
         p.dmd = a->dmd;
     }
     rc = capture_snapshot_take(a->cam, a->trig, &p, a->snap, err);

@@ -127,25 +127,59 @@ static int snapshot_drain(camera *cam, trigger *trig, capture_snapshot *out, sci
     return trigger_flush(trig, err);
 }
 
-/* Phase 2: the start as the sync mode has it, its time into *t0 (monotonic ns). */
-static int snapshot_start(trigger *trig, const capture_params *p, int64_t *t0, sci_error *err)
+/* When a snapshot started (monotonic ns): t0 before the start call, t1 after it. Only in camera master, where
+ * the call arms a DMD that the next strobe starts, do they differ by more than a read of the clock. */
+typedef struct snapshot_start_times {
+    int64_t t0, t1;
+} snapshot_start_times;
+
+/* Phase 2: the start as the sync mode has it. */
+static int snapshot_start(trigger *trig, const capture_params *p, snapshot_start_times *st, sci_error *err)
 {
+    int rc = 0;
     switch (p->mode) {
-    case SYNC_MODE_HOST_MASTER: return trigger_pulse(trig, p->pulse_width_us ? p->pulse_width_us : 10, t0, err);
+    case SYNC_MODE_HOST_MASTER:
+        rc = trigger_pulse(trig, p->pulse_width_us ? p->pulse_width_us : 10, &st->t0, err);
+        break;
     case SYNC_MODE_DMD_MASTER:
         if (p->dmd) {
-            *t0 = sci_clock_mono_ns();
-            return dmd_start(p->dmd, err);
+            st->t0 = sci_clock_mono_ns();
+            rc = dmd_start(p->dmd, err);
+        } else {
+            rc = trigger_pulse(trig, p->pulse_width_us ? p->pulse_width_us : 10, &st->t0, err);
         }
-        return trigger_pulse(trig, p->pulse_width_us ? p->pulse_width_us : 10, t0, err);
-    default: *t0 = sci_clock_mono_ns(); return 0;
+        break;
+    default:
+        /* camera master: armed after the drain, so no exposure between the arm and now was thrown away */
+        st->t0 = sci_clock_mono_ns();
+        if (p->dmd)
+            rc = dmd_start(p->dmd, err);
+        st->t1 = sci_clock_mono_ns();
+        return rc;
     }
+    st->t1 = st->t0;
+    return rc;
 }
 
-/* Phase 3: the frame that belongs to the start at t0, by deadline_ns, into out->frame (*have_frame = 1); earlier
+/* Camera master, a frame whose exposure began during the arm call: the DMD may have been armed before or after
+ * its strobe. It is the snapshot's frame only if the DMD's first edge came by its start plus the latency. */
+static int snapshot_started_by(trigger *trig, const capture_params *p, int64_t t0, int64_t a, int64_t settle_ns,
+                               edge_log *log, int *yes, sci_error *err)
+{
+    int64_t until = a + p->dmd_latency_ns + settle_ns;
+    int rc = collect_until(trig, log, until, err);
+    *yes = 0;
+    for (int i = 0; rc == 0 && i < log->n && !*yes; i++)
+        *yes = log->ev[i].role == TRIGGER_ROLE_DMD && log->ev[i].rising && log->ev[i].timestamp_ns >= t0 &&
+               log->ev[i].timestamp_ns <= until;
+    return rc;
+}
+
+/* Phase 3: the frame that belongs to the start, by deadline_ns, into out->frame (*have_frame = 1); earlier
  * frames are counted as stale. No frame by the deadline is not an error here (0, *have_frame = 0). */
-static int snapshot_wait_frame(camera *cam, const capture_params *p, int64_t t0, int64_t deadline_ns,
-                               capture_snapshot *out, int *have_frame, sci_error *err)
+static int snapshot_wait_frame(camera *cam, trigger *trig, const capture_params *p, const snapshot_start_times *st,
+                               int64_t deadline_ns, int64_t settle_ns, edge_log *log, capture_snapshot *out,
+                               int *have_frame, sci_error *err)
 {
     for (;;) {
         int64_t now = sci_clock_mono_ns();
@@ -156,10 +190,13 @@ static int snapshot_wait_frame(camera *cam, const capture_params *p, int64_t t0,
             return rc;
         int64_t a, b;
         estimate_window(&out->frame, p->readout_ns, &a, &b);
-        /* camera master: the exposure must begin after the call (its strobe starts our DMD sequence);
+        /* camera master: the exposure must begin after the arm (its strobe starts our DMD sequence);
          * otherwise the frame must at least end after the start. */
-        int stale = p->mode == SYNC_MODE_CAMERA_MASTER ? a < t0 : b <= t0;
-        if (!stale) {
+        int keep = p->mode == SYNC_MODE_CAMERA_MASTER ? a >= st->t0 : b > st->t0;
+        if (keep && p->mode == SYNC_MODE_CAMERA_MASTER && a < st->t1 &&
+            (rc = snapshot_started_by(trig, p, st->t0, a, settle_ns, log, &keep, err)) < 0)
+            return rc;
+        if (keep) {
             *have_frame = 1;
             return 0;
         }
@@ -256,13 +293,15 @@ static int snapshot_compare(const capture_params *p, const snapshot_times *tm, c
 static int snapshot_run(camera *cam, trigger *trig, const capture_params *p, const snapshot_times *tm,
                         edge_log *log, capture_snapshot *out, sci_error *err)
 {
-    int64_t t0 = 0;
-    int rc = snapshot_start(trig, p, &t0, err);
+    snapshot_start_times st = {0};
+    int rc = snapshot_start(trig, p, &st, err);
     if (rc < 0)
         return rc;
+    int64_t t0 = st.t0;
     out->start_ns = t0;
     int have_frame = 0;
-    if ((rc = snapshot_wait_frame(cam, p, t0, t0 + tm->timeout_ns, out, &have_frame, err)) < 0)
+    if ((rc = snapshot_wait_frame(cam, trig, p, &st, st.t1 + tm->timeout_ns, tm->settle_ns, log, out, &have_frame,
+                                  err)) < 0)
         return rc;
     /* phase 4: edges until the sequence must be over */
     if ((rc = collect_until(trig, log, snapshot_edges_until_ns(p, tm, out, have_frame, t0), err)) < 0)
@@ -270,6 +309,8 @@ static int snapshot_run(camera *cam, trigger *trig, const capture_params *p, con
     snapshot_window w = {0};
     if (have_frame)
         w = snapshot_window_find(p, log, &out->frame);
+    if (have_frame && p->mode == SYNC_MODE_CAMERA_MASTER)
+        out->start_ns = w.a_ns; /* the strobe started the sequence */
     for (int i = 0; i < log->n; i++)
         if (log->ev[i].rising)
             *(log->ev[i].role == TRIGGER_ROLE_DMD ? &out->dmd_edges : &out->strobe_edges) += 1;

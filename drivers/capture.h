@@ -49,8 +49,10 @@ typedef struct capture_params {
     int64_t settle_ns;        /* after the sequence end, how long edges may still arrive; 0: 1 ms */
     int64_t readout_ns;       /* exposure end to EOF timestamp, for the estimated window (no strobe) */
     sync_tolerance tolerance;
-    dmd *dmd;                 /* DMD master only: dmd_start() starts the sequence; NULL: trigger_pulse (the
-                                 output wired to the DMD's trigger input). Borrowed. */
+    dmd *dmd;                 /* DMD master: dmd_start() starts the sequence; NULL: trigger_pulse (the output
+                                 wired to the DMD's trigger input). Camera master: dmd_start() arms the DMD after
+                                 the stale frames are drained, so the next strobe starts it; NULL: nothing armed
+                                 here (a dark frame). Host master: unused (arm before the call). Borrowed. */
 } capture_params;
 
 /* Defaults above, with sync_tolerance_default(). */

@@ -8,7 +8,8 @@
  *     json_t *e = hconn_wait_event(&c, "capture.stored", 30000);
  *     harness_stop(&h);                                           // SIGTERM, waits, checks the exit status
  *
- * The binary is found beside the test program (BUILD/tests/integration/x -> BUILD/scicapd).
+ * The binary is found beside the test program (BUILD/tests/integration/x -> BUILD/scicapd). The daemon is
+ * killed when the test program ends, also when a failed assertion skipped harness_stop.
  */
 #ifndef SCICAP_TESTS_DAEMON_HARNESS_H
 #define SCICAP_TESTS_DAEMON_HARNESS_H
@@ -25,6 +26,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mount.h>
+#include <sys/prctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -92,9 +94,13 @@ static inline int h_connect_raw(const char *path)
 static inline void harness_spawn(harness *h, char *const *env)
 {
     unlink(h->sock);
+    pid_t parent = getpid();
     h->pid = fork();
     assert_true(h->pid >= 0);
     if (h->pid == 0) {
+        /* A failed assertion jumps past harness_stop: the daemon must not outlive the test program. */
+        if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || getppid() != parent)
+            _exit(127);
         for (int i = 0; env && env[i]; i++)
             putenv(env[i]);
         int fd = open(h->log, O_WRONLY | O_CREAT | O_APPEND, 0644);

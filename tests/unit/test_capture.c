@@ -8,11 +8,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include <cmocka.h>
 #include <errno.h>
 #include <linux/videodev2.h>
 
+#include "base/clock.h"
 #include "drivers/capture.h"
 #include "drivers/v4l2_util.h"
 #include "sim/camera_sim.h"
@@ -31,6 +33,12 @@ typedef struct rig {
     int64_t dmd_latency_ns;  /* DMD trigger-in to pattern 0 */
     int64_t dmd_jitter_ns;
     int dmd_misses;          /* the DMD ignores its next n starts */
+    int arm_model;           /* camera master: the strobe starts the DMD only once armed (through r->dmd) */
+    int armed;
+    int64_t armed_ns;        /* only an exposure starting later starts it */
+    int64_t arm_call_ns;     /* how long the arm call takes */
+    int arm_late;            /* 1: armed at the end of the call (the simulator); 0: at its start (the hardware) */
+    dmd *dmd;
     capture_params p;
     capture_snapshot snap;
 } rig;
@@ -65,9 +73,50 @@ static void on_strobe(void *arg, const camera_sim_exposure *e)
     rig *r = arg;
     trigger_sim_inject(r->ts, TRIGGER_ROLE_STROBE, e->start_ns, 1);
     trigger_sim_inject(r->ts, TRIGGER_ROLE_STROBE, e->end_ns, 0);
-    if (r->mode == SYNC_MODE_CAMERA_MASTER)
+    if (r->mode != SYNC_MODE_CAMERA_MASTER)
+        return;
+    if (!r->arm_model) {
         dmd_start_at(r, e->start_ns);
+    } else if (r->armed && e->start_ns >= r->armed_ns) {
+        r->armed = 0;
+        dmd_start_at(r, e->start_ns);
+    }
 }
+
+/* A DMD whose start call arms it, slowly: the camera keeps exposing meanwhile. */
+static void arm_sleep(int64_t ns)
+{
+    struct timespec ts = {.tv_sec = ns / 1000000000LL, .tv_nsec = ns % 1000000000LL};
+    while (nanosleep(&ts, &ts) < 0)
+        ;
+}
+static int arm_open(void **state, const dmd_config *cfg, sci_error *err)
+{
+    (void)err;
+    *state = (void *)cfg->backend_options;
+    return 0;
+}
+static void arm_close(void *state) { (void)state; }
+static int arm_start(void *state, sci_error *err)
+{
+    rig *r = state;
+    (void)err;
+    if (r->arm_late)
+        arm_sleep(r->arm_call_ns);
+    r->armed = 1;
+    r->armed_ns = sci_clock_mono_ns();
+    if (!r->arm_late)
+        arm_sleep(r->arm_call_ns);
+    return 0;
+}
+static int arm_stop(void *state, sci_error *err)
+{
+    (void)err;
+    ((rig *)state)->armed = 0;
+    return 0;
+}
+static const dmd_ops arm_ops = {.name = "arm", .open = arm_open, .close = arm_close, .start = arm_start,
+                                .stop = arm_stop};
 
 static void rig_open(rig *r, enum sync_mode mode, uint32_t exposure_us, int strobe_wired)
 {
@@ -193,6 +242,41 @@ static void camera_master_good_sync(void **state)
     expect_good(&r);
     assert_true(r.snap.report.offset_ns >= 0 && r.snap.report.offset_ns <= 2000);
     rig_close(&r);
+}
+
+/* Camera master with the DMD armed by the capture: an arm call longer than the camera's period (25 ms) has
+ * an exposure start inside it. Armed at the call's end, that exposure did not start the DMD and the next one did;
+ * armed at its start, it did. Either way the snapshot holds the whole sequence. */
+static void camera_master_slow_arm(int late)
+{
+    rig r;
+    rig_open(&r, SYNC_MODE_CAMERA_MASTER, 10000, 1);
+    r.arm_model = 1;
+    r.arm_late = late;
+    r.arm_call_ns = 30000000;
+    dmd_config cfg = dmd_config_default();
+    cfg.backend_options = &r;
+    sci_error err = {0};
+    assert_int_equal(dmd_open(&r.dmd, &arm_ops, &cfg, &err), 0);
+    r.p.dmd = r.dmd;
+    for (int k = 0; k < 2; k++) {
+        expect_good(&r);
+        /* the first exposure to start after the arm, one camera period at most */
+        assert_true(r.snap.start_ns >= r.armed_ns && r.snap.start_ns - r.armed_ns <= 25000000);
+    }
+    assert_false(r.armed); /* one sequence a snapshot */
+    dmd_close(r.dmd);
+    rig_close(&r);
+}
+static void camera_master_armed_late_in_a_slow_call(void **state)
+{
+    (void)state;
+    camera_master_slow_arm(1);
+}
+static void camera_master_armed_early_in_a_slow_call(void **state)
+{
+    (void)state;
+    camera_master_slow_arm(0);
 }
 
 static void short_exposure_is_flagged(void **state)
@@ -336,6 +420,8 @@ int main(void)
         cmocka_unit_test(host_master_good_sync),
         cmocka_unit_test(dmd_master_good_sync),
         cmocka_unit_test(camera_master_good_sync),
+        cmocka_unit_test(camera_master_armed_late_in_a_slow_call),
+        cmocka_unit_test(camera_master_armed_early_in_a_slow_call),
         cmocka_unit_test(short_exposure_is_flagged),
         cmocka_unit_test(missed_trigger_times_out),
         cmocka_unit_test(dmd_missed_start_is_flagged),
