@@ -282,7 +282,7 @@ check-web: deps
 	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" tests/run $(WEB_TEST_BIN)
 	@BUILD=$(BUILD) SCICAP_WEB_ARTIFACTS="$(WEB_ARTIFACTS)" tests/web/run
 
-# Kernel-level device tests under qemu (tests/vm/, README "Kernel-level tests"): the drivers against the real
+# Kernel-level device tests under qemu (tests/vm/, docs/check-vm.md): the drivers against the real
 # V4L2 (vivid), hidraw (uhid) and GPIO (gpio-sim) subsystems. VM_CACHE keeps downloads and builds between runs.
 VM_CACHE ?= $(HOME)/.cache/scicap-vm
 check-vm: deps

@@ -1,4 +1,4 @@
-/* bench/bench_nerf_compare.c — the README's comparison on static3d scenes: GAP-TV, ADMM-TV, scinerf and
+/* bench/bench_nerf_compare.c — the NeRF comparison on static3d and photo scenes: GAP-TV, ADMM-TV, scinerf and
  * rayformer with each ablation step added in the paper's order (baseline → +patch sampling → +inter-ray →
  * +intra-ray → +TV), the patch-size study (2, 4, 8, 16), the window-stride study (the + patch rung and the full
  * method with windows of stride 2 and 3, part "stride"), and scinerf / rayformer with the camera poses optimised
@@ -732,7 +732,7 @@ int main(int argc, char **argv)
     snprintf(tsv_path, sizeof tsv_path, "bench/results/%s.tsv", out);
     snprintf(md_path, sizeof md_path, "bench/results/%s.md", out);
     if (!run) {
-        printf("bench_nerf_compare: the README's NeRF comparison takes hours; not run by make bench.\n"
+        printf("bench_nerf_compare: the NeRF comparison takes hours; not run by make bench.\n"
                "  run it with: %s --run [--preset balanced] --scenes corridor,orbit,noisy,tabletop --parts classic,scinerf,full\n"
                "  (writes bench/results/nerf_compare_<preset>.md); the ablation study: --out nerf_ablation\n",
                argv[0]);

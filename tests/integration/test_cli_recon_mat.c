@@ -173,7 +173,7 @@ static double reference_psnr(void)
         ref = psnr_of("ref");
         printf("original drop40 #1: %.4f dB%s\n", ref, SANITIZED ? " (AddressSanitizer build: 50 iterations)" : "");
         if (!SANITIZED)
-            assert_true(fabs(ref - 34.63) < 0.006); /* the README's golden value */
+            assert_true(fabs(ref - 34.63) < 0.006); /* docs/usage.md's golden value */
     }
     return ref;
 }
