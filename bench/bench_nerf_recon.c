@@ -11,10 +11,10 @@
  * fast and balanced (measured: 9 min for the two fast presets and ≈ 15 for the balanced ones, evaluations
  * included), and the best presets about 16 minutes each more. `--quick`: part 1 only; `--curves-only
  * [--presets fast,balanced]`: part 2 only, for the presets named.
- * Part 3, `--ceiling [STEPS] [--scene NAME] [--out NAME] [--methods a,b]` (alone; not in `make bench`): each
- * method's fast preset run for STEPS steps (default 10000, the learning rate decayed over all of them) on
- * etc/scenes/NAME.json (default static3d_corridor), PSNR, the measurement residual and the mean largest ray weight
- * every STEPS/20 steps, written to bench/results/nerf_ceiling.md (the corridor) or nerf_ceiling_NAME.md: where
+ * Part 3, `--ceiling [STEPS] [--scene NAME] [--out NAME] [--methods a,b] [--set KEY=VALUE]...` (alone; not in
+ * `make bench`): each method's fast preset (with the settings --set names over it) run for STEPS steps (default
+ * 10000, the learning rate decayed over all of them) on etc/scenes/NAME.json (default static3d_corridor), PSNR,
+ * the measurement residual and the mean largest ray weight every STEPS/20 steps, written to bench/results/nerf_ceiling.md (the corridor) or nerf_ceiling_NAME.md: where
  * accuracy stops following the fit; `--out NAME` writes bench/results/NAME.md instead, for a curve the preset rule
  * is not to read. About 25 min for rayformer and 45 for scinerf on 2 cores at 128 × 128.
  * `--place TABLE...` (alone): where the preset rule of io/ceiling.h puts every preset on those ceiling tables, and
@@ -58,8 +58,10 @@ static int cmpd(const void *a, const void *b)
 
 
 /* Runs in the child: one preset of one method on one scene, `full` = the whole preset, else STEPS steps;
- * `steps` > 0 overrides the preset's step count (the ceiling runs: evaluated every steps/20, no SSIM). */
-static void run_child(const char *method, const char *preset, const char *scene, int full, int steps, measure *m)
+ * `steps` > 0 overrides the preset's step count (the ceiling runs: evaluated every steps/20, no SSIM); `extra`
+ * (may be NULL) holds settings that override the preset's (the ceiling's --set). */
+static void run_child(const char *method, const char *preset, const char *scene, int full, int steps,
+                      const json_t *extra, measure *m)
 {
     sci_error err = {0};
     sci_problem *p = bench_scene_first(scene, &err);
@@ -80,7 +82,9 @@ static void run_child(const char *method, const char *preset, const char *scene,
         const int every = steps > 0 ? (iters + 19) / 20 : full ? (iters + 7) / 8 : 0;
         json_t *set = json_pack("{s:i, s:i, s:i}", "iters", iters, "metrics_every", every, "ssim_every",
                                 steps > 0 ? 0 : every);
-        if ((rc = solver_settings_from_json(op, q, set, NULL, "settings", &r.error)) == 0)
+        if (extra && (rc = solver_settings_from_json(op, q, extra, NULL, "--set", &r.error)) < 0)
+            ;
+        else if ((rc = solver_settings_from_json(op, q, set, NULL, "settings", &r.error)) == 0)
             rc = solver_run(op, p, q, NULL, &r);
         json_decref(set);
     }
@@ -114,7 +118,7 @@ static void run_child(const char *method, const char *preset, const char *scene,
 
 /* Fork, run, collect the measurement and the child's peak RSS (KiB). */
 static int measure_in_child(const char *method, const char *preset, const char *scene, int full, int steps,
-                            measure *m, long *maxrss_kib)
+                            const json_t *extra, measure *m, long *maxrss_kib)
 {
     int fd[2];
     if (pipe(fd) < 0)
@@ -126,7 +130,7 @@ static int measure_in_child(const char *method, const char *preset, const char *
     if (pid == 0) {
         close(fd[0]);
         measure mm = {0};
-        run_child(method, preset, scene, full, steps, &mm);
+        run_child(method, preset, scene, full, steps, extra, &mm);
         ssize_t w = write(fd[1], &mm, sizeof mm);
         _exit(w == (ssize_t)sizeof mm ? 0 : 1);
     }
@@ -208,7 +212,7 @@ static int part_costs(const char *const *methods, int n_methods, const char *con
             for (int si = 0; si < 2; si++) {
                 measure m;
                 long rss = 0;
-                int rc = measure_in_child(methods[mi], presets[pi], scenes[si], 0, 0, &m, &rss);
+                int rc = measure_in_child(methods[mi], presets[pi], scenes[si], 0, 0, NULL, &m, &rss);
                 if (rc < 0 || !m.ok) {
                     printf("%s %s %d: failed: %s\n", methods[mi], presets[pi], sizes[si], m.err);
                     fprintf(md, "| %s | %s | %d | failed | | |\n", methods[mi], presets[pi], sizes[si]);
@@ -246,7 +250,8 @@ static int part_curves(const char *const *methods, int n_methods, const char *co
         for (int mi = 0; mi < n_methods; mi++) {
             measure m;
             long rss = 0;
-            int rc = measure_in_child(methods[mi], presets[pi], "etc/scenes/static3d_corridor.json", 1, 0, &m, &rss);
+            int rc = measure_in_child(methods[mi], presets[pi], "etc/scenes/static3d_corridor.json", 1, 0, NULL, &m,
+                                      &rss);
             if (rc < 0 || !m.ok) {
                 printf("%s %s full run failed: %s\n", methods[mi], presets[pi], m.err);
                 status = 1;
@@ -274,10 +279,23 @@ static int scene_name_ok(const char *name)
     return n > 0 && n < 64 && strspn(name, "abcdefghijklmnopqrstuvwxyz0123456789_") == n;
 }
 
+/* `KEY=VALUE` into o: the value as JSON when it parses (numbers, true), else as a string. -1 when malformed. */
+static int setting_add(json_t *o, const char *kv)
+{
+    const char *eq = strchr(kv, '=');
+    if (!eq || eq == kv || !eq[1] || eq - kv >= 64)
+        return -1;
+    char key[64];
+    snprintf(key, sizeof key, "%.*s", (int)(eq - kv), kv);
+    json_t *v = json_loads(eq + 1, JSON_DECODE_ANY, NULL);
+    return json_object_set_new(o, key, v ? v : json_string(eq + 1));
+}
+
 /* Part 3: each method's fast preset run for `steps` steps on etc/scenes/<scene>.json: the ceiling of the recipe.
  * The table is bench/results/nerf_ceiling.md for the corridor, nerf_ceiling_<scene>.md for another scene, or
  * bench/results/<out>.md when `out` is not empty (a curve the preset rule must not read: see --out below). */
-static int part_ceiling(const char *const *methods, int n_methods, int steps, const char *scene, const char *out)
+static int part_ceiling(const char *const *methods, int n_methods, int steps, const char *scene, const char *out,
+                        const json_t *extra)
 {
     char json[160], mdpath[160];
     snprintf(json, sizeof json, "etc/scenes/%s.json", scene);
@@ -291,17 +309,19 @@ static int part_ceiling(const char *const *methods, int n_methods, int steps, co
     if (table_open(&t, mdpath) < 0)
         return 1;
     FILE *md = t.md;
-    fprintf(md, "The ceiling of the recipe: each method's fast preset run for %d steps (the learning rate decayed over "
-                "all of them) on %s (known poses, 2 threads), evaluated every %d steps "
+    char *with = json_object_size(extra) ? json_dumps(extra, JSON_COMPACT | JSON_SORT_KEYS) : NULL;
+    fprintf(md, "The ceiling of the recipe: each method's fast preset%s%s run for %d steps (the learning rate decayed "
+                "over all of them) on %s (known poses, 2 threads), evaluated every %d steps "
                 "(renders excluded from the time). PSNR with peak 1; residual = ‖y − Σ Mᵢ Xᵢ‖ / ‖y‖ of the render; "
                 "largest weight = mean over the rays that hit something of the ray's largest sample weight.\n\n",
-            steps, scene, (steps + 19) / 20);
+            with ? " with " : "", with ? with : "", steps, scene, (steps + 19) / 20);
+    free(with);
     fprintf(md, "| method | step | wall s | PSNR dB | residual | largest weight |\n|---|---:|---:|---:|---:|---:|\n");
     int status = 0;
     for (int mi = 0; mi < n_methods; mi++) {
         measure m;
         long rss = 0;
-        int rc = measure_in_child(methods[mi], "fast", json, 1, steps, &m, &rss);
+        int rc = measure_in_child(methods[mi], "fast", json, 1, steps, extra, &m, &rss);
         if (rc < 0 || !m.ok) {
             printf("%s ceiling run failed: %s\n", methods[mi], m.err);
             status = 1;
@@ -424,6 +444,7 @@ int main(int argc, char **argv)
 {
     sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     int costs = 1, curves = 1, ceiling = 0, place = 0;
+    json_t *extra = json_object();
     char which[128] = "fast,balanced,best", scene[64] = CEILING_SCENE, only[128] = "", out[64] = "";
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--quick") == 0)
@@ -449,14 +470,19 @@ int main(int argc, char **argv)
             snprintf(out, sizeof out, "%s", argv[++i]);
         else if (strcmp(argv[i], "--methods") == 0 && i + 1 < argc)
             snprintf(only, sizeof only, ",%s,", argv[++i]);
+        else if (strcmp(argv[i], "--set") == 0 && i + 1 < argc && setting_add(extra, argv[++i]) == 0)
+            ;
         else if (strcmp(argv[i], "--place") == 0 && i + 1 < argc) {
             place = i + 1; /* the tables run to the end of the arguments */
             break;
         } else {
             fprintf(stderr, "usage: bench_nerf_recon [--quick | --curves-only [--presets fast,balanced,best] | "
-                            "--ceiling [STEPS] [--scene NAME] [--out NAME] [--methods a,b] | [--methods a,b] --place TABLE...]\n"
+                            "--ceiling [STEPS] [--scene NAME] [--out NAME] [--methods a,b] [--set KEY=VALUE]... | "
+                            "[--methods a,b] --place TABLE...]\n"
                             "  --scene: etc/scenes/NAME.json (a-z, 0-9 and _), default " CEILING_SCENE "\n"
-                            "  --out: the ceiling's table is bench/results/NAME.md\n");
+                            "  --out: the ceiling's table is bench/results/NAME.md\n"
+                            "  --set: a setting over the fast preset's (samples=64), as scicap recon --set\n");
+            json_decref(extra);
             return 2;
         }
     }
@@ -473,11 +499,19 @@ int main(int argc, char **argv)
         fprintf(stderr, "bench_nerf_recon: --methods names no method that trains on a camera's views\n");
         return 2;
     }
+    if (!ceiling && (out[0] || json_object_size(extra))) {
+        fprintf(stderr, "bench_nerf_recon: --out and --set go with --ceiling\n");
+        json_decref(extra);
+        return 2;
+    }
     int status = 0;
-    if (place)
-        return part_place(methods, n_methods, argv + place, argc - place);
-    if (ceiling)
-        return part_ceiling(methods, n_methods, ceiling, scene, out);
+    if (place || ceiling) {
+        status = place ? part_place(methods, n_methods, argv + place, argc - place)
+                       : part_ceiling(methods, n_methods, ceiling, scene, out, extra);
+        json_decref(extra);
+        return status;
+    }
+    json_decref(extra);
     if (costs)
         status |= part_costs(methods, n_methods, presets);
     if (curves)
