@@ -260,7 +260,7 @@ int scicapd_rig_take(scicapd_rig *a, int n, uint32_t exposure_us, enum sync_mode
     rc = capture_snapshot_take(a->cam, a->trig, &p, a->snap, err);
     sci_error e2 = {0};
     dmd_stop(a->dmd, &e2);
-    if (rc == -ENODEV || rc == -EIO) {
+    if ((rc == -ENODEV || rc == -EIO) && !a->snap->dmd_failed) { /* the camera's error, not the DMD's */
         sci_error e3 = {0};
         camera_recover(a->cam, &e3);
     }

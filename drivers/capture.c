@@ -112,6 +112,7 @@ static int snapshot_check(camera *cam, trigger *trig, const capture_params *p, c
         return sci_error_set(err, -EINVAL, "capture: camera %s is not streaming", out->camera_id.path);
     out->mode = p->mode;
     out->stale_frames = 0;
+    out->dmd_failed = 0;
     out->dmd_edges = out->strobe_edges = 0;
     return 0;
 }
@@ -193,7 +194,7 @@ static int snapshot_wait_frame(camera *cam, trigger *trig, const capture_params 
         /* camera master: the exposure must begin after the arm (its strobe starts our DMD sequence);
          * otherwise the frame must at least end after the start. */
         int keep = p->mode == SYNC_MODE_CAMERA_MASTER ? a >= st->t0 : b > st->t0;
-        if (keep && p->mode == SYNC_MODE_CAMERA_MASTER && a < st->t1 &&
+        if (keep && p->mode == SYNC_MODE_CAMERA_MASTER && p->dmd && a < st->t1 &&
             (rc = snapshot_started_by(trig, p, st->t0, a, settle_ns, log, &keep, err)) < 0)
             return rc;
         if (keep) {
@@ -295,8 +296,10 @@ static int snapshot_run(camera *cam, trigger *trig, const capture_params *p, con
 {
     snapshot_start_times st = {0};
     int rc = snapshot_start(trig, p, &st, err);
-    if (rc < 0)
+    if (rc < 0) {
+        out->dmd_failed = p->dmd && p->mode != SYNC_MODE_HOST_MASTER; /* only dmd_start can fail there */
         return rc;
+    }
     int64_t t0 = st.t0;
     out->start_ns = t0;
     int have_frame = 0;

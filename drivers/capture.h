@@ -6,8 +6,10 @@
  *        host master   — one trigger_pulse starts both the DMD sequence and the camera exposure;
  *        DMD master    — the DMD is started (params.dmd_start, or the trigger output wired to the DMD's trigger
  *                        input when NULL); the DMD's own trigger output starts the camera;
- *        camera master — nothing is started: the camera exposes (free run) and its strobe starts the DMD; the
- *                        snapshot is the first frame that began after the call;
+ *        camera master — the DMD is armed (params.dmd; NULL for a dark frame) after the drain, and the first
+ *                        strobe of the free-running camera after the arm starts it; the snapshot is the frame
+ *                        whose exposure began after the arm (one that began during the arm call only if the DMD's
+ *                        first edge followed it);
  *   3. waits for the frame that belongs to the start (timestamps after it), then keeps reading GPIO edges until
  *      the planned end of the DMD sequence plus params.settle_ns;
  *   4. builds the exposure window (from the strobe edges when wired, else estimated from the frame timestamp,
@@ -16,14 +18,14 @@
  * (host and DMD master) or free run (camera master).
  *
  * The DMD side: the DMD enters as (a) the timeline of patterns it was told to play (sync_timeline, built from its
- * dmd_timing by capture_timeline_from_dmd; this function places it in time) and (b) in DMD-master mode, the
- * dmd handle to start (drivers/dmd.h). Uploading masks, setting the timing (external trigger for host and camera
+ * dmd_timing by capture_timeline_from_dmd; this function places it in time) and (b) in DMD- and camera-master
+ * mode, the dmd handle to start or arm (drivers/dmd.h). Uploading masks, setting the timing (external trigger for host and camera
  * master) and stopping stay with the caller.
  *
  * Return: 0 with a complete snapshot (check out->report.broken: a broken sync is flagged, never hidden), or a
  * negative code with err naming the device: -ETIMEDOUT (no frame after the start: the camera missed its trigger;
  * out->report then carries SYNC_FLAG_NO_FRAME and the edges that were seen), or whatever the camera or trigger
- * returned (-ENODEV: call camera_recover). Blocks for about exposure + settle time. Not thread-safe per camera.
+ * returned (-ENODEV from the camera, out->dmd_failed 0: call camera_recover). Blocks for about exposure + settle time. Not thread-safe per camera.
  */
 #ifndef SCICAP_DRIVERS_CAPTURE_H
 #define SCICAP_DRIVERS_CAPTURE_H
@@ -45,7 +47,7 @@ typedef struct capture_params {
     const sync_timeline *timeline; /* patterns as the DMD was told to play them; start_ns is ignored (borrowed) */
     int64_t dmd_latency_ns;   /* expected delay from the start (pulse, DMD start call, or strobe) to pattern 0 */
     uint32_t pulse_width_us;  /* trigger output pulse; 0: 10 µs */
-    int64_t frame_timeout_ns; /* from the start to the frame; 0: exposure + sequence + 1 s */
+    int64_t frame_timeout_ns; /* from the start (the arm call's end) to the frame; 0: exposure + sequence + 1 s */
     int64_t settle_ns;        /* after the sequence end, how long edges may still arrive; 0: 1 ms */
     int64_t readout_ns;       /* exposure end to EOF timestamp, for the estimated window (no strobe) */
     sync_tolerance tolerance;
@@ -63,7 +65,9 @@ typedef struct capture_snapshot {
     sync_report report;
     sync_timeline plan;        /* the timeline as placed in time (start_ns = start + dmd_latency_ns) */
     enum sync_mode mode;
-    int64_t start_ns;          /* host's start (pulse or DMD start), or the strobe's rising edge (camera master) */
+    int64_t start_ns;          /* host's start (pulse or DMD start); camera master: the kept exposure's start (the
+                                  strobe's rising edge, else estimated), the arm when no frame came */
+    int dmd_failed;            /* the error came from starting or arming the DMD, not from the camera */
     uint32_t stale_frames;     /* frames drained before the start, or that ended before it */
     int dmd_edges, strobe_edges; /* rising edges seen on each input */
     uint64_t lost_events;      /* GPIO edges lost (line_seqno gaps) during this snapshot */

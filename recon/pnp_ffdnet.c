@@ -74,7 +74,7 @@ int sci_pnp_weights_path(const sci_pnp_params *p, int colour, char *buf, size_t 
         }
     return sci_error_set(err, -ENOENT,
                          "pnp-ffdnet: no FFDNet weights: give --set %s=PATH/%s (PnP-SCI's pretrained %s FFDNet; "
-                         "README, \"FFDNet weights\"); looked for %s%s%s",
+                         "docs/pnp-ffdnet.md, \"The weights\"); looked for %s%s%s",
                          colour ? "weights_rgb" : "weights", file, colour ? "colour" : "grey",
                          data && data[0] ? tried[0] : "", data && data[0] ? " and " : "", tried[1]);
 }

@@ -14,7 +14,7 @@
  *
  * Colour: a Bayer mosaic (solver_io.cfa) follows PnP-SCI's colour route (sci_pnp_solve_bayer below).
  *
- * Weights: `weights` names the grey FFDNet state dict (net_gray.pth of PnP-SCI; the README says where to get it).
+ * Weights: `weights` names the grey FFDNet state dict (net_gray.pth of PnP-SCI; docs/pnp-ffdnet.md says where to get it).
  * Empty: $SCICAP_DATA/ffdnet/net_gray.pth, then SCICAP_DATADIR/ffdnet/net_gray.pth (where `make install` puts
  * nothing: the weights are not ours to ship). A missing or bad file is an error naming it and what was tried.
  *

@@ -275,7 +275,10 @@ static int source(void *arg, const camera_sim_exposure *e, uint16_t *out, uint32
     }
     free(acc);
     b->last_valid |= keep;
-    b->seq_start_ns = 0; /* one sequence per exposure */
+    /* One sequence per exposure: the one it lit is spent. An older frame still queued, rendered after a later
+     * strobe started the sequence, must not clear it. */
+    if (b->seq_start_ns && e->end_ns > b->seq_start_ns)
+        b->seq_start_ns = 0;
     return 0;
 }
 

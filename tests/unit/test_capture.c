@@ -38,6 +38,7 @@ typedef struct rig {
     int64_t armed_ns;        /* only an exposure starting later starts it */
     int64_t arm_call_ns;     /* how long the arm call takes */
     int arm_late;            /* 1: armed at the end of the call (the simulator); 0: at its start (the hardware) */
+    int arm_fails;           /* the arm call fails: the DMD is unplugged */
     dmd *dmd;
     capture_params p;
     capture_snapshot snap;
@@ -100,7 +101,8 @@ static void arm_close(void *state) { (void)state; }
 static int arm_start(void *state, sci_error *err)
 {
     rig *r = state;
-    (void)err;
+    if (r->arm_fails)
+        return sci_error_set(err, -ENODEV, "DMD: not connected");
     if (r->arm_late)
         arm_sleep(r->arm_call_ns);
     r->armed = 1;
@@ -268,6 +270,28 @@ static void camera_master_slow_arm(int late)
     dmd_close(r.dmd);
     rig_close(&r);
 }
+/* An arm that fails is the DMD's error, which the caller must not take for the camera's. */
+static void camera_master_arm_failure_is_the_dmds(void **state)
+{
+    (void)state;
+    rig r;
+    rig_open(&r, SYNC_MODE_CAMERA_MASTER, 10000, 1);
+    r.arm_model = 1;
+    r.arm_fails = 1;
+    dmd_config cfg = dmd_config_default();
+    cfg.backend_options = &r;
+    sci_error err = {0};
+    assert_int_equal(dmd_open(&r.dmd, &arm_ops, &cfg, &err), 0);
+    r.p.dmd = r.dmd;
+    assert_int_equal(capture_snapshot_take(r.cam, r.trig, &r.p, &r.snap, &err), -ENODEV);
+    assert_true(r.snap.dmd_failed);
+    r.arm_fails = 0;
+    expect_good(&r);
+    assert_false(r.snap.dmd_failed);
+    dmd_close(r.dmd);
+    rig_close(&r);
+}
+
 static void camera_master_armed_late_in_a_slow_call(void **state)
 {
     (void)state;
@@ -422,6 +446,7 @@ int main(void)
         cmocka_unit_test(camera_master_good_sync),
         cmocka_unit_test(camera_master_armed_late_in_a_slow_call),
         cmocka_unit_test(camera_master_armed_early_in_a_slow_call),
+        cmocka_unit_test(camera_master_arm_failure_is_the_dmds),
         cmocka_unit_test(short_exposure_is_flagged),
         cmocka_unit_test(missed_trigger_times_out),
         cmocka_unit_test(dmd_missed_start_is_flagged),
