@@ -167,6 +167,7 @@ static void rig_open(rig *r, enum sync_mode mode, uint32_t exposure_us, int stro
 
 static void rig_close(rig *r)
 {
+    dmd_close(r->dmd); /* NULL unless rig_open_armed */
     capture_snapshot_release(&r->snap);
     camera_close(r->cam);
     trigger_close(r->trig);
@@ -249,25 +250,30 @@ static void camera_master_good_sync(void **state)
 /* Camera master with the DMD armed by the capture: an arm call longer than the camera's period (25 ms) has
  * an exposure start inside it. Armed at the call's end, that exposure did not start the DMD and the next one did;
  * armed at its start, it did. Either way the snapshot holds the whole sequence. */
+/* A camera-master rig whose capture arms the DMD through arm_ops (r->arm_* set after). */
+static void rig_open_armed(rig *r)
+{
+    rig_open(r, SYNC_MODE_CAMERA_MASTER, 10000, 1);
+    r->arm_model = 1;
+    dmd_config cfg = dmd_config_default();
+    cfg.backend_options = r;
+    sci_error err = {0};
+    assert_int_equal(dmd_open(&r->dmd, &arm_ops, &cfg, &err), 0);
+    r->p.dmd = r->dmd;
+}
+
 static void camera_master_slow_arm(int late)
 {
     rig r;
-    rig_open(&r, SYNC_MODE_CAMERA_MASTER, 10000, 1);
-    r.arm_model = 1;
+    rig_open_armed(&r);
     r.arm_late = late;
     r.arm_call_ns = 30000000;
-    dmd_config cfg = dmd_config_default();
-    cfg.backend_options = &r;
-    sci_error err = {0};
-    assert_int_equal(dmd_open(&r.dmd, &arm_ops, &cfg, &err), 0);
-    r.p.dmd = r.dmd;
     for (int k = 0; k < 2; k++) {
         expect_good(&r);
         /* the first exposure to start after the arm, one camera period at most */
         assert_true(r.snap.start_ns >= r.armed_ns && r.snap.start_ns - r.armed_ns <= 25000000);
     }
     assert_false(r.armed); /* one sequence a snapshot */
-    dmd_close(r.dmd);
     rig_close(&r);
 }
 /* An arm that fails is the DMD's error, which the caller must not take for the camera's. */
@@ -275,20 +281,14 @@ static void camera_master_arm_failure_is_the_dmds(void **state)
 {
     (void)state;
     rig r;
-    rig_open(&r, SYNC_MODE_CAMERA_MASTER, 10000, 1);
-    r.arm_model = 1;
+    rig_open_armed(&r);
     r.arm_fails = 1;
-    dmd_config cfg = dmd_config_default();
-    cfg.backend_options = &r;
     sci_error err = {0};
-    assert_int_equal(dmd_open(&r.dmd, &arm_ops, &cfg, &err), 0);
-    r.p.dmd = r.dmd;
     assert_int_equal(capture_snapshot_take(r.cam, r.trig, &r.p, &r.snap, &err), -ENODEV);
     assert_true(r.snap.dmd_failed);
     r.arm_fails = 0;
     expect_good(&r);
     assert_false(r.snap.dmd_failed);
-    dmd_close(r.dmd);
     rig_close(&r);
 }
 
