@@ -162,6 +162,20 @@ char *sci_json_path_key(char *buf, size_t n, const char *parent, const char *key
     return buf;
 }
 
+int sci_json_set_kv(json_t *obj, const char *kv)
+{
+    const char *eq = strchr(kv, '=');
+    char key[128];
+    if (!eq || eq == kv || (size_t)(eq - kv) >= sizeof key)
+        return -EINVAL;
+    memcpy(key, kv, (size_t)(eq - kv));
+    key[eq - kv] = 0;
+    json_t *v = json_loads(eq + 1, JSON_DECODE_ANY, NULL);
+    if (!v && !(v = json_string(eq + 1)))
+        return -EINVAL; /* not UTF-8 (jansson keeps only valid strings) */
+    return json_object_set_new(obj, key, v) == 0 ? 0 : -ENOMEM;
+}
+
 char *sci_json_path_index(char *buf, size_t n, const char *parent, size_t index)
 {
     snprintf(buf, n, "%s[%zu]", parent ? parent : "", index);

@@ -65,6 +65,11 @@ int sci_json_check_keys(const sci_json_doc *doc, const json_t *obj, const char *
  * with err naming the path; on failure the old file is intact. */
 int sci_json_write_atomic(const char *path, const json_t *j, size_t json_flags, mode_t mode, unsigned file_flags,
                           sci_error *err);
+/* Set obj[KEY] from the text "KEY=VALUE", as `scicap recon --set` reads it: VALUE parsed as JSON (3, 0.5, true,
+ * [1, 2], "s") and, when it is not JSON, taken as the string itself (--set mode=fast). The key is at most 127 bytes.
+ * Returns 0, -EINVAL (no '=', an empty or over-long key, a value not in UTF-8) or -ENOMEM; obj is unchanged on
+ * error. */
+int sci_json_set_kv(json_t *obj, const char *kv);
 /* Join a path: "a" + "b" -> "a.b"; "" + "b" -> "b". Writes into buf (size n); returns buf. */
 char *sci_json_path_key(char *buf, size_t n, const char *parent, const char *key);
 /* "a" + 2 -> "a[2]". */

@@ -25,6 +25,7 @@
 
 #include <jansson.h>
 
+#include "base/json.h"
 #include "base/runtime_env.h"
 #include "bench/bench_load.h"
 #include "io/source.h"
@@ -75,19 +76,13 @@ static int print_clean_fit(const char *dir, const sci_problem *p, const sci_cube
     return rc;
 }
 
-/* Adds "key=value" to the settings object `obj` (the value read as JSON when it parses, else as a string). */
+/* Adds "key=value" to the settings object `obj` (sci_json_set_kv); a malformed argument ends the program (2). */
 static void add_key(json_t *obj, const char *arg)
 {
-    char key[64];
-    const char *eq = strchr(arg, '=');
-    if (!eq || eq == arg || eq - arg >= (long)sizeof key) {
+    if (sci_json_set_kv(obj, arg) < 0) {
         fprintf(stderr, "bad argument %s (key=value)\n", arg);
         exit(2);
     }
-    memcpy(key, arg, (size_t)(eq - arg));
-    key[eq - arg] = 0;
-    json_t *v = json_loads(eq + 1, JSON_DECODE_ANY, NULL);
-    json_object_set_new(obj, key, v ? v : json_string(eq + 1));
 }
 
 int main(int argc, char **argv)

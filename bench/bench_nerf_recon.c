@@ -14,9 +14,11 @@
  * Part 3, `--ceiling [STEPS] [--scene NAME] [--out NAME] [--methods a,b] [--set KEY=VALUE]...` (alone; not in
  * `make bench`): each method's fast preset (with the settings --set names over it) run for STEPS steps (default
  * 10000, the learning rate decayed over all of them) on etc/scenes/NAME.json (default static3d_corridor), PSNR,
- * the measurement residual and the mean largest ray weight every STEPS/20 steps, written to bench/results/nerf_ceiling.md (the corridor) or nerf_ceiling_NAME.md: where
- * accuracy stops following the fit; `--out NAME` writes bench/results/NAME.md instead, for a curve the preset rule
- * is not to read. About 25 min for rayformer and 45 for scinerf on 2 cores at 128 × 128.
+ * the measurement residual and the mean largest ray weight every STEPS/20 steps, written to
+ * bench/results/nerf_ceiling.md (the corridor) or nerf_ceiling_NAME.md: where accuracy stops following the fit
+ * (--set takes any setting but the three the ceiling sets itself: iters, metrics_every, ssim_every); `--out NAME`
+ * writes bench/results/NAME.md instead, for a curve the preset rule is not to read. About 25 min for rayformer and
+ * 45 for scinerf on 2 cores at 128 × 128.
  * `--place TABLE...` (alone): where the preset rule of io/ceiling.h puts every preset on those ceiling tables, and
  * the methods at equal wall time on each, to bench/results/nerf_presets.md (the presets are placed on
  * bench/results/nerf_ceiling_photo_*.md; tests/unit/test_nerf_presets checks the same).
@@ -31,6 +33,7 @@
 #include <unistd.h>
 
 #include "base/file.h"
+#include "base/json.h"
 #include "base/runtime_env.h"
 #include "bench/bench_load.h"
 #include "bench/bench_scene.h"
@@ -279,18 +282,6 @@ static int scene_name_ok(const char *name)
     return n > 0 && n < 64 && strspn(name, "abcdefghijklmnopqrstuvwxyz0123456789_") == n;
 }
 
-/* `KEY=VALUE` into o: the value as JSON when it parses (numbers, true), else as a string. -1 when malformed. */
-static int setting_add(json_t *o, const char *kv)
-{
-    const char *eq = strchr(kv, '=');
-    if (!eq || eq == kv || !eq[1] || eq - kv >= 64)
-        return -1;
-    char key[64];
-    snprintf(key, sizeof key, "%.*s", (int)(eq - kv), kv);
-    json_t *v = json_loads(eq + 1, JSON_DECODE_ANY, NULL);
-    return json_object_set_new(o, key, v ? v : json_string(eq + 1));
-}
-
 /* Part 3: each method's fast preset run for `steps` steps on etc/scenes/<scene>.json: the ceiling of the recipe.
  * The table is bench/results/nerf_ceiling.md for the corridor, nerf_ceiling_<scene>.md for another scene, or
  * bench/results/<out>.md when `out` is not empty (a curve the preset rule must not read: see --out below). */
@@ -470,7 +461,7 @@ int main(int argc, char **argv)
             snprintf(out, sizeof out, "%s", argv[++i]);
         else if (strcmp(argv[i], "--methods") == 0 && i + 1 < argc)
             snprintf(only, sizeof only, ",%s,", argv[++i]);
-        else if (strcmp(argv[i], "--set") == 0 && i + 1 < argc && setting_add(extra, argv[++i]) == 0)
+        else if (strcmp(argv[i], "--set") == 0 && i + 1 < argc && sci_json_set_kv(extra, argv[++i]) == 0)
             ;
         else if (strcmp(argv[i], "--place") == 0 && i + 1 < argc) {
             place = i + 1; /* the tables run to the end of the arguments */
@@ -504,6 +495,13 @@ int main(int argc, char **argv)
         json_decref(extra);
         return 2;
     }
+    for (const char *const *k = (const char *const[]){"iters", "metrics_every", "ssim_every", NULL}; *k; k++)
+        if (json_object_get(extra, *k)) { /* run_child sets them after --set: a value here would be ignored */
+            fprintf(stderr, "bench_nerf_recon: --set %s: the ceiling sets it (STEPS, and evaluations every STEPS/20)\n",
+                    *k);
+            json_decref(extra);
+            return 2;
+        }
     int status = 0;
     if (place || ceiling) {
         status = place ? part_place(methods, n_methods, argv + place, argc - place)

@@ -772,7 +772,8 @@ static const client_cmd client_cmds[] = {
      plain_opts, "devices", NULL, show_devices, 0},
     {"capture",
      "scicap capture [--mask-set S] [--count N] [--exposure-us U] [--pattern-us U] [--dark-us U]\n"
-     "                      [--sync host-master|dmd-master] [--recon [METHOD]] [--method M] [--preset P] [--wait]\n"
+     "                      [--sync host-master|dmd-master|camera-master] [--recon [METHOD]] [--method M]\n"
+     "                      [--preset P] [--wait]\n"
      "       scicap capture --from FILE.mat|DIR [--mask FILE.mat] [--mask-var V] [--meas-var V] [--truth-var V]\n"
      "                      [--scale auto|N] [--allow-large] [--recon [METHOD]] [--method M] [--preset P] [--wait]",
      "Capture coded snapshots on the bench (and reconstruct them with --recon); with --from, store the snapshots\n"

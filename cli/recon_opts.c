@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/json.h"
+
 /* Settings options spelled otherwise than their key since before the table: scripts and the man page use them.
  * "pose" was the usual abbreviation of --pose-mode before the NeRF methods' other pose_* keys became options. */
 static const struct {
@@ -282,28 +284,26 @@ static int apply_sets(const solver_ops *m, void *settings, const char *const *kv
 {
     json_t *obj = json_object();
     int rc = obj ? 0 : -ENOMEM;
-    for (int i = 0; i < n && rc == 0; i++) {
-        const char *eq = strchr(kv[i], '=');
-        char key[128];
-        snprintf(key, sizeof key, "%.*s", (int)(eq - kv[i]), kv[i]);
-        if (!solver_field_find(m, key, NULL)) {
+    for (int i = 0; i < n && rc == 0; i++)
+        if ((rc = sci_json_set_kv(obj, kv[i])) == -EINVAL) {
+            fprintf(stderr, "scicap recon: --set %s: the key must be under 128 bytes, the value UTF-8\n", kv[i]);
+            rc = 2;
+        }
+    const char *key;
+    json_t *v;
+    json_object_foreach(obj, key, v) /* in the order given (jansson keeps insertion order) */
+        if (rc == 0 && !solver_field_find(m, key, NULL)) {
             fprintf(stderr, "scicap recon: --set %s: %s has no such setting; its settings are:\n", key, m->name);
             for (int g = 0; g < 2; g++)
                 for (int k = 0; k < m->fields[g].n; k++)
                     fprintf(stderr, "  %-20s %s\n", m->fields[g].f[k].key, m->fields[g].f[k].help);
-            json_decref(obj);
-            return 2;
+            rc = 2;
         }
-        json_t *v = json_loads(eq + 1, JSON_DECODE_ANY, NULL);
-        if (!v)
-            v = json_string(eq + 1);
-        rc = v ? json_object_set_new(obj, key, v) : -ENOMEM;
-    }
     sci_error err = {0};
     if (rc == 0 && solver_settings_from_json(m, settings, obj, NULL, NULL, &err) < 0) {
         fprintf(stderr, "scicap recon: --set: %s\n", err.msg);
         rc = 2;
-    } else if (rc) {
+    } else if (rc < 0) {
         fprintf(stderr, "scicap recon: out of memory\n");
         rc = 2;
     }

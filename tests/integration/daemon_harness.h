@@ -90,6 +90,15 @@ static inline int h_connect_raw(const char *path)
     return fd;
 }
 
+/* In a forked child, first thing (and again after any change of its user or group, which clears it): the child
+ * is killed when the test program dies, so a failed assertion that jumps past the stop cannot leave a scicapd
+ * running. `parent` is the test's pid read before the fork; the child exits 127 when it was already orphaned. */
+static inline void harness_child_tie(pid_t parent)
+{
+    if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || getppid() != parent)
+        _exit(127);
+}
+
 /* Start (or restart, keeping dir) the daemon; env: NULL-terminated "K=V" list added to the environment. */
 static inline void harness_spawn(harness *h, char *const *env)
 {
@@ -98,9 +107,7 @@ static inline void harness_spawn(harness *h, char *const *env)
     h->pid = fork();
     assert_true(h->pid >= 0);
     if (h->pid == 0) {
-        /* A failed assertion jumps past harness_stop: the daemon must not outlive the test program. */
-        if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || getppid() != parent)
-            _exit(127);
+        harness_child_tie(parent);
         for (int i = 0; env && env[i]; i++)
             putenv(env[i]);
         int fd = open(h->log, O_WRONLY | O_CREAT | O_APPEND, 0644);

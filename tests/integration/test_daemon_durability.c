@@ -144,9 +144,10 @@ static void second_daemon_on_same_storage_refused(void **state)
     char sock2[400], log2[400];
     snprintf(sock2, sizeof sock2, "%s/second.sock", H.dir);
     snprintf(log2, sizeof log2, "%s/second.log", H.dir);
-    pid_t pid = fork();
+    pid_t parent = getpid(), pid = fork();
     assert_true(pid >= 0);
     if (pid == 0) {
+        harness_child_tie(parent);
         int fd = open(log2, O_WRONLY | O_CREAT | O_TRUNC, 0644);
         if (fd >= 0)
             dup2(fd, 2);

@@ -186,9 +186,10 @@ static void enter_sandbox(void)
 /* Start scicapd in h's folder; extra: NULL-terminated arguments; env: "K=V" or NULL. Returns the pid. */
 static pid_t spawn(const harness *h, run_mode mode, const char *const *extra, const char *env)
 {
-    pid_t pid = fork();
+    pid_t parent = getpid(), pid = fork();
     assert_true(pid >= 0);
     if (pid == 0) {
+        harness_child_tie(parent);
         int fd = open(h->log, O_WRONLY | O_CREAT | O_APPEND, 0644);
         if (fd >= 0) {
             dup2(fd, 2);

@@ -150,13 +150,14 @@ static pid_t start_as_nobody(const char *dir, char *sock, size_t n)
     snprintf(store, sizeof store, "%s/store", dir);
     snprintf(run, sizeof run, "%s/run", dir);
     snprintf(logp, sizeof logp, "%s/scicapd.log", dir);
-    pid_t pid = fork();
+    pid_t parent = getpid(), pid = fork();
     assert_true(pid >= 0);
     if (pid == 0) {
         int fd = open(logp, O_WRONLY | O_CREAT | O_APPEND, 0644);
         dup2(fd, 2);
         if (setgroups(0, NULL) != 0 || setgid(NOBODY) != 0 || setuid(NOBODY) != 0)
             _exit(126);
+        harness_child_tie(parent); /* after the change of user, which clears the parent-death signal */
         execl(H.bin, H.bin, "--no-config", "--socket", sock, "--storage", store, "--runtime-dir", run, "--no-fsync",
               (char *)NULL);
         _exit(127);

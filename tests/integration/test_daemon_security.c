@@ -317,9 +317,10 @@ static void jobs_belong_to_their_uid(void **state)
 /* Run scicapd on socket `sock` (everything else in h's folder); returns the pid. */
 static pid_t spawn_on(const harness *h, const char *sock)
 {
-    pid_t pid = fork();
+    pid_t parent = getpid(), pid = fork();
     assert_true(pid >= 0);
     if (pid == 0) {
+        harness_child_tie(parent);
         int fd = open(h->log, O_WRONLY | O_CREAT | O_APPEND, 0644);
         if (fd >= 0) {
             dup2(fd, 2);

@@ -59,6 +59,39 @@ static void test_json_positions(void **state)
     assert_int_equal(sci_json_doc_load_file(&doc, "/nonexistent.json", &err), -ENOENT);
 }
 
+/* KEY=VALUE as `--set` reads it: JSON when it parses, else the text; malformed arguments leave the object as it was. */
+static void test_json_set_kv(void **state)
+{
+    (void)state;
+    json_t *o = json_object();
+    assert_int_equal(sci_json_set_kv(o, "iters=30"), 0);
+    assert_int_equal(sci_json_set_kv(o, "gain=0.5"), 0);
+    assert_int_equal(sci_json_set_kv(o, "on=true"), 0);
+    assert_int_equal(sci_json_set_kv(o, "mode=fast"), 0);
+    assert_int_equal(sci_json_set_kv(o, "list=[1, 2]"), 0);
+    assert_int_equal(sci_json_set_kv(o, "expr=a=b"), 0); /* the first '=' splits */
+    assert_int_equal(sci_json_set_kv(o, "empty="), 0);
+    assert_int_equal(json_integer_value(json_object_get(o, "iters")), 30);
+    assert_true(json_real_value(json_object_get(o, "gain")) == 0.5);
+    assert_true(json_is_true(json_object_get(o, "on")));
+    assert_string_equal(json_string_value(json_object_get(o, "mode")), "fast");
+    assert_int_equal(json_array_size(json_object_get(o, "list")), 2);
+    assert_string_equal(json_string_value(json_object_get(o, "expr")), "a=b");
+    assert_string_equal(json_string_value(json_object_get(o, "empty")), "");
+    assert_int_equal(sci_json_set_kv(o, "iters=40"), 0); /* the last one given wins */
+    assert_int_equal(json_integer_value(json_object_get(o, "iters")), 40);
+    char longkey[200];
+    memset(longkey, 'k', 128);
+    strcpy(longkey + 128, "=1");
+    assert_int_equal(sci_json_set_kv(o, longkey), -EINVAL);
+    assert_int_equal(sci_json_set_kv(o, longkey + 1), 0); /* 127 bytes: the longest key */
+    assert_int_equal(sci_json_set_kv(o, "noequals"), -EINVAL);
+    assert_int_equal(sci_json_set_kv(o, "=5"), -EINVAL);
+    assert_int_equal(sci_json_set_kv(o, "bad=\xff"), -EINVAL);
+    assert_int_equal(json_object_size(o), 8);
+    json_decref(o);
+}
+
 static void test_rng_streams(void **state)
 {
     sci_rng a, b, c;
@@ -120,6 +153,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_json_positions),
+        cmocka_unit_test(test_json_set_kv),
         cmocka_unit_test(test_rng_streams),
         cmocka_unit_test(test_cube_limits),
     };
