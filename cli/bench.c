@@ -26,6 +26,7 @@
 
 #include "base/clock.h"
 #include "cli/commands.h"
+#include "io/curves.h"
 #include "io/problem_dir.h"
 #include "io/source.h"
 #include "io/staging.h"
@@ -45,7 +46,7 @@ typedef struct bench_scene {
 typedef struct bench_point {
     int scene;
     char method[32];   /* as sci_result.method */
-    char setting[96];  /* e.g. "iters=100 tv_iters=5" */
+    char setting[SCI_CURVE_SETTING_MAX]; /* e.g. "iters=100 tv_iters=5" */
     json_t *params;    /* passed to the child */
     /* results */
     int ok;
@@ -268,8 +269,10 @@ static int add_point(bench_point **pts, int *n, int *cap, int scene, const char 
         else
             off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%lld", off ? " " : "", key,
                                     (long long)json_integer_value(v));
-        if (off >= sizeof p->setting)
-            break;
+        if (off >= sizeof p->setting) { /* a grid point of the method table: too long to name in the CSV */
+            (*n)--;
+            return -ENAMETOOLONG;
+        }
     }
     return 0;
 }
@@ -440,7 +443,7 @@ static int keep_previous(const char *csv, const char *methods, const char *scene
         int s = 0;
         while (s < ns && strcmp(sc[s].name, col[0]) != 0)
             s++;
-        if (s == ns || add_point(pts, n, cap, s, col[1], NULL) < 0)
+        if (s == ns || strlen(col[2]) >= SCI_CURVE_SETTING_MAX || add_point(pts, n, cap, s, col[1], NULL) < 0)
             continue;
         bench_point *p = &(*pts)[*n - 1];
         snprintf(p->setting, sizeof p->setting, "%s", col[2]);
@@ -669,7 +672,12 @@ static int bench_grid_build(bench_run *r)
                     fprintf(stderr, "scicap bench: %s: bad grid point %s\n", op->name, *g);
                     return 1;
                 }
-                add_point(&r->pts, &r->np, &r->cap, s, op->name, params);
+                if (add_point(&r->pts, &r->np, &r->cap, s, op->name, params) < 0) {
+                    fprintf(stderr, "scicap bench: %s: grid point %s: no memory, or its setting is %d bytes or more\n",
+                            op->name, *g, SCI_CURVE_SETTING_MAX);
+                    json_decref(params);
+                    return 1;
+                }
             }
         }
     return 0;

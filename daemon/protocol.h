@@ -33,6 +33,7 @@
 #include "base/json.h"
 #include "daemon/config.h"
 #include "drivers/sync.h"
+#include "io/curves.h"
 #include "recon/solver.h"
 
 #define SCICAPD_PROTOCOL_VERSION 1
@@ -102,7 +103,7 @@ typedef struct scicapd_recon_spec {
     char preset[16];                 /* fast|balanced|best (default|quality as sent), "budget" when chosen by budget */
     double budget_s;                 /* the request's budget (0: none) */
     double predicted_s, expected_db; /* the chosen setting's predicted solver time and mean PSNR on the suite */
-    char budget_setting[96];         /* the chosen row of the curves ("iters=100 tv_iters=5"); "" when unknown */
+    char budget_setting[SCI_CURVE_SETTING_MAX]; /* the chosen row of the curves ("iters=100 tv_iters=5"); "" when unknown */
     _Alignas(max_align_t) unsigned char settings[SCICAPD_SETTINGS_MAX]; /* the method's params struct */
 } scicapd_recon_spec;
 

@@ -7,7 +7,7 @@
 #include <string.h>
 
 typedef struct curve_row {
-    char scene[32], method[SOLVER_NAME_MAX], setting[96];
+    char scene[32], method[SOLVER_NAME_MAX], setting[SCI_CURVE_SETTING_MAX];
     double psnr, wall_s, voxels;
     int camera;
 } curve_row;
@@ -66,6 +66,11 @@ int sci_curves_load(sci_curves **out, const char *csv_path, sci_error *err)
         if (strlen(fields[1]) >= sizeof r->method) {
             rc = sci_error_set(err, SCI_EFORMAT, "%s:%d: method name longer than %zu bytes", csv_path, lineno,
                                sizeof r->method - 1);
+            break;
+        }
+        if (strlen(fields[0]) >= sizeof r->scene || strlen(fields[2]) >= sizeof r->setting) {
+            rc = sci_error_set(err, SCI_EFORMAT, "%s:%d: scene name longer than %zu bytes or setting longer than %zu",
+                               csv_path, lineno, sizeof r->scene - 1, sizeof r->setting - 1);
             break;
         }
         snprintf(r->scene, sizeof r->scene, "%s", fields[0]);
@@ -168,8 +173,10 @@ int sci_curves_pick(const sci_curves *c, const char *method, int has_camera, dou
 
 json_t *sci_curves_setting_json(const char *setting)
 {
+    char buf[SCI_CURVE_SETTING_MAX];
+    if (strlen(setting) >= sizeof buf)
+        return NULL;
     json_t *o = json_object();
-    char buf[128];
     snprintf(buf, sizeof buf, "%s", setting);
     for (char *p = buf, *tok; (tok = strsep(&p, " ")) != NULL;) {
         if (!*tok)

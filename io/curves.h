@@ -20,9 +20,13 @@
 
 typedef struct sci_curves sci_curves;
 
+/* Bytes of a setting's text ("iters=100 tv_iters=5"), its NUL included: longer ones are refused where they are
+ * read or made, never cut. */
+#define SCI_CURVE_SETTING_MAX 256
+
 typedef struct sci_curve_choice {
     char method[SOLVER_NAME_MAX];
-    char setting[96];   /* "iters=100 tv_iters=5" */
+    char setting[SCI_CURVE_SETTING_MAX]; /* "iters=100 tv_iters=5" */
     double predicted_s; /* largest predicted wall time over the scenes of the kind */
     double mean_psnr;   /* mean PSNR over those scenes, dB (peak = frame max) */
     int scenes;         /* how many scenes the mean is over */
@@ -40,7 +44,8 @@ int sci_curves_pick(const sci_curves *c, const char *method, int has_camera, dou
                     sci_curve_choice *out, sci_error *err);
 
 /* The setting as a JSON object ({"iters": 100, "tv_iters": 5}; a non-numeric value such as preset=fast becomes a
- * string); new reference, NULL if malformed (a token without "=", an empty key or value). */
+ * string); new reference, NULL if malformed (a token without "=", an empty key or value, SCI_CURVE_SETTING_MAX
+ * bytes or more). */
 json_t *sci_curves_setting_json(const char *setting);
 
 #endif

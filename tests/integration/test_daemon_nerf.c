@@ -22,7 +22,9 @@
 #include "tests/helpers/cli_child.h"
 #include "tests/helpers/nerf_scene.h"
 
-#define ITERS 30
+/* steps of a run that a kill or SIGTERM interrupts after its second checkpoint: with 2^14 tables a step takes
+ * ~20 ms, so 50 steps (≥ 1 s) stand between that checkpoint and the end */
+#define ITERS 60
 #define CKPT_EVERY 5
 
 static harness H;
@@ -35,19 +37,21 @@ static const char curves[] =
     "scene,method,setting,psnr_db,psnr_peak1_db,ssim,wall_s,cpu_s,peak_rss_mib,pareto,recommended,threads,voxels,"
     "camera\n"
     "static3d,gap-tv,iters=50 tv_iters=5,15.0,15.5,0.4,0.5,0.5,100,1,0,1,131072,1\n"
-    "static3d,rayformer,preset=fast iters=20 patch=8 patches_per_step=2 samples=8 metrics_every=0 threads=1,"
+    "static3d,rayformer,preset=fast iters=20 patch=8 patches_per_step=2 samples=8 metrics_every=0 threads=1 "
+    "log2_table=14,"
     "17.0,17.5,0.5,100,100,300,1,1,1,131072,1\n"
     "drop40,gap-tv,iters=20 tv_iters=5,30.0,30.5,0.9,0.5,0.5,100,1,1,1,524288,0\n";
 static char cap_a[32], cap_b[32]; /* the same scene imported twice: runs to compare */
 
-/* Small and quick (as test_cli_recon_nerf's): two 8×8 windows per step, 8 samples, one thread (deterministic). */
+/* Small and quick (as test_cli_recon_nerf's): two 8×8 windows per step, 8 samples, one thread (deterministic),
+ * hash tables of 2^14 entries a level (the presets' 2^19 make every checkpoint, with its Adam moments, ~100 MB). */
 static json_t *small_params(const char *method, int iters)
 {
     if (!strcmp(method, "rayformer"))
-        return json_pack("{s:i, s:i, s:i, s:i, s:i, s:i}", "iters", iters, "patch", 8, "patches_per_step", 2,
-                         "samples", 8, "metrics_every", 0, "threads", 1);
-    return json_pack("{s:i, s:i, s:i, s:i, s:i}", "iters", iters, "rays", 256, "samples", 8, "metrics_every", 0,
-                     "threads", 1);
+        return json_pack("{s:i, s:i, s:i, s:i, s:i, s:i, s:i}", "iters", iters, "patch", 8, "patches_per_step", 2,
+                         "samples", 8, "metrics_every", 0, "threads", 1, "log2_table", 14);
+    return json_pack("{s:i, s:i, s:i, s:i, s:i, s:i}", "iters", iters, "rays", 256, "samples", 8, "metrics_every", 0,
+                     "threads", 1, "log2_table", 14);
 }
 
 static json_int_t reconstruct_small(hconn *c, const char *cap, const char *method, int iters)
@@ -240,7 +244,7 @@ static void run_method(const char *method)
     assert_int_equal(json_integer_value(json_object_get(d, "iters")), ITERS);
     assert_true(f.progress >= 1);
     assert_int_equal(f.last_iter, ITERS);
-    assert_int_equal(f.checkpoints, ITERS / CKPT_EVERY); /* every 5 steps; the last one is step 30 */
+    assert_int_equal(f.checkpoints, ITERS / CKPT_EVERY); /* every 5 steps; the last one is the last step */
     assert_int_equal(f.last_ckpt, ITERS);
     assert_true(isfinite(psnr) && psnr > 0);
     assert_true(daemon_child_recon_exists(&H, cap_a, method));
