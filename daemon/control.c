@@ -228,6 +228,14 @@ void scicapd_control_set_limits(scicapd_control *ctl, const scicapd_control_limi
 
 int scicapd_control_clients(const scicapd_control *ctl) { return ctl->n; }
 
+int scicapd_control_watchers(const scicapd_control *ctl)
+{
+    int n = 0;
+    for (int i = 0; i < ctl->n; i++)
+        n += ctl->c[i]->watching != 0;
+    return n;
+}
+
 static void flush(scicapd_control *ctl, scicapd_client *c)
 {
     while (c->out_off < c->out_len) {

@@ -114,6 +114,8 @@ void scicapd_control_send_to(scicapd_control *ctl, scicapd_client *c, const char
  * every event, others those of their own uid; owner < 0 (SCICAPD_OWNER_ALL) reaches every watcher. */
 void scicapd_control_broadcast(scicapd_control *ctl, const char *line, uint64_t except, long owner);
 int scicapd_control_clients(const scicapd_control *ctl);
+/* Connections that receive events (`watch` answered), of those. */
+int scicapd_control_watchers(const scicapd_control *ctl);
 /* Stop accepting (shutdown): close the listening socket, keep the connections to say goodbye. */
 void scicapd_control_stop_listening(scicapd_control *ctl);
 /* Pending output on any connection? */

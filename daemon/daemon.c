@@ -279,7 +279,7 @@ static json_t *status_json(scicapd *d)
     int q, r, f;
     scicapd_jobs_count(d->jobs, &q, &r, &f);
     return json_pack("{s:s, s:i, s:i, s:f, s:s, s:s, s:s, s:b, s:{s:[i,i], s:[i,i], s:[i,i]}, s:{s:i, s:i, s:i},"
-                     " s:i, s:i, s:I, s:{s:i, s:i, s:i, s:o}, s:b, s:o, s:o}",
+                     " s:i, s:i, s:i, s:I, s:{s:i, s:i, s:i, s:o}, s:b, s:o, s:o}",
                      "version", SCICAP_VERSION, "protocol", SCICAPD_PROTOCOL_VERSION, "pid", (int)getpid(),
                      "uptime_s", sci_clock_s(d->started_ns, sci_clock_mono_ns()), "config",
                      d->cfg->path[0] ? d->cfg->path : "(built-in defaults)", "socket", d->cfg->socket_path,
@@ -288,7 +288,7 @@ static json_t *status_json(scicapd *d)
                      "reconstruction", scicapd_queue_len(d->recon_q), scicapd_queue_capacity(d->recon_q), "storage",
                      scicapd_queue_len(d->store_q), scicapd_queue_capacity(d->store_q), "jobs", "queued", q,
                      "running", r, "finished", f, "workers_busy", scicapd_workers_busy(d->workers), "clients",
-                     scicapd_control_clients(d->ctl), "captures_stored", (json_int_t)atomic_load(&d->stored),
+                     scicapd_control_clients(d->ctl), "watchers", scicapd_control_watchers(d->ctl), "captures_stored", (json_int_t)atomic_load(&d->stored),
                      "recovered", "captures", d->recovered.captures, "removed_partial", d->recovered.removed,
                      "reconstructions_resumed", d->resumed, "capture_interrupted",
                      d->interrupted ? json_incref(d->interrupted) : json_null(),

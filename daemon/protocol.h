@@ -103,7 +103,8 @@ typedef struct scicapd_recon_spec {
     char preset[16];                 /* fast|balanced|best (default|quality as sent), "budget" when chosen by budget */
     double budget_s;                 /* the request's budget (0: none) */
     double predicted_s, expected_db; /* the chosen setting's predicted solver time and mean PSNR on the suite */
-    char budget_setting[SCI_CURVE_SETTING_MAX]; /* the chosen row of the curves ("iters=100 tv_iters=5"); "" when unknown */
+    /* the chosen row of the curves ("iters=100 tv_iters=5"); "" when unknown */
+    char budget_setting[SCI_CURVE_SETTING_MAX];
     _Alignas(max_align_t) unsigned char settings[SCICAPD_SETTINGS_MAX]; /* the method's params struct */
 } scicapd_recon_spec;
 

@@ -1,5 +1,7 @@
 #include "io/curves.h"
 
+#include "base/json.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -181,20 +183,12 @@ json_t *sci_curves_setting_json(const char *setting)
     for (char *p = buf, *tok; (tok = strsep(&p, " ")) != NULL;) {
         if (!*tok)
             continue;
-        char *eq = strchr(tok, '=');
-        char *end;
-        if (!eq) {
+        const char *eq = strchr(tok, '=');
+        /* each token as `scicap recon --set` reads it, so a measured lambda=0.5 comes back a number */
+        if (!eq || !eq[1] || sci_json_set_kv(o, tok) < 0) {
             json_decref(o);
             return NULL;
         }
-        *eq = 0;
-        if (eq == tok || !eq[1]) {
-            json_decref(o);
-            return NULL;
-        }
-        long long v = strtoll(eq + 1, &end, 10);
-        /* integers stay integers; a word ("preset=fast") is a string */
-        json_object_set_new(o, tok, *end ? json_string(eq + 1) : json_integer(v));
     }
     return o;
 }

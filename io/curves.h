@@ -43,9 +43,9 @@ void sci_curves_free(sci_curves *c);
 int sci_curves_pick(const sci_curves *c, const char *method, int has_camera, double voxels, double budget_s,
                     sci_curve_choice *out, sci_error *err);
 
-/* The setting as a JSON object ({"iters": 100, "tv_iters": 5}; a non-numeric value such as preset=fast becomes a
- * string); new reference, NULL if malformed (a token without "=", an empty key or value, SCI_CURVE_SETTING_MAX
- * bytes or more). */
+/* The setting as a JSON object, each KEY=VALUE token read as sci_json_set_kv (base/json.h) reads `--set`:
+ * {"iters": 100, "lambda": 0.5, "preset": "fast"}; new reference, NULL if malformed (a token without "=", an
+ * empty key or value, SCI_CURVE_SETTING_MAX bytes or more). */
 json_t *sci_curves_setting_json(const char *setting);
 
 #endif

@@ -70,6 +70,23 @@ static void slurp(const cli_child *c, const char *which, char *buf, size_t n)
     unlink(path);
 }
 
+int cli_child_wait_stdout(const cli_child *c, const char *needle, int timeout_ms)
+{
+    char path[600], buf[8192];
+    stream_path(c, "stdout", path, sizeof path);
+    for (int waited = 0; waited <= timeout_ms; waited += 20) {
+        FILE *f = fopen(path, "r");
+        size_t len = f ? fread(buf, 1, sizeof buf - 1, f) : 0;
+        buf[len] = '\0';
+        if (f)
+            fclose(f);
+        if (strstr(buf, needle))
+            return 0;
+        usleep(20000);
+    }
+    return -1;
+}
+
 void cli_child_finish(cli_child *c)
 {
     struct rusage ru;

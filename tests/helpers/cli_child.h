@@ -31,6 +31,9 @@ typedef struct cli_child {
 int cli_child_program(char *buf, size_t n, const char *name);
 /* Start `prog args...` (args NULL-terminated; prog is also argv[0]). The child's working folder is ours. */
 void cli_child_start(cli_child *c, const char *prog, const char *const *args, const char *dir);
+/* Wait until the running child's stdout so far holds `needle` (the child must flush it): 0, or -1 after timeout_ms
+ * (a bound for a stuck child, not a timing: the test fails on -1). */
+int cli_child_wait_stdout(const cli_child *c, const char *needle, int timeout_ms);
 /* Wait for it (status, peak RSS) and read its stdout and stderr back. */
 void cli_child_finish(cli_child *c);
 /* Start and finish. */

@@ -255,14 +255,32 @@ static void test_capture_id_forms(void **state)
     }
 }
 
+/* Until the daemon says `n` connections watch (its status), so a capture started next is seen from its first event;
+ * fails the test after 10 s. */
+static void wait_watchers(int n)
+{
+    hconn h;
+    hconn_open(&h, &H);
+    int now = -1;
+    for (int waited = 0; waited < 10000 && now != n; waited += 20) {
+        json_t *st = hconn_request(&h, "status", NULL);
+        now = (int)json_integer_value(json_object_get(st, "watchers"));
+        json_decref(st);
+        if (now != n)
+            usleep(20000);
+    }
+    hconn_close(&h);
+    assert_int_equal(now, n);
+}
+
 /* --wait and watch print lines, not the events' JSON; watch ends on Ctrl-C at once. */
 static void test_events_are_lines(void **state)
 {
     cli_child w, c;
     cli_child_start(&w, scicap, (const char *const[]){"watch", "--socket", H.sock, NULL}, H.dir);
-    usleep(300000); /* its watch request in before the capture */
+    wait_watchers(1);
     assert_int_equal(scicap_run(&c, (const char *const[]){"capture", "--recon", "--preset", "fast", "--wait", NULL}), 0);
-    usleep(300000);
+    assert_int_equal(cli_child_wait_stdout(&w, " PSNR ", 30000), 0); /* the last event it prints */
     kill(w.pid, SIGINT);
     cli_child_finish(&w);
     print_message("  watch: exit %d\n%s%s", cli_child_exit_code(&w), w.out, w.err);
@@ -276,9 +294,9 @@ static void test_events_are_lines(void **state)
     }
     /* --json keeps the events as the daemon sent them */
     cli_child_start(&w, scicap, (const char *const[]){"watch", "--socket", H.sock, "--json", NULL}, H.dir);
-    usleep(300000);
+    wait_watchers(1);
     assert_int_equal(scicap_run(&c, (const char *const[]){"capture", "--wait", NULL}), 0);
-    usleep(300000);
+    assert_int_equal(cli_child_wait_stdout(&w, "\"capture.done\"", 30000), 0);
     kill(w.pid, SIGINT);
     cli_child_finish(&w);
     json_t *first = json_loadb(w.out, strcspn(w.out, "\n"), 0, NULL);
