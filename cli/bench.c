@@ -228,6 +228,24 @@ static void spawn_point(const char *self, const bench_scene *sc, bench_point *pt
     json_decref(res);
 }
 
+/* One value of a setting as the curves read it back (sci_json_set_kv): a string as itself, true/false, an integer,
+ * a real in the fewest digits (15 … 17) that read back to the same double. Returns what snprintf returns. */
+static int setting_value(char *buf, size_t n, const json_t *v)
+{
+    if (json_is_string(v))
+        return snprintf(buf, n, "%s", json_string_value(v));
+    if (json_is_boolean(v))
+        return snprintf(buf, n, "%s", json_is_true(v) ? "true" : "false");
+    if (json_is_integer(v))
+        return snprintf(buf, n, "%lld", (long long)json_integer_value(v));
+    const double x = json_number_value(v);
+    int prec = 15, len;
+    do
+        len = snprintf(buf, n, "%.*g", prec, x);
+    while (strtod(buf, NULL) != x && ++prec <= 17);
+    return len;
+}
+
 static int add_point(bench_point **pts, int *n, int *cap, int scene, const char *method, json_t *params)
 {
     if (*n == *cap) {
@@ -249,27 +267,23 @@ static int add_point(bench_point **pts, int *n, int *cap, int scene, const char 
     if (!params)
         return 0;
     json_object_foreach(params, key, v) {
-        if (json_is_string(v))
-            off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%s", off ? " " : "", key,
-                                    json_string_value(v));
-        else if (json_is_array(v)) {
+        char val[SCI_CURVE_SETTING_MAX];
+        int len = 0;
+        if (json_is_array(v)) {
             /* a list setting (e.g. sigma) as 50/25/12: no commas in a CSV column, and read back as the list */
             size_t i;
             json_t *e;
-            off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=", off ? " " : "", key);
             json_array_foreach(v, i, e) {
-                if (off >= sizeof p->setting)
+                if ((size_t)len >= sizeof val)
                     break;
-                off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%g", i ? "/" : "",
-                                        json_number_value(e));
+                len += snprintf(val + len, sizeof val - (size_t)len, "%s", i ? "/" : "");
+                len += (size_t)len < sizeof val ? setting_value(val + len, sizeof val - (size_t)len, e) : 0;
             }
-        } else if (json_is_real(v))
-            off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%g", off ? " " : "", key,
-                                    json_real_value(v));
-        else
-            off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%lld", off ? " " : "", key,
-                                    (long long)json_integer_value(v));
-        if (off >= sizeof p->setting) { /* a grid point of the method table: too long to name in the CSV */
+        } else
+            len = setting_value(val, sizeof val, v);
+        if ((size_t)len < sizeof val)
+            off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%s", off ? " " : "", key, val);
+        if ((size_t)len >= sizeof val || off >= sizeof p->setting) { /* a grid point too long to name in the CSV */
             (*n)--;
             return -ENAMETOOLONG;
         }
@@ -421,8 +435,8 @@ static int prepare_scene(bench_scene *sc, const char *scene_path, const char *na
 static int method_enabled(const char *list, const char *m);
 
 /* The points not re-run (method not in `methods` or scene not in `scenes`), from the previous CSV, for the scenes
- * of this suite:
- * appended as kept points. A missing CSV keeps nothing; returns how many were kept. */
+ * of this suite: appended as kept points. A missing CSV keeps nothing; a row not kept (malformed, or of a scene
+ * not in the suite) is said on stderr. Returns how many were kept. */
 static int keep_previous(const char *csv, const char *methods, const char *scenes, const bench_scene *sc, int ns,
                          bench_point **pts, int *n, int *cap)
 {
@@ -430,21 +444,34 @@ static int keep_previous(const char *csv, const char *methods, const char *scene
     if (!f)
         return 0;
     char line[1024];
-    int kept = 0;
+    int kept = 0, lineno = 0, other_scene = 0;
     while (fgets(line, sizeof line, f)) {
         char *col[14], *save = NULL;
         int nc = 0;
+        lineno++;
         for (char *t = strtok_r(line, ",\n", &save); t && nc < 14; t = strtok_r(NULL, ",\n", &save))
             col[nc++] = t;
+        if (nc > 0 && strcmp(col[0], "scene") == 0)
+            continue;
+        if (nc < 12) {
+            fprintf(stderr, "scicap bench: %s:%d: not kept: %d columns, fewer than 12\n", csv, lineno, nc);
+            continue;
+        }
         /* A row is re-measured now (so not kept) when both its method and its scene are selected. */
-        if (nc < 12 || strcmp(col[0], "scene") == 0 ||
-            (method_enabled(methods, col[1]) && method_enabled(scenes, col[0])))
+        if (method_enabled(methods, col[1]) && method_enabled(scenes, col[0]))
             continue;
         int s = 0;
         while (s < ns && strcmp(sc[s].name, col[0]) != 0)
             s++;
-        if (s == ns || strlen(col[2]) >= SCI_CURVE_SETTING_MAX || add_point(pts, n, cap, s, col[1], NULL) < 0)
+        if (s == ns) {
+            other_scene++;
             continue;
+        }
+        if (strlen(col[2]) >= SCI_CURVE_SETTING_MAX || add_point(pts, n, cap, s, col[1], NULL) < 0) {
+            fprintf(stderr, "scicap bench: %s:%d: not kept: setting of %zu bytes (at most %d) or no memory\n", csv,
+                    lineno, strlen(col[2]), SCI_CURVE_SETTING_MAX - 1);
+            continue;
+        }
         bench_point *p = &(*pts)[*n - 1];
         snprintf(p->setting, sizeof p->setting, "%s", col[2]);
         p->psnr = atof(col[3]), p->psnr1 = atof(col[4]), p->ssim = atof(col[5]);
@@ -454,6 +481,8 @@ static int keep_previous(const char *csv, const char *methods, const char *scene
         kept++;
     }
     fclose(f);
+    if (other_scene)
+        fprintf(stderr, "scicap bench: %s: %d rows of scenes not in the suite dropped\n", csv, other_scene);
     return kept;
 }
 

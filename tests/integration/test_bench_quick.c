@@ -181,7 +181,11 @@ static void test_methods_keep_the_others(void **state)
                "voxels,camera\n"
                "static3d,rayformer,preset=fast,23.0400,23.1000,0.85940,227.5,450.1,546.0,1,1,2,131072,1\n"
                "static3d,gap-tv,iters=1 tv_iters=1,1.0,1.0,0.1,0.001,0.001,10.0,1,1,2,131072,1\n"
-               "nosuchscene,admm-tv,iters=5 tv_iters=2,9.0,9.0,0.1,0.01,0.01,10.0,1,1,2,131072,0\n");
+               "nosuchscene,admm-tv,iters=5 tv_iters=2,9.0,9.0,0.1,0.01,0.01,10.0,1,1,2,131072,0\n"
+               "static3d,admm-tv,");
+    for (int k = 0; k < SCI_CURVE_SETTING_MAX / 8; k++) /* a setting too long to keep: dropped, and said */
+        fputs("iters=5 ", f);
+    fputs("tv_iters=2,9.0,9.0,0.1,0.01,0.01,10.0,1,1,2,131072,0\n", f);
     fclose(f);
     snprintf(cmd, sizeof cmd, "%s/scicap bench --full --methods gap-tv --scene static3d --out %s --csv %s 2>%s/log",
              build ? build : "build", dir, path, dir);
@@ -198,6 +202,11 @@ static void test_methods_keep_the_others(void **state)
     assert_int_not_equal(system(cmd), 0);
     snprintf(cmd, sizeof cmd, "grep -q nosuchscene %s", path);
     assert_int_not_equal(system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "grep -q '1 rows of scenes not in the suite dropped' %s/log", dir); /* and says so */
+    assert_int_equal(system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "grep -q 'results.csv:5: not kept: setting of 266 bytes' %s/log && ! grep -q admm-tv %s",
+             dir, path);
+    assert_int_equal(system(cmd), 0);
     snprintf(cmd, sizeof cmd, "grep -c ',gap-tv,' %s | awk '$1 >= 15 { ok = 1 } END { exit !ok }'", path);
     assert_int_equal(system(cmd), 0);
     snprintf(cmd, sizeof cmd, "grep -q '| rayformer | preset=fast | 23.04 |' %s/report.md && grep -q 'kept from the "

@@ -21,6 +21,7 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include "io/curves.h"
 #include "tests/helpers/cli_child.h"
 #include "tests/integration/daemon_harness.h"
 
@@ -205,7 +206,8 @@ static void test_daemon(void **state)
     harness_cleanup(&h);
 }
 
-/* scicap bench measures the toy's quick grid (its bench_quick: iters 1 and 4) like any method's. */
+/* scicap bench measures the toy's quick grid (its bench_quick: iters 1 and 4) like any method's; the second point's
+ * setting names its real and its boolean as --set reads them, and reads back to that point. */
 static void test_bench(void **state)
 {
     (void)state;
@@ -220,15 +222,22 @@ static void test_bench(void **state)
     FILE *f = fopen(csv, "r");
     assert_non_null(f);
     char line[512];
-    int rows = 0, toy = 0;
+    int rows = 0, toy = 0, named = 0;
     while (fgets(line, sizeof line, f)) {
         rows++;
         toy += strncmp(line, "video2d,toy-mean,iters=", 23) == 0;
+        named += strncmp(line, "video2d,toy-mean,iters=4 gain=0.7 mean_start=false,", 51) == 0;
     }
     fclose(f);
     print_message("  bench: %d toy-mean points of %d rows\n", toy, rows - 1);
     assert_int_equal(toy, 2);
     assert_int_equal(rows, 3);
+    assert_int_equal(named, 1);
+    json_t *js = sci_curves_setting_json("iters=4 gain=0.7 mean_start=false"); /* what a budget choice runs */
+    assert_int_equal(json_integer_value(json_object_get(js, "iters")), 4);
+    assert_true(json_real_value(json_object_get(js, "gain")) == 0.7);
+    assert_true(json_is_false(json_object_get(js, "mean_start")));
+    json_decref(js);
     /* and in the report's table of the scene (the front: iters=1 is as accurate as iters=4) */
     char md[450];
     snprintf(md, sizeof md, "%s/report.md", out);
