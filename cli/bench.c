@@ -451,7 +451,7 @@ static int keep_previous(const char *csv, const char *methods, const char *scene
         lineno++;
         for (char *t = strtok_r(line, ",\n", &save); t && nc < 14; t = strtok_r(NULL, ",\n", &save))
             col[nc++] = t;
-        if (nc > 0 && strcmp(col[0], "scene") == 0)
+        if (nc == 0 || strcmp(col[0], "scene") == 0)
             continue;
         if (nc < 12) {
             fprintf(stderr, "scicap bench: %s:%d: not kept: %d columns, fewer than 12\n", csv, lineno, nc);
@@ -467,9 +467,13 @@ static int keep_previous(const char *csv, const char *methods, const char *scene
             other_scene++;
             continue;
         }
-        if (strlen(col[2]) >= SCI_CURVE_SETTING_MAX || add_point(pts, n, cap, s, col[1], NULL) < 0) {
-            fprintf(stderr, "scicap bench: %s:%d: not kept: setting of %zu bytes (at most %d) or no memory\n", csv,
-                    lineno, strlen(col[2]), SCI_CURVE_SETTING_MAX - 1);
+        if (strlen(col[2]) >= SCI_CURVE_SETTING_MAX) {
+            fprintf(stderr, "scicap bench: %s:%d: not kept: setting of %zu bytes (at most %d)\n", csv, lineno,
+                    strlen(col[2]), SCI_CURVE_SETTING_MAX - 1);
+            continue;
+        }
+        if (add_point(pts, n, cap, s, col[1], NULL) < 0) {
+            fprintf(stderr, "scicap bench: %s:%d: not kept: out of memory\n", csv, lineno);
             continue;
         }
         bench_point *p = &(*pts)[*n - 1];
