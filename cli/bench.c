@@ -230,7 +230,7 @@ static void spawn_point(const char *self, const bench_scene *sc, bench_point *pt
 
 /* One value of a setting as the curves read it back (sci_json_set_kv): a string as itself, true/false, an integer,
  * a real in the fewest digits (15 … 17) that read back to the same double. Returns what snprintf returns. */
-static int setting_value(char *buf, size_t n, const json_t *v)
+static int format_value(char *buf, size_t n, const json_t *v)
 {
     if (json_is_string(v))
         return snprintf(buf, n, "%s", json_string_value(v));
@@ -267,7 +267,7 @@ static int add_point(bench_point **pts, int *n, int *cap, int scene, const char 
     if (!params)
         return 0;
     json_object_foreach(params, key, v) {
-        char val[SCI_CURVE_SETTING_MAX];
+        char val[SCI_CURVE_SETTING_MAX] = "";
         int len = 0;
         if (json_is_array(v)) {
             /* a list setting (e.g. sigma) as 50/25/12: no commas in a CSV column, and read back as the list */
@@ -277,10 +277,10 @@ static int add_point(bench_point **pts, int *n, int *cap, int scene, const char 
                 if ((size_t)len >= sizeof val)
                     break;
                 len += snprintf(val + len, sizeof val - (size_t)len, "%s", i ? "/" : "");
-                len += (size_t)len < sizeof val ? setting_value(val + len, sizeof val - (size_t)len, e) : 0;
+                len += (size_t)len < sizeof val ? format_value(val + len, sizeof val - (size_t)len, e) : 0;
             }
         } else
-            len = setting_value(val, sizeof val, v);
+            len = format_value(val, sizeof val, v);
         if ((size_t)len < sizeof val)
             off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%s", off ? " " : "", key, val);
         if ((size_t)len >= sizeof val || off >= sizeof p->setting) { /* a grid point too long to name in the CSV */
@@ -486,7 +486,8 @@ static int keep_previous(const char *csv, const char *methods, const char *scene
     }
     fclose(f);
     if (other_scene)
-        fprintf(stderr, "scicap bench: %s: %d rows of scenes not in the suite dropped\n", csv, other_scene);
+        fprintf(stderr, "scicap bench: %s: %d row%s of scenes not in the suite dropped\n", csv, other_scene,
+                other_scene == 1 ? "" : "s");
     return kept;
 }
 
@@ -705,9 +706,13 @@ static int bench_grid_build(bench_run *r)
                     fprintf(stderr, "scicap bench: %s: bad grid point %s\n", op->name, *g);
                     return 1;
                 }
-                if (add_point(&r->pts, &r->np, &r->cap, s, op->name, params) < 0) {
-                    fprintf(stderr, "scicap bench: %s: grid point %s: no memory, or its setting is %d bytes or more\n",
-                            op->name, *g, SCI_CURVE_SETTING_MAX);
+                int rc = add_point(&r->pts, &r->np, &r->cap, s, op->name, params);
+                if (rc < 0) {
+                    if (rc == -ENAMETOOLONG)
+                        fprintf(stderr, "scicap bench: %s: grid point %s: its setting is %d bytes or more\n", op->name,
+                                *g, SCI_CURVE_SETTING_MAX);
+                    else
+                        fprintf(stderr, "scicap bench: %s: grid point %s: out of memory\n", op->name, *g);
                     json_decref(params);
                     return 1;
                 }

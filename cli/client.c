@@ -304,7 +304,10 @@ static void print_status(FILE *f, const json_t *r)
             (long long)json_integer_value(json_object_get(jobs, "running")),
             (long long)json_integer_value(json_object_get(jobs, "finished")),
             (long long)json_integer_value(json_object_get(r, "workers_busy")));
-    fprintf(f, "%-10s %lld connected\n", "clients", (long long)json_integer_value(json_object_get(r, "clients")));
+    fprintf(f, "%-10s %lld connected", "clients", (long long)json_integer_value(json_object_get(r, "clients")));
+    if (json_object_get(r, "watchers")) /* an older daemon does not say */
+        fprintf(f, ", %lld watching", (long long)json_integer_value(json_object_get(r, "watchers")));
+    fprintf(f, "\n");
     fprintf(f, "%-10s %lld captures found, %lld partial folders removed, %lld reconstructions resumed\n",
             "at start", (long long)json_integer_value(json_object_get(rec, "captures")),
             (long long)json_integer_value(json_object_get(rec, "removed_partial")),

@@ -45,7 +45,7 @@ int sci_curves_pick(const sci_curves *c, const char *method, int has_camera, dou
 
 /* The setting as a JSON object, each KEY=VALUE token read as sci_json_set_kv (base/json.h) reads `--set`:
  * {"iters": 100, "lambda": 0.5, "preset": "fast"}; new reference, NULL if malformed (a token without "=", an
- * empty key or value, SCI_CURVE_SETTING_MAX bytes or more). */
+ * empty key or value, a key of 128 bytes or more, a value not in UTF-8, SCI_CURVE_SETTING_MAX bytes or more). */
 json_t *sci_curves_setting_json(const char *setting);
 
 #endif

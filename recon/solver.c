@@ -234,8 +234,9 @@ static void names_list(char *buf, size_t n, const char *const *names)
         off += (size_t)snprintf(buf + off, n - off, "%s%s", i ? ", " : "", names[i]);
 }
 
-/* A LIST value: a JSON array of numbers, or a string of numbers separated by commas, spaces or slashes
- * (--set sigma=50,25,12; bench/results.csv's setting column writes 50/25/12). */
+/* A LIST value: a JSON array of numbers, one number (a list of one: --set sigma=12, as bench/results.csv writes
+ * [12]), or a string of numbers separated by commas, spaces or slashes (--set sigma=50,25,12; the CSV writes
+ * 50/25/12). */
 static int list_set(const solver_ops *m, const solver_field *f, solver_values *out, const json_t *v,
                     const sci_json_doc *doc, const char *path, const char *got, sci_error *err)
 {
@@ -251,6 +252,8 @@ static int list_set(const solver_ops *m, const solver_field *f, solver_values *o
             else
                 l.v[l.n++] = json_number_value(e);
         }
+    } else if (json_is_number(v)) {
+        l.v[l.n++] = json_number_value(v);
     } else if (json_is_string(v)) {
         const char *p = json_string_value(v);
         while (ok && *p) {

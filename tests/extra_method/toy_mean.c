@@ -3,8 +3,9 @@
  * all it takes for scicap recon, scicapd, the Python module and scicap bench to offer it
  * (tests/integration/test_extra_method.c, tests/python/test_extra_method.py).
  *
- * The method: every frame starts as the snapshot divided by the sum of the masks (the mean scene each pixel saw),
- * (or zero, mean_start false), then `iters` projections onto the measurement, x_f += gain · M_f (y − Σ_f M_f x_f) / Σ_f M_f², without a prior.
+ * The method: every frame starts as the snapshot divided by the sum of the masks (the mean scene each pixel saw;
+ * zero with mean_start false), then `iters` projections onto the measurement,
+ * x_f += gain · M_f (y − Σ_f M_f x_f) / Σ_f M_f², without a prior.
  * Cheap (a few passes over the cube) and real: it returns frames and a trace row per iteration like every method.
  */
 #include <errno.h>
@@ -19,8 +20,8 @@
 /* Only the keys every row must have (iters) and one of its own: the keys other methods share (metrics_every, ...)
  * are optional, and this row shows that every interface copes without them. */
 typedef struct toy_mean_params {
-    int iters;   /* projections after the mean start, >= 1 */
-    double gain; /* step of each projection, (0, 2) keeps it stable */
+    int iters;      /* projections after the mean start, >= 1 */
+    double gain;    /* step of each projection, (0, 2) keeps it stable */
     int mean_start; /* 1: start from the mean scene, 0: from zero */
 } toy_mean_params;
 

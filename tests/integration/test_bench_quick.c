@@ -120,8 +120,6 @@ static void test_quick_report(void **state)
     assert_int_equal(system(cmd), 0);
 }
 
-/* Re-measuring one method keeps the others' points from the previous CSV: the report and plots still show them.
- * On static3d alone (its 15 GAP-TV points): the keeping is per row, and the whole suite's 75 points took 56 s. */
 /* A curve setting reads back as `scicap recon --set` reads it, and the solver takes what it reads. */
 static void test_setting_json(void **state)
 {
@@ -143,6 +141,13 @@ static void test_setting_json(void **state)
     assert_int_equal(solver_settings_from_json(pnp, ps, js, NULL, "setting", &err), 0);
     assert_int_equal(((const sci_pnp_params *)ps)->sigma.n, 2);
     assert_true(((const sci_pnp_params *)ps)->sigma.v[1] == 25);
+    json_decref(js);
+    /* a list of one is written as its number (the grids' sigma=[12]) and reads back as that list */
+    js = sci_curves_setting_json("iters=10 sigma=12");
+    if (solver_settings_from_json(pnp, ps, js, NULL, "setting", &err) < 0)
+        fail_msg("%s", err.msg);
+    assert_int_equal(((const sci_pnp_params *)ps)->sigma.n, 1);
+    assert_true(((const sci_pnp_params *)ps)->sigma.v[0] == 12);
     solver_settings_free(ps);
     json_decref(js);
     assert_null(sci_curves_setting_json("iters="));
@@ -168,6 +173,8 @@ static void test_setting_json(void **state)
     json_decref(js);
 }
 
+/* Re-measuring one method keeps the others' points from the previous CSV: the report and plots still show them.
+ * On static3d alone (its 15 GAP-TV points): the keeping is per row, and the whole suite's 75 points took 56 s. */
 static void test_methods_keep_the_others(void **state)
 {
     const char *build = getenv("BUILD");
@@ -202,7 +209,7 @@ static void test_methods_keep_the_others(void **state)
     assert_int_not_equal(system(cmd), 0);
     snprintf(cmd, sizeof cmd, "grep -q nosuchscene %s", path);
     assert_int_not_equal(system(cmd), 0);
-    snprintf(cmd, sizeof cmd, "grep -q '1 rows of scenes not in the suite dropped' %s/log", dir); /* and says so */
+    snprintf(cmd, sizeof cmd, "grep -q '1 row of scenes not in the suite dropped' %s/log", dir); /* and says so */
     assert_int_equal(system(cmd), 0);
     snprintf(cmd, sizeof cmd, "grep -q 'results.csv:5: not kept: setting of 266 bytes' %s/log && ! grep -q admm-tv %s",
              dir, path);

@@ -105,6 +105,7 @@ static void test_status_table_and_json(void **state)
                                                                                         "finished")));
     assert_line(out.out, "jobs", v);
     assert_line(out.out, "dmd", "connected");
+    assert_line(out.out, "clients", "connected, 0 watching");
     assert_line(out.out, "recon_solve", "ms CPU"); /* the stage counters */
     assert_line(out.out, "store", "runs");
     /* --json: the reply as it came */
@@ -280,7 +281,9 @@ static void test_events_are_lines(void **state)
     cli_child_start(&w, scicap, (const char *const[]){"watch", "--socket", H.sock, NULL}, H.dir);
     wait_watchers(1);
     assert_int_equal(scicap_run(&c, (const char *const[]){"capture", "--recon", "--preset", "fast", "--wait", NULL}), 0);
-    assert_int_equal(cli_child_wait_stdout(&w, " PSNR ", 30000), 0); /* the last event it prints */
+    /* the events it must have printed before it stops */
+    assert_int_equal(cli_child_wait_stdout(&w, "capture done: 1 of 1", 30000), 0);
+    assert_int_equal(cli_child_wait_stdout(&w, " PSNR ", 30000), 0);
     kill(w.pid, SIGINT);
     cli_child_finish(&w);
     print_message("  watch: exit %d\n%s%s", cli_child_exit_code(&w), w.out, w.err);
@@ -293,6 +296,7 @@ static void test_events_are_lines(void **state)
         assert_non_null(strstr(outs[i], " PSNR "));
     }
     /* --json keeps the events as the daemon sent them */
+    wait_watchers(0); /* the first watch gone, so the count below is the new one's */
     cli_child_start(&w, scicap, (const char *const[]){"watch", "--socket", H.sock, "--json", NULL}, H.dir);
     wait_watchers(1);
     assert_int_equal(scicap_run(&c, (const char *const[]){"capture", "--wait", NULL}), 0);

@@ -238,7 +238,7 @@ static void test_bench(void **state)
     assert_true(json_real_value(json_object_get(js, "gain")) == 0.7);
     assert_true(json_is_false(json_object_get(js, "mean_start")));
     json_decref(js);
-    /* and in the report's table of the scene (the front: iters=1 is as accurate as iters=4) */
+    /* and in the report's table of the scene */
     char md[450];
     snprintf(md, sizeof md, "%s/report.md", out);
     f = fopen(md, "r");
