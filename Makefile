@@ -110,11 +110,11 @@ $(LIB): $(LIB_OBJ)
 
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
-	$(CC) $(ALL_CFLAGS) -MMD -MP -c $< -o $@
+	$(CC) $(ALL_CFLAGS) $(PIC_EXTRA) -MMD -MP -c $< -o $@
 
 $(BUILD)/%.o: %.cpp
 	@mkdir -p $(dir $@)
-	$(CXX) $(ALL_CXXFLAGS) -MMD -MP -c $< -o $@
+	$(CXX) $(ALL_CXXFLAGS) $(PIC_EXTRA) -MMD -MP -c $< -o $@
 
 $(CLI_LIB): $(filter-out $(BUILD)/cli/main.o,$(CLI_OBJ))
 	@rm -f $@
@@ -137,9 +137,10 @@ $(BUILD)/bench/%: bench/%.c $(LIB)
 tests: $(TEST_BIN) $(BINS)
 benches: $(BENCH_BIN) $(BINS)
 
-# The Python module (python/, docs/python.md): the extension scicap._scicap against the numpy C API, linked with a
-# position-independent copy of the library's offline layers built in $(BUILD)/pic/ only for it (the programs keep
-# the archive above as it is), and the pure-Python package beside it, so that
+# The Python module (python/, docs/python.md): the extension scicap._scicap against the numpy C API, linked with an
+# archive of the library's offline layers ($(BUILD)/pic/libscicap.a: the same objects the programs link, compiled
+# position-independent once; -fno-semantic-interposition keeps the inlining -fPIE allows, so the programs run the
+# same code), and the pure-Python package beside it, so that
 # PYTHONPATH=$(BUILD)/python python3 -c 'import scicap' works from the build tree. Debian's python3, not a PATH one.
 PYTHON   ?= /usr/bin/python3
 PY_INFO  := $(shell $(PYTHON) -c 'import sysconfig, numpy; print(sysconfig.get_paths()["include"], \
@@ -148,21 +149,17 @@ PY_CFLAGS := $(addprefix -I,$(wordlist 1,2,$(PY_INFO)))
 PY_EXT   := $(BUILD)/python/scicap/_scicap$(word 3,$(PY_INFO))
 PY_SITE  ?= $(PREFIX)/lib/python$(word 4,$(PY_INFO))/dist-packages
 PIC_DIRS := $(filter-out drivers daemon,$(LIB_DIRS))
-PIC_OBJ  := $(patsubst %.c,$(BUILD)/pic/%.o,$(foreach d,$(PIC_DIRS),$(wildcard $(d)/*.c))) \
-            $(patsubst %.cpp,$(BUILD)/pic/%.o,$(foreach d,$(PIC_DIRS),$(wildcard $(d)/*.cpp)))
+PIC_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(foreach d,$(PIC_DIRS),$(wildcard $(d)/*.c))) \
+            $(patsubst %.cpp,$(BUILD)/%.o,$(foreach d,$(PIC_DIRS),$(wildcard $(d)/*.cpp)))
 PIC_LIB  := $(BUILD)/pic/libscicap.a
 PY_OBJ   := $(patsubst %.c,$(BUILD)/pic/%.o,$(wildcard python/*.c))
 PY_PURE  := $(patsubst python/%,$(BUILD)/python/%,$(wildcard python/scicap/*.py))
 
-$(BUILD)/pic/%.o: %.c
-	@mkdir -p $(dir $@)
-	$(CC) $(ALL_CFLAGS) -fPIC $(PIC_EXTRA) -MMD -MP -c $< -o $@
+$(PIC_OBJ): PIC_EXTRA = -fPIC -fno-semantic-interposition
 
-$(BUILD)/pic/%.o: %.cpp
+$(BUILD)/pic/python/%.o: python/%.c
 	@mkdir -p $(dir $@)
-	$(CXX) $(ALL_CXXFLAGS) -fPIC -MMD -MP -c $< -o $@
-
-$(PY_OBJ): PIC_EXTRA = $(PY_CFLAGS) -fvisibility=hidden
+	$(CC) $(ALL_CFLAGS) -fPIC $(PY_CFLAGS) -fvisibility=hidden -MMD -MP -c $< -o $@
 
 $(PIC_LIB): $(PIC_OBJ)
 	@rm -f $@
@@ -195,18 +192,14 @@ XM_BINS   := $(XM)/scicap $(XM)/scicapd
 
 $(XM)/recon/solver.o: recon/solver.c
 	@mkdir -p $(dir $@)
-	$(CC) $(ALL_CFLAGS) -DSCICAP_EXTRA_SOLVER=$(XM_SOLVER) -MMD -MP -c $< -o $@
-
-$(XM)/pic/recon/solver.o: recon/solver.c
-	@mkdir -p $(dir $@)
-	$(CC) $(ALL_CFLAGS) -fPIC -DSCICAP_EXTRA_SOLVER=$(XM_SOLVER) -MMD -MP -c $< -o $@
+	$(CC) $(ALL_CFLAGS) -fPIC -fno-semantic-interposition -DSCICAP_EXTRA_SOLVER=$(XM_SOLVER) -MMD -MP -c $< -o $@
+$(XM_C:%.c=$(BUILD)/%.o): PIC_EXTRA = -fPIC -fno-semantic-interposition
 
 $(XM_LIB): $(filter-out $(BUILD)/recon/solver.o,$(LIB_OBJ)) $(XM)/recon/solver.o $(XM_C:%.c=$(BUILD)/%.o)
 	@rm -f $@
 	ar rcs $@ $^
 
-$(XM_PIC_LIB): $(filter-out $(BUILD)/pic/recon/solver.o,$(PIC_OBJ)) $(XM)/pic/recon/solver.o \
-               $(XM_C:%.c=$(BUILD)/pic/%.o)
+$(XM_PIC_LIB): $(filter-out $(BUILD)/recon/solver.o,$(PIC_OBJ)) $(XM)/recon/solver.o $(XM_C:%.c=$(BUILD)/%.o)
 	@rm -f $@
 	ar rcs $@ $^
 
@@ -363,5 +356,4 @@ clean:
 	rm -rf $(BUILD)
 
 -include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d) $(GV_TEST_BIN:=.d) $(FUZZ_OBJ:.o=.d)
--include $(PIC_OBJ:.o=.d) $(PY_OBJ:.o=.d) $(XM)/recon/solver.d $(XM)/pic/recon/solver.d
--include $(XM_C:%.c=$(BUILD)/%.d) $(XM_C:%.c=$(BUILD)/pic/%.d) $(XM_TEST_BIN:=.d)
+-include $(PY_OBJ:.o=.d) $(XM)/recon/solver.d $(XM_C:%.c=$(BUILD)/%.d) $(XM_TEST_BIN:=.d)

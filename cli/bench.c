@@ -443,9 +443,10 @@ static int keep_previous(const char *csv, const char *methods, const char *scene
     FILE *f = fopen(csv, "r");
     if (!f)
         return 0;
-    char line[1024];
+    char *line = NULL; /* a whole line however long, so an overlong setting is reported, not split */
+    size_t line_cap = 0;
     int kept = 0, lineno = 0, other_scene = 0;
-    while (fgets(line, sizeof line, f)) {
+    while (getline(&line, &line_cap, f) != -1) {
         char *col[14], *save = NULL;
         int nc = 0;
         lineno++;
@@ -484,6 +485,7 @@ static int keep_previous(const char *csv, const char *methods, const char *scene
         p->ok = p->kept = 1;
         kept++;
     }
+    free(line);
     fclose(f);
     if (other_scene)
         fprintf(stderr, "scicap bench: %s: %d row%s of scenes not in the suite dropped\n", csv, other_scene,

@@ -58,7 +58,8 @@ void cli_child_start(cli_child *c, const char *prog, const char *const *args, co
     c->pid = pid;
 }
 
-static void slurp(const cli_child *c, const char *which, char *buf, size_t n)
+/* The child's stream `which` as written so far, into buf (n bytes, NUL-terminated; empty if none yet). */
+static void read_stream(const cli_child *c, const char *which, char *buf, size_t n)
 {
     char path[600];
     stream_path(c, which, path, sizeof path);
@@ -67,19 +68,22 @@ static void slurp(const cli_child *c, const char *which, char *buf, size_t n)
     buf[len] = '\0';
     if (f)
         fclose(f);
+}
+
+/* The whole stream once the child has ended; its file goes with it. */
+static void slurp(const cli_child *c, const char *which, char *buf, size_t n)
+{
+    char path[600];
+    read_stream(c, which, buf, n);
+    stream_path(c, which, path, sizeof path);
     unlink(path);
 }
 
 int cli_child_wait_stdout(const cli_child *c, const char *needle, int timeout_ms)
 {
-    char path[600], buf[8192];
-    stream_path(c, "stdout", path, sizeof path);
+    char buf[8192];
     for (int waited = 0; waited <= timeout_ms; waited += 20) {
-        FILE *f = fopen(path, "r");
-        size_t len = f ? fread(buf, 1, sizeof buf - 1, f) : 0;
-        buf[len] = '\0';
-        if (f)
-            fclose(f);
+        read_stream(c, "stdout", buf, sizeof buf);
         if (strstr(buf, needle))
             return 0;
         usleep(20000);
