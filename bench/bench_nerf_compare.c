@@ -1,7 +1,9 @@
 /* bench/bench_nerf_compare.c — the NeRF comparison on static3d and photo scenes: GAP-TV, ADMM-TV, scinerf and
  * rayformer with each ablation step added in the paper's order (baseline → +patch sampling → +inter-ray →
  * +intra-ray → +TV), the patch-size study (2, 4, 8, 16), the window-stride study (the + patch rung and the full
- * method with windows of stride 2 and 3, part "stride"), and scinerf / rayformer with the camera poses optimised
+ * method with windows of stride 2 and 3, part "stride"), the ladder's rungs above the baseline with each training
+ * window's stride drawn from 1 … 4 (part "dilation", patch_stride_max 4; its own table of steps), and scinerf /
+ * rayformer with the camera poses optimised
  * from a SCINeRF-style start (start/end on SE(3) from the identity plus a small perturbation: only the
  * intrinsics known). PSNR (peak = 1), SSIM, wall time and, for the NeRF rows, the measurement residual and the mean
  * largest ray weight (the fog diagnostics) per row; the table is rewritten after every row, so a long run
@@ -14,7 +16,7 @@
  * It takes hours on the 2-core machine (every NeRF row trains a whole preset), so `make bench` only prints how to
  * run it:  build/bench/bench_nerf_compare --run [--preset fast|balanced|best] [--scenes corridor,orbit,noisy]
  *          (a scene is etc/scenes/static3d_NAME.json, else etc/scenes/NAME.json: photo_llff, photo_orbit, photo_noisy)
- *                                         [--parts classic,scinerf,ladder,patch,stride,poses]
+ *                                         [--parts classic,scinerf,ladder,patch,stride,dilation,poses]
  *                                         [--seeds N | --more-seeds N]
  *        build/bench/bench_nerf_compare --table [--preset P] [--out NAME]   (only rewrites a table from its rows)
  * (part "attention": only the ladder's rungs from + inter-ray on, the ones a change to the attention or TV moves;
@@ -43,6 +45,7 @@
 #include "recon/gaptv.h"
 #include "recon/sci_ops.h"
 #include "recon/pnp_ffdnet.h"
+#include "recon/nerf/patch_sampler.h"
 #include "recon/nerf/rayformer_solve.h"
 #include "recon/nerf/scinerf_solve.h"
 #include "sim/simulate.h"
@@ -73,6 +76,8 @@ static char tsv_path[64], md_path[64]; /* bench/results/<out>.{tsv,md} (main) */
 /* The ladder's rungs in the paper's order; each ladder row's label (one_scene) contains its rung's tag, which is how
  * the stored rows are recognised (attention_rung, write_ladder_steps). */
 static const char *const ladder_tag[5] = {"baseline", "+ patch", "+ inter", "+ intra", "+ TV"};
+/* what labels the rungs of part "dilation" */
+static const char dilation_tag[] = ", strides 1-4";
 
 static int tsv_rows(FILE *f, void *user, sci_error *err)
 {
@@ -106,6 +111,8 @@ static const char *row_part(const char *method)
         return "classic";
     if (strstr(method, "poses optimised"))
         return "poses";
+    if (strstr(method, dilation_tag))
+        return "dilation";
     if (strstr(method, ", stride "))
         return "stride";
     /* the SCINeRF rows are labelled by the method's name (its row in recon/solver.h) */
@@ -139,11 +146,11 @@ static int redone(const char *method, const char *parts)
  * then as measured. */
 static int part_rank(const char *method)
 {
-    const char *const order[] = {"classic", sci_scinerf_solver.name, "ladder", "patch", "stride", "poses"};
-    for (int i = 0; i < 6; i++)
+    const char *const order[] = {"classic", sci_scinerf_solver.name, "ladder", "patch", "stride", "dilation", "poses"};
+    for (int i = 0; i < 7; i++)
         if (strcmp(row_part(method), order[i]) == 0)
             return i;
-    return 6;
+    return 7;
 }
 
 static void sort_rows(void)
@@ -228,8 +235,9 @@ static void read_tsv(const char *redo, const char *parts)
 }
 
 /* The ladder's steps: each rung's PSNR minus the one below it, per scene that has the whole ladder, and their mean
- * over those scenes (the measure the recipe judges a step by). Rungs are recognised by their labels' order. */
-static void write_ladder_steps(FILE *f)
+ * over those scenes (the measure the recipe judges a step by). Rungs are recognised by their labels' order: the
+ * baseline of part "ladder", the rungs above it of `part` ("ladder" or "dilation"); `title` heads the table. */
+static void write_ladder_steps(FILE *f, const char *part, const char *title)
 {
     double step[4][16], psnr[5];
     char scene[16][32];
@@ -240,7 +248,8 @@ static void write_ladder_steps(FILE *f)
         int found = 0;
         for (int k = 0; k < 5; k++)
             for (int j = i; j < n_rows && strcmp(rows[j].scene, rows[i].scene) == 0; j++)
-                if (strcmp(row_part(rows[j].method), "ladder") == 0 && strstr(rows[j].method, ladder_tag[k])) {
+                if (strcmp(row_part(rows[j].method), k ? part : "ladder") == 0 &&
+                    strstr(rows[j].method, ladder_tag[k])) {
                     psnr[k] = rows[j].psnr, found++;
                     break;
                 }
@@ -253,7 +262,7 @@ static void write_ladder_steps(FILE *f)
     }
     if (ns == 0)
         return;
-    fprintf(f, "\nThe ladder's steps (PSNR gained by each rung over the one below it, dB):\n\n| step |");
+    fprintf(f, "\n%s (PSNR gained by each rung over the one below it, dB):\n\n| step |", title);
     for (int s = 0; s < ns; s++)
         fprintf(f, " %s |", scene[s]);
     fprintf(f, " mean |\n|---|");
@@ -361,7 +370,8 @@ static int md_rows(FILE *f, void *user, sci_error *err)
                    "with an earlier version of the preset; their residual and largest weight are blank if measured "
                    "before the table had them.\n",
                 rf_steps, sn_steps);
-    write_ladder_steps(f);
+    write_ladder_steps(f, "ladder", "The ladder's steps");
+    write_ladder_steps(f, "dilation", "The ladder's steps with each training window's stride drawn from 1 … 4");
     int any_pose = 0;
     for (int i = 0; i < n_rows; i++)
         any_pose |= !isnan(rows[i].pose_rot);
@@ -607,6 +617,25 @@ static void stride_study(const char *name, const sci_problem *p, const sci_rayfo
         }
 }
 
+/* the ladder's rungs above the baseline with each training window's stride drawn from 1 … 4 (GRAF's random patch
+ * scale; inference keeps adjacent windows): does coverage change what each rung gains? */
+static void dilation_study(const char *name, const sci_problem *p, const sci_rayformer_params *qf, double tv)
+{
+    static const char *const rung_name[5] = {NULL, "+ patch sampling", "+ inter-ray attention",
+                                             "+ intra-ray attention", "+ TV (full)"};
+    for (int rung = 1; rung <= 4; rung++) {
+        sci_rayformer_params v = *qf;
+        sci_rayformer_params_ablation(&v, rung, tv);
+        v.patch_stride_max = 4;
+        if (p->mask->w < nerf_patch_span(v.patch, 4) || p->mask->h < nerf_patch_span(v.patch, 4))
+            continue;
+        char label[96];
+        snprintf(label, sizeof label, "rayformer %s%s", rung_name[rung], dilation_tag);
+        assert(strstr(label, ladder_tag[rung]));
+        rayformer_row(name, p, label, &v);
+    }
+}
+
 static void one_scene(const char *name, const char *parts)
 {
     sci_problem *p = scene_simulate(name);
@@ -679,6 +708,8 @@ static void one_scene(const char *name, const char *parts)
         patch_study(name, p, &q);
     if (strstr(parts, "stride"))
         stride_study(name, p, &q, tv);
+    if (strstr(parts, "dilation"))
+        dilation_study(name, p, &q, tv);
     if (!strstr(parts, "poses")) {
         sci_problem_free(p);
         return;
@@ -720,7 +751,8 @@ int main(int argc, char **argv)
             ;
         else {
             fprintf(stderr, "usage: bench_nerf_compare --run [--preset fast|balanced|best] [--scenes a,b,c]\n"
-                            "         [--parts classic,scinerf,ladder,attention,full,patch,stride,poses] [--seeds 1…16 | --more-seeds 1…16]\n"
+                            "         [--parts classic,scinerf,ladder,attention,full,patch,stride,dilation,poses]\n"
+                            "         [--seeds 1…16 | --more-seeds 1…16]\n"
                             "         [--out NAME]   (bench/results/NAME.{tsv,md}, a-z and _, up to 31; default nerf_compare_<preset>)\n"
                             "       bench_nerf_compare --table [--preset P] [--out NAME]   (the table from its stored rows)\n"
                             "  the ablation study (ladder, patch sizes, poses) lives in --out nerf_ablation\n");

@@ -30,6 +30,27 @@ void nerf_patch_pixels(int x0, int y0, int pw, int ph, int d, int *px, int *py)
         }
 }
 
+void nerf_windows_pick(int B, int w, int h, int pw, int ph, int d0, int d1, int stratify, sci_rng *rng, int *px,
+                       int *py)
+{
+    const int R = pw * ph, dmax = d1 > d0 ? d1 : d0;
+    const int sw = nerf_patch_span(pw, dmax), sh = nerf_patch_span(ph, dmax);
+    if (stratify)
+        nerf_strata_pick(B, w - sw + 1, h - sh + 1, rng, px, py);
+    else
+        for (int b = 0; b < B; b++) {
+            px[b] = (int)sci_rng_below(rng, (uint64_t)(w - sw + 1));
+            py[b] = (int)sci_rng_below(rng, (uint64_t)(h - sh + 1));
+        }
+    /* the corners sit in px[0..B); window b's pixels go to [b·R, b·R + R), at or after corner b, so filling from the
+     * last window back reads every corner before it is overwritten */
+    for (int b = B - 1; b >= 0; b--) {
+        const int d = dmax > d0 ? d0 + (int)sci_rng_below(rng, (uint64_t)(dmax - d0 + 1)) : d0;
+        const int ox = (dmax - d) * (pw - 1) / 2, oy = (dmax - d) * (ph - 1) / 2;
+        nerf_patch_pixels(px[b] + ox, py[b] + oy, pw, ph, d, px + (size_t)b * R, py + (size_t)b * R);
+    }
+}
+
 int nerf_tile_count(int w, int h, int pw, int ph, int d, int ox, int oy)
 {
     const int bw = pw * d, bh = ph * d;

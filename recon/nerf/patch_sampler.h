@@ -40,6 +40,14 @@ void nerf_rays_camera_depths(const sci_camera *cam, int n_rays, const int *px, c
                              double far, float *pcam, float *dcam, float *delta);
 /* Pixels of a patch: px, py (pw·ph each) for the patch at (x0, y0) with stride d >= 1. */
 void nerf_patch_pixels(int x0, int y0, int pw, int ph, int d, int *px, int *py);
+/* B training windows of pw × ph rays on a w × h image: window b's pixels to px, py [b·pw·ph, (b + 1)·pw·ph). Each
+ * window's stride is d0 or, with d1 > d0, drawn per window uniformly from d0 … d1 (GRAF's random patch scale: some
+ * windows adjacent for what joins neighbours, some spread for coverage), placed centred in the span of a stride-d1
+ * window so every stride reaches the image alike. The corners are stratified over the positions of the widest
+ * window (nerf_strata_pick) or, stratify 0, uniform. Needs w, h >= the widest window's span, d0 >= 1. Draws from
+ * rng: the corners (two uniforms or nerf_strata_pick's draws each), then one bounded draw a window when d1 > d0. */
+void nerf_windows_pick(int B, int w, int h, int pw, int ph, int d0, int d1, int stratify, sci_rng *rng, int *px,
+                       int *py);
 /* Pixels a patch of side p with stride d spans along one axis: (p − 1)·d + 1. */
 static inline int nerf_patch_span(int p, int d) { return (p - 1) * d + 1; }
 /* Window t of the inference tiling of a w × h image by pw × ph windows of stride d, shifted (ox, oy) pixels up and

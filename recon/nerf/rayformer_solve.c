@@ -41,6 +41,7 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
     *p = (sci_rayformer_params){.iters = 3400, /* the balanced preset's */
                                 .patch = 2,
                                 .patch_stride = 1,
+                                .patch_stride_max = 0,
                                 .patches_per_step = 128,
                                 .samples = 32,
                                 .blocks = 1,
@@ -134,6 +135,7 @@ static void rf_config(const void *params, nerf_train_config *c)
     const sci_rayformer_params *p = params;
     c->group_w = c->group_h = p->patch;
     c->group_stride = p->patch_stride;
+    c->group_stride_max = p->patch_stride_max;
     c->groups_per_step = p->patches_per_step;
     c->patch_sampling = p->patch_sampling;
     c->stratify = p->stratify;
@@ -156,6 +158,9 @@ static int rf_check(const void *params, sci_error *err)
         return sci_error_set(err, -EINVAL, "rayformer: patch must be 2, 4, 8 or 16 (got %d)", p->patch);
     if (p->patch_stride < 1 || p->patch_stride > 8)
         return sci_error_set(err, -EINVAL, "rayformer: patch-stride must be in [1, 8] (got %d)", p->patch_stride);
+    if (p->patch_stride_max != 0 && (p->patch_stride_max < p->patch_stride || p->patch_stride_max > 8))
+        return sci_error_set(err, -EINVAL, "rayformer: patch-stride-max must be 0 or in [patch-stride %d, 8] (got %d)",
+                             p->patch_stride, p->patch_stride_max);
     if (p->log2_table < 10 || p->log2_table > 24)
         return sci_error_set(err, -EINVAL, "rayformer: log2-table must be in [10, 24] (got %d)", p->log2_table);
     if (!(p->finest_res >= 16) || !(p->finest_res <= 1e6))
@@ -300,6 +305,8 @@ static const char *const ablation_steps[] = {"baseline", step_patch + 1, step_in
 static const solver_field rf_fields[] = {
     RF("patch", SOLVER_FIELD_INT, patch, 2, 16, "patch side: 2, 4, 8 or 16"),
     RF("patch_stride", SOLVER_FIELD_INT, patch_stride, 1, 8, "pixels between a window's neighbouring rays (1: next)"),
+    RF("patch_stride_max", SOLVER_FIELD_INT, patch_stride_max, 0, 8,
+       "training: each window's stride drawn from patch_stride … this (0: all patch_stride)"),
     RF("patches_per_step", SOLVER_FIELD_INT, patches_per_step, 1, 65536, "patch locations per step"),
     RF("blocks", SOLVER_FIELD_INT, blocks, 0, 8, "I²R transformer blocks (0: 2)"),
     RF("log2_table", SOLVER_FIELD_INT, log2_table, 10, 24, "hash table entries per level, log2"),

@@ -64,6 +64,9 @@ typedef struct sci_rayformer_params {
     int patch_stride;            /* pixels between neighbouring rays of a window, 1 … 8, in training and at
                                     inference (1: adjacent, the paper's patches; d > 1: dilated windows spanning
                                     (patch − 1)·d + 1 pixels a side, patch_sampler.h) */
+    int patch_stride_max;        /* training: > patch_stride draws each window's stride from patch_stride … this, at
+                                    most 8 (GRAF's random patch scale, nerf_windows_pick); 0: every window
+                                    patch_stride. Inference keeps patch_stride */
     int stratify;                /* 1: a training step's windows (scattered rays without patch sampling) one per cell of
                                     a grid over the image; 0: each uniform (trainer.h) */
     int window_jitter;           /* with inter-ray attention: 1 = in training the rays of a window share their depth

@@ -29,6 +29,9 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
     if (c->group_stride < 0 || c->group_stride > 64)
         return sci_error_set(err, -EINVAL, "%s: window stride must be in [0, 64] (0: 1) (got %d)", m,
                              c->group_stride);
+    if (c->group_stride_max < 0 || c->group_stride_max > 64)
+        return sci_error_set(err, -EINVAL, "%s: largest window stride must be in [0, 64] (0: the stride) (got %d)",
+                             m, c->group_stride_max);
     if (c->groups_per_step < 1 || c->groups_per_step > 4096)
         return sci_error_set(err, -EINVAL, "%s: groups per step must be in [1, 4096] (got %d)", m,
                              c->groups_per_step);
@@ -471,32 +474,18 @@ static void sample_pixels(nerf_trainer_run_state *r)
 {
     const nerf_train_config *c = r->c;
     const int R = r->R, B = r->B, w = r->w;
-    const int d = stride_of(c), sw = nerf_patch_span(c->group_w, d), sh = nerf_patch_span(c->group_h, d);
-    if (c->stratify && c->patch_sampling) {
-        /* the corners land in px[0..B), py[0..B); window b's pixels go to [b·R, b·R + R), at or after corner b, so
-         * filling from the last window back reads every corner before it is overwritten */
-        nerf_strata_pick(B, w - sw + 1, r->h - sh + 1, &r->rng, r->px, r->py);
-        for (int b = B - 1; b >= 0; b--)
-            nerf_patch_pixels(r->px[b], r->py[b], c->group_w, c->group_h, d, r->px + (size_t)b * R,
-                              r->py + (size_t)b * R);
+    if (c->patch_sampling) {
+        nerf_windows_pick(B, w, r->h, c->group_w, c->group_h, stride_of(c), c->group_stride_max, c->stratify,
+                          &r->rng, r->px, r->py);
         return;
     }
     if (c->stratify) {
         nerf_strata_pick(B * R, w, r->h, &r->rng, r->px, r->py);
         return;
     }
-    for (int b = 0; b < B; b++) {
-        int *px = r->px + (size_t)b * R, *py = r->py + (size_t)b * R;
-        if (c->patch_sampling) {
-            int x0 = (int)sci_rng_below(&r->rng, (uint64_t)(w - sw + 1));
-            int y0 = (int)sci_rng_below(&r->rng, (uint64_t)(r->h - sh + 1));
-            nerf_patch_pixels(x0, y0, c->group_w, c->group_h, d, px, py);
-        } else {
-            for (int k = 0; k < R; k++) {
-                px[k] = (int)sci_rng_below(&r->rng, (uint64_t)w);
-                py[k] = (int)sci_rng_below(&r->rng, (uint64_t)r->h);
-            }
-        }
+    for (int k = 0; k < B * R; k++) {
+        r->px[k] = (int)sci_rng_below(&r->rng, (uint64_t)w);
+        r->py[k] = (int)sci_rng_below(&r->rng, (uint64_t)r->h);
     }
 }
 
@@ -692,11 +681,14 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
     const sci_camera *cam = pb->camera;
     if (!cam || cam->n != pb->mask->n)
         return sci_error_set(err, -EINVAL, "%s: %s: needs a camera with one pose per frame", c->method, pb->name);
-    const int d = stride_of(c);
+    const int d = stride_of(c), dmax = c->patch_sampling && c->group_stride_max > d ? c->group_stride_max : d;
     if (pb->mask->w < c->group_w * d || pb->mask->h < c->group_h * d)
         return sci_error_set(err, SCI_ESHAPE, "%s: %s: image %dx%d is smaller than the %dx%d window (stride %d: its "
                              "tiling needs %dx%d)", c->method, pb->name, pb->mask->w, pb->mask->h, c->group_w,
                              c->group_h, d, c->group_w * d, c->group_h * d);
+    if (pb->mask->w < nerf_patch_span(c->group_w, dmax) || pb->mask->h < nerf_patch_span(c->group_h, dmax))
+        return sci_error_set(err, SCI_ESHAPE, "%s: %s: image %dx%d is smaller than a %dx%d window of stride %d",
+                             c->method, pb->name, pb->mask->w, pb->mask->h, c->group_w, c->group_h, dmax);
     if (!(cam->far_m > cam->near_m) || !(cam->near_m >= 0))
         return sci_error_set(err, -EINVAL, "%s: %s: camera near/far %g/%g", c->method, pb->name, cam->near_m,
                              cam->far_m);

@@ -91,6 +91,8 @@ typedef struct nerf_train_config {
     int group_w, group_h;         /* rays per group: the window (patch sampling) or the batch shape */
     int group_stride;             /* patch sampling: pixels between neighbouring rays of a window, in training and
                                      at inference (patch_sampler.h; 0 or 1: adjacent) */
+    int group_stride_max;         /* patch sampling, training: > group_stride draws each window's stride from
+                                     group_stride … this (nerf_windows_pick); 0 or less: every window group_stride */
     int groups_per_step;          /* B, each seen from all N poses */
     int patch_sampling;           /* 1: overlapping windows; 0: scattered random pixels */
     int stratify;                 /* 1: a step's windows (or pixels) one per cell of a grid over the image

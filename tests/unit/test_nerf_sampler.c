@@ -1,7 +1,8 @@
 /* The ray sampler (recon/nerf/patch_sampler.h): stratified depths inside their bins, midpoints without jitter, and
  * the shared jitter of a window (share = R: sample s of every ray of a run at one depth, a fresh depth per run, the
  * stream advanced by L draws per run; share = 1 the former per-ray draws), stratified window positions, and the
- * pixels of strided windows and of their inference tiling (every pixel in some window, every window inside). */
+ * pixels of strided windows and of their inference tiling (every pixel in some window, every window inside), and
+ * training windows of one stride or of strides drawn per window. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -156,6 +157,63 @@ static void test_strided_window(void **state)
     assert_int_equal(nerf_patch_span(2, 1), 2);
 }
 
+/* Training windows (nerf_windows_pick): with one stride they are nerf_strata_pick's corners (or two uniforms each)
+ * and nerf_patch_pixels' pixels, draw for draw; with strides 1 … 4 every window lies inside the image, is a grid of
+ * one stride centred in the widest window's span, and every stride turns up about equally often (each 25 % of
+ * 128 × 200 windows, within 2 %: the binomial spread is 0.3 %). */
+static void test_windows_pick(void **state)
+{
+    (void)state;
+    enum { B = 128, PW = 2, RW = PW * PW, IW = 37, IH = 29 };
+    static int px[B * RW], py[B * RW], ex[B * RW], ey[B * RW];
+    for (int strat = 0; strat <= 1; strat++) {
+        sci_rng a, b;
+        sci_rng_seed(&a, 5, 0), sci_rng_seed(&b, 5, 0);
+        nerf_windows_pick(B, IW, IH, PW, PW, 2, 0, strat, &a, px, py);
+        const int span = nerf_patch_span(PW, 2);
+        if (strat)
+            nerf_strata_pick(B, IW - span + 1, IH - span + 1, &b, ex, ey);
+        for (int k = 0; k < B && !strat; k++) {
+            ex[k] = (int)sci_rng_below(&b, IW - span + 1);
+            ey[k] = (int)sci_rng_below(&b, IH - span + 1);
+        }
+        for (int k = B - 1; k >= 0; k--)
+            nerf_patch_pixels(ex[k], ey[k], PW, PW, 2, ex + k * RW, ey + k * RW);
+        assert_memory_equal(px, ex, sizeof px);
+        assert_memory_equal(py, ey, sizeof py);
+        assert_int_equal(sci_rng_below(&a, 1000000), sci_rng_below(&b, 1000000));
+    }
+    sci_rng rng;
+    sci_rng_seed(&rng, 6, 0);
+    long seen[5] = {0};
+    for (int step = 0; step < 200; step++) {
+        nerf_windows_pick(B, IW, IH, PW, PW, 1, 4, step & 1, &rng, px, py);
+        for (int k = 0; k < B; k++) {
+            const int *x = px + k * RW, *y = py + k * RW, d = x[1] - x[0];
+            assert_true(d >= 1 && d <= 4);
+            assert_true(x[2] == x[0] && x[3] == x[1] && y[1] == y[0] && y[2] - y[0] == d && y[3] == y[2]);
+            assert_true(x[0] >= 0 && x[1] < IW && y[0] >= 0 && y[2] < IH);
+            /* centred: the window's corner sits (4 − d)/2 pixels into the span of a stride-4 window, which fits */
+            const int off = (4 - d) / 2;
+            assert_true(x[0] - off >= 0 && x[0] - off + nerf_patch_span(PW, 4) <= IW);
+            assert_true(y[0] - off >= 0 && y[0] - off + nerf_patch_span(PW, 4) <= IH);
+            seen[d]++;
+        }
+    }
+    for (int d = 1; d <= 4; d++)
+        if (fabs(seen[d] - 200.0 * B / 4) > 0.02 * 200.0 * B / 4)
+            fail_msg("stride %d in %ld of %d windows", d, seen[d], 200 * B);
+    /* an image exactly as wide as the widest window (4 × 4 rays, stride 4: 13 pixels): one corner, every stride
+     * centred on it and inside */
+    for (int strat = 0; strat <= 1; strat++) {
+        nerf_windows_pick(16, 13, 13, 4, 4, 1, 4, strat, &rng, px, py);
+        for (int k = 0; k < 16 * 16; k++)
+            assert_true(px[k] >= 0 && px[k] < 13 && py[k] >= 0 && py[k] < 13);
+        for (int k = 0; k < 16; k++) /* centred on column 6, to the pixel below where the spare span is odd */
+            assert_true(px[k * 16] + px[k * 16 + 3] == 12 || px[k * 16] + px[k * 16 + 3] == 11);
+    }
+}
+
 /* Every tiling (sizes not multiples of the block, every stride and shift) covers each pixel, keeps each window
  * inside the image, and overlaps only where a clamped block meets its neighbour (the first and the last block of
  * an axis: a pixel in at most 3 × 3 windows of one tiling); with stride 1 and no shift a tiling of a multiple of
@@ -204,6 +262,7 @@ int main(void)
         cmocka_unit_test(test_midpoints_without_jitter),
         cmocka_unit_test(test_strata),
         cmocka_unit_test(test_strided_window),
+        cmocka_unit_test(test_windows_pick),
         cmocka_unit_test(test_tiling_covers),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
