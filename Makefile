@@ -156,6 +156,12 @@ PY_OBJ   := $(patsubst %.c,$(BUILD)/pic/%.o,$(wildcard python/*.c))
 PY_PURE  := $(patsubst python/%,$(BUILD)/python/%,$(wildcard python/scicap/*.py))
 
 $(PIC_OBJ): PIC_EXTRA = -fPIC -fno-semantic-interposition
+# make does not see a change of flags: a build folder from before these objects were position-independent (no stamp)
+# rebuilds them once, instead of failing to link the extension
+PIC_STAMP := $(BUILD)/.pic-objects
+$(PIC_STAMP):
+	@mkdir -p $(dir $@) && touch $@
+$(PIC_OBJ): $(PIC_STAMP)
 
 $(BUILD)/pic/python/%.o: python/%.c
 	@mkdir -p $(dir $@)
@@ -194,6 +200,7 @@ $(XM)/recon/solver.o: recon/solver.c
 	@mkdir -p $(dir $@)
 	$(CC) $(ALL_CFLAGS) -fPIC -fno-semantic-interposition -DSCICAP_EXTRA_SOLVER=$(XM_SOLVER) -MMD -MP -c $< -o $@
 $(XM_C:%.c=$(BUILD)/%.o): PIC_EXTRA = -fPIC -fno-semantic-interposition
+$(XM)/recon/solver.o $(XM_C:%.c=$(BUILD)/%.o): $(PIC_STAMP)
 
 $(XM_LIB): $(filter-out $(BUILD)/recon/solver.o,$(LIB_OBJ)) $(XM)/recon/solver.o $(XM_C:%.c=$(BUILD)/%.o)
 	@rm -f $@
