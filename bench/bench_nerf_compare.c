@@ -729,7 +729,7 @@ int main(int argc, char **argv)
 {
     sci_runtime_env_apply(argv); /* the BLAS kernels and OpenMP waiting that scicap and scicapd run with */
     int run = 0;
-    char scenes[128] = "corridor,orbit,noisy", parts[64] = "classic,scinerf,ladder,patch,poses", out[32] = "";
+    char scenes[128] = "corridor,orbit,noisy", parts[128] = "classic,scinerf,ladder,patch,poses", out[32] = "";
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--run") == 0)
             run = 1;
