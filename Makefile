@@ -168,7 +168,7 @@ $(BUILD)/pic/python/%.o: python/%.c
 	$(CC) $(ALL_CFLAGS) -fPIC $(PY_CFLAGS) -fvisibility=hidden -MMD -MP -c $< -o $@
 
 $(PIC_LIB): $(PIC_OBJ)
-	@rm -f $@
+	@mkdir -p $(dir $@) && rm -f $@
 	ar rcs $@ $^
 
 # --exclude-libs: the library's symbols stay inside the module (only PyInit__scicap is exported).
@@ -207,7 +207,7 @@ $(XM_LIB): $(filter-out $(BUILD)/recon/solver.o,$(LIB_OBJ)) $(XM)/recon/solver.o
 	ar rcs $@ $^
 
 $(XM_PIC_LIB): $(filter-out $(BUILD)/recon/solver.o,$(PIC_OBJ)) $(XM)/recon/solver.o $(XM_C:%.c=$(BUILD)/%.o)
-	@rm -f $@
+	@mkdir -p $(dir $@) && rm -f $@
 	ar rcs $@ $^
 
 $(XM)/scicap: $(CLI_OBJ) $(XM_LIB)
