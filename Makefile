@@ -155,7 +155,8 @@ PIC_LIB  := $(BUILD)/pic/libscicap.a
 PY_OBJ   := $(patsubst %.c,$(BUILD)/pic/%.o,$(wildcard python/*.c))
 PY_PURE  := $(patsubst python/%,$(BUILD)/python/%,$(wildcard python/scicap/*.py))
 
-$(PIC_OBJ): PIC_EXTRA = -fPIC -fno-semantic-interposition
+PIC_FLAGS := -fPIC -fno-semantic-interposition
+$(PIC_OBJ): PIC_EXTRA = $(PIC_FLAGS)
 # make does not see a change of flags: a build folder from before these objects were position-independent (no stamp)
 # rebuilds them once, instead of failing to link the extension
 PIC_STAMP := $(BUILD)/.pic-objects
@@ -198,8 +199,8 @@ XM_BINS   := $(XM)/scicap $(XM)/scicapd
 
 $(XM)/recon/solver.o: recon/solver.c
 	@mkdir -p $(dir $@)
-	$(CC) $(ALL_CFLAGS) -fPIC -fno-semantic-interposition -DSCICAP_EXTRA_SOLVER=$(XM_SOLVER) -MMD -MP -c $< -o $@
-$(XM_C:%.c=$(BUILD)/%.o): PIC_EXTRA = -fPIC -fno-semantic-interposition
+	$(CC) $(ALL_CFLAGS) $(PIC_FLAGS) -DSCICAP_EXTRA_SOLVER=$(XM_SOLVER) -MMD -MP -c $< -o $@
+$(XM_C:%.c=$(BUILD)/%.o): PIC_EXTRA = $(PIC_FLAGS)
 $(XM)/recon/solver.o $(XM_C:%.c=$(BUILD)/%.o): $(PIC_STAMP)
 
 $(XM_LIB): $(filter-out $(BUILD)/recon/solver.o,$(LIB_OBJ)) $(XM)/recon/solver.o $(XM_C:%.c=$(BUILD)/%.o)
