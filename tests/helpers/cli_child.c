@@ -58,11 +58,9 @@ void cli_child_start(cli_child *c, const char *prog, const char *const *args, co
     c->pid = pid;
 }
 
-/* The child's stream `which` as written so far, into buf (n bytes, NUL-terminated; empty if none yet). */
-static void read_stream(const cli_child *c, const char *which, char *buf, size_t n)
+/* The file at path as written so far, into buf (n bytes, NUL-terminated; empty if there is none yet). */
+static void read_stream(const char *path, char *buf, size_t n)
 {
-    char path[600];
-    stream_path(c, which, path, sizeof path);
     FILE *f = fopen(path, "r");
     size_t len = f ? fread(buf, 1, n - 1, f) : 0;
     buf[len] = '\0';
@@ -74,16 +72,17 @@ static void read_stream(const cli_child *c, const char *which, char *buf, size_t
 static void slurp(const cli_child *c, const char *which, char *buf, size_t n)
 {
     char path[600];
-    read_stream(c, which, buf, n);
     stream_path(c, which, path, sizeof path);
+    read_stream(path, buf, n);
     unlink(path);
 }
 
 int cli_child_wait_stdout(const cli_child *c, const char *needle, int timeout_ms)
 {
-    char buf[8192];
+    char path[600], buf[8192];
+    stream_path(c, "stdout", path, sizeof path);
     for (int waited = 0; waited <= timeout_ms; waited += 20) {
-        read_stream(c, "stdout", buf, sizeof buf);
+        read_stream(path, buf, sizeof buf);
         if (strstr(buf, needle))
             return 0;
         usleep(20000);
