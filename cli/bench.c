@@ -228,24 +228,6 @@ static void spawn_point(const char *self, const bench_scene *sc, bench_point *pt
     json_decref(res);
 }
 
-/* One value of a setting as the curves read it back (sci_json_set_kv): a string as itself, true/false, an integer,
- * a real in the fewest digits (15 … 17) that read back to the same double. Returns what snprintf returns. */
-static int format_value(char *buf, size_t n, const json_t *v)
-{
-    if (json_is_string(v))
-        return snprintf(buf, n, "%s", json_string_value(v));
-    if (json_is_boolean(v))
-        return snprintf(buf, n, "%s", json_is_true(v) ? "true" : "false");
-    if (json_is_integer(v))
-        return snprintf(buf, n, "%lld", (long long)json_integer_value(v));
-    const double x = json_number_value(v);
-    int prec = 15, len;
-    do
-        len = snprintf(buf, n, "%.*g", prec, x);
-    while (strtod(buf, NULL) != x && ++prec <= 17);
-    return len;
-}
-
 static int add_point(bench_point **pts, int *n, int *cap, int scene, const char *method, json_t *params)
 {
     if (*n == *cap) {
@@ -261,34 +243,10 @@ static int add_point(bench_point **pts, int *n, int *cap, int scene, const char 
     p->scene = scene;
     snprintf(p->method, sizeof p->method, "%s", method);
     p->params = params;
-    const char *key;
-    json_t *v;
-    size_t off = 0;
-    if (!params)
-        return 0;
-    json_object_foreach(params, key, v) {
-        char val[SCI_CURVE_SETTING_MAX] = "";
-        int len = 0;
-        if (json_is_array(v)) {
-            /* a list setting (e.g. sigma) as 50/25/12: no commas in a CSV column, and read back as the list */
-            size_t i;
-            json_t *e;
-            json_array_foreach(v, i, e) {
-                if ((size_t)len >= sizeof val)
-                    break;
-                len += snprintf(val + len, sizeof val - (size_t)len, "%s", i ? "/" : "");
-                len += (size_t)len < sizeof val ? format_value(val + len, sizeof val - (size_t)len, e) : 0;
-            }
-        } else
-            len = format_value(val, sizeof val, v);
-        if ((size_t)len < sizeof val)
-            off += (size_t)snprintf(p->setting + off, sizeof p->setting - off, "%s%s=%s", off ? " " : "", key, val);
-        if ((size_t)len >= sizeof val || off >= sizeof p->setting) { /* a grid point too long to name in the CSV */
-            (*n)--;
-            return -ENAMETOOLONG;
-        }
-    }
-    return 0;
+    int rc = params ? sci_curves_setting_text(params, p->setting, sizeof p->setting) : 0;
+    if (rc < 0)
+        (*n)--; /* a grid point the CSV cannot name */
+    return rc;
 }
 
 /* Pareto front per (scene, method): sorted by wall time, a point is on the front when it beats the PSNR of every
@@ -713,6 +671,9 @@ static int bench_grid_build(bench_run *r)
                     if (rc == -ENAMETOOLONG)
                         fprintf(stderr, "scicap bench: %s: grid point %s: its setting is %d bytes or more\n", op->name,
                                 *g, SCI_CURVE_SETTING_MAX);
+                    else if (rc == -EINVAL)
+                        fprintf(stderr, "scicap bench: %s: grid point %s: a value the curves cannot name (an object, a "
+                                "list of other than numbers, a string with a space or a comma)\n", op->name, *g);
                     else
                         fprintf(stderr, "scicap bench: %s: grid point %s: out of memory\n", op->name, *g);
                     json_decref(params);

@@ -192,3 +192,91 @@ json_t *sci_curves_setting_json(const char *setting)
     }
     return o;
 }
+
+/* A number as the setting's text writes it; what snprintf returns. */
+static int format_number(char *buf, size_t n, const json_t *v)
+{
+    if (json_is_integer(v))
+        return snprintf(buf, n, "%lld", (long long)json_integer_value(v));
+    const double x = json_real_value(v);
+    int prec = 15, len;
+    do
+        len = snprintf(buf, n, "%.*g", prec, x);
+    while ((size_t)len < n && strtod(buf, NULL) != x && ++prec <= 17);
+    /* a real that prints as an integer (3) would read back an integer */
+    if ((size_t)len < n && !strpbrk(buf, ".eEin"))
+        len += snprintf(buf + len, n - (size_t)len, ".0");
+    return len;
+}
+
+/* A string as the setting's text writes it: itself, or JSON-quoted when `--set` would read it as another value. */
+static int format_string(char *buf, size_t n, const char *s)
+{
+    if (!*s || strpbrk(s, " ,"))
+        return -EINVAL;
+    for (const char *c = s; *c; c++)
+        if ((unsigned char)*c < 0x20 || *c == 0x7f)
+            return -EINVAL;
+    json_t *as_read = json_loads(s, JSON_DECODE_ANY, NULL);
+    json_decref(as_read);
+    if (!as_read)
+        return snprintf(buf, n, "%s", s);
+    json_t *str = json_string(s);
+    char *quoted = str ? json_dumps(str, JSON_ENCODE_ANY) : NULL;
+    json_decref(str);
+    const int len = quoted ? snprintf(buf, n, "%s", quoted) : -ENOMEM;
+    free(quoted);
+    return len;
+}
+
+/* One value; what snprintf returns, or -EINVAL. */
+static int format_value(char *buf, size_t n, const json_t *v)
+{
+    if (json_is_string(v))
+        return format_string(buf, n, json_string_value(v));
+    if (json_is_boolean(v) || json_is_null(v))
+        return snprintf(buf, n, "%s", json_is_null(v) ? "null" : json_is_true(v) ? "true" : "false");
+    if (json_is_number(v))
+        return format_number(buf, n, v);
+    if (!json_is_array(v) || json_array_size(v) == 0)
+        return -EINVAL;
+    size_t i, len = 0;
+    json_t *e;
+    json_array_foreach(v, i, e) {
+        if (!json_is_number(e))
+            return -EINVAL;
+        len += (size_t)snprintf(buf + (len < n ? len : n), len < n ? n - len : 0, "%s", i ? "/" : "");
+        len += (size_t)format_number(buf + (len < n ? len : n), len < n ? n - len : 0, e);
+    }
+    return (int)len;
+}
+
+int sci_curves_setting_text(const json_t *settings, char *buf, size_t n)
+{
+    const char *key;
+    json_t *v;
+    size_t off = 0;
+    if (n)
+        buf[0] = 0;
+    if (!json_is_object(settings))
+        return -EINVAL;
+    json_object_foreach((json_t *)settings, key, v) {
+        if (!*key || strpbrk(key, "= ,") || strlen(key) >= 128)
+            return -EINVAL;
+        int klen = snprintf(buf + (off < n ? off : n), off < n ? n - off : 0, "%s%s=", off ? " " : "", key);
+        off += (size_t)klen;
+        int vlen = format_value(buf + (off < n ? off : n), off < n ? n - off : 0, v);
+        if (vlen < 0) {
+            if (n)
+                buf[0] = 0;
+            return vlen;
+        }
+        off += (size_t)vlen;
+    }
+    if (off >= n) {
+        if (n)
+            buf[0] = 0;
+        return -ENAMETOOLONG;
+    }
+    return 0;
+}

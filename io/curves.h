@@ -48,4 +48,13 @@ int sci_curves_pick(const sci_curves *c, const char *method, int has_camera, dou
  * empty key or value, a key of 128 bytes or more, a value not in UTF-8, SCI_CURVE_SETTING_MAX bytes or more). */
 json_t *sci_curves_setting_json(const char *setting);
 
+/* The text of a settings object, what sci_curves_setting_json reads back to an equal object: KEY=VALUE tokens in the
+ * object's order, true/false, null, an integer, a real in the fewest digits (15 … 17) that read back to the same
+ * double, a list of numbers as its values joined by '/' (50/25: no comma in a CSV column), a string as itself unless
+ * it would read back as another value ("5", "true", "[1]"), then JSON-quoted. Writes at most n bytes to buf, always
+ * terminated. Returns 0; -ENAMETOOLONG when the text needs n bytes or more; -EINVAL for a value the text cannot hold
+ * (an object, a list of other than numbers, a string with a space, a comma or a control character, an empty string
+ * or key, a key with '='). */
+int sci_curves_setting_text(const json_t *settings, char *buf, size_t n);
+
 #endif

@@ -173,6 +173,46 @@ static void test_setting_json(void **state)
     json_decref(js);
 }
 
+/* A grid point's settings written as the setting's text read back equal: types kept, a real to the last bit, a
+ * string that looks like another value quoted; what the text cannot hold is refused, never written wrong. */
+static void test_setting_text(void **state)
+{
+    (void)state;
+    static const char *const same[] = {
+        "{\"preset\": \"fast\", \"iters\": 300}", "{\"lambda\": 0.30000000000000004, \"w\": 1e-07}",
+        "{\"x\": 3.0, \"on\": false, \"z\": null}", "{\"s\": \"5\", \"t\": \"true\", \"u\": \"[1]\"}",
+        "{\"q\": \"\\\"fast\\\"\", \"path\": \"a/b\", \"neg\": -2}",
+    };
+    char text[SCI_CURVE_SETTING_MAX];
+    for (size_t i = 0; i < sizeof same / sizeof same[0]; i++) {
+        json_t *obj = json_loads(same[i], 0, NULL), *back = NULL;
+        assert_non_null(obj);
+        assert_int_equal(sci_curves_setting_text(obj, text, sizeof text), 0);
+        if (!json_equal(obj, back = sci_curves_setting_json(text)))
+            fail_msg("%s written as '%s' read back otherwise", same[i], text);
+        json_decref(back);
+        json_decref(obj);
+    }
+    json_t *obj = json_loads("{\"iters\": 20, \"sigma\": [50, 25], \"s\": \"5\"}", 0, NULL);
+    assert_int_equal(sci_curves_setting_text(obj, text, sizeof text), 0);
+    assert_string_equal(text, "iters=20 sigma=50/25 s=\"5\""); /* the list as the solvers read a list */
+    const size_t len = strlen(text);
+    assert_int_equal(sci_curves_setting_text(obj, text, len + 1), 0); /* an exact fit is kept */
+    assert_int_equal(sci_curves_setting_text(obj, text, len), -ENAMETOOLONG); /* one byte short: refused, empty */
+    assert_string_equal(text, "");
+    json_decref(obj);
+    static const char *const refused[] = {
+        "{\"s\": \"a b\"}", "{\"s\": \"a,b\"}", "{\"s\": \"\"}",      "{\"o\": {}}",           "{\"l\": [\"a\"]}",
+        "{\"l\": []}",      "{\"k=x\": 1}",     "{\"\": 1}",           "{\"s\": \"a\\nb\"}",
+    };
+    for (size_t i = 0; i < sizeof refused / sizeof refused[0]; i++) {
+        assert_non_null(obj = json_loads(refused[i], 0, NULL));
+        if (sci_curves_setting_text(obj, text, sizeof text) != -EINVAL)
+            fail_msg("%s was written as '%s'", refused[i], text);
+        json_decref(obj);
+    }
+}
+
 /* Re-measuring one method keeps the others' points from the previous CSV: the report and plots still show them.
  * On static3d alone (its 15 GAP-TV points): the keeping is per row, and the whole suite's 75 points took 56 s. */
 static void test_methods_keep_the_others(void **state)
@@ -273,6 +313,7 @@ int main(void)
                                        cmocka_unit_test(test_methods_keep_the_others),
                                        cmocka_unit_test(test_refused_run_leaves_no_scenes),
                                        cmocka_unit_test(test_long_setting_refused),
-                                       cmocka_unit_test(test_setting_json)};
+                                       cmocka_unit_test(test_setting_json),
+                                       cmocka_unit_test(test_setting_text)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
