@@ -193,6 +193,14 @@ json_t *sci_curves_setting_json(const char *setting)
     return o;
 }
 
+/* Where a text being built in buf (n bytes) goes on once `off` bytes of it are counted, and the room left there:
+ * none once the text has outgrown buf, so the snprintf calls go on counting what it would need. */
+static char *text_end(char *buf, size_t n, size_t off, size_t *room)
+{
+    *room = off < n ? n - off : 0;
+    return buf + (off < n ? off : n);
+}
+
 /* A number as the setting's text writes it; what snprintf returns. */
 static int format_number(char *buf, size_t n, const json_t *v)
 {
@@ -240,13 +248,15 @@ static int format_value(char *buf, size_t n, const json_t *v)
         return format_number(buf, n, v);
     if (!json_is_array(v) || json_array_size(v) == 0)
         return -EINVAL;
-    size_t i, len = 0;
+    size_t i, len = 0, room;
     json_t *e;
     json_array_foreach(v, i, e) {
         if (!json_is_number(e))
             return -EINVAL;
-        len += (size_t)snprintf(buf + (len < n ? len : n), len < n ? n - len : 0, "%s", i ? "/" : "");
-        len += (size_t)format_number(buf + (len < n ? len : n), len < n ? n - len : 0, e);
+        char *end = text_end(buf, n, len, &room); /* its own statement: `room` is read after text_end sets it */
+        len += (size_t)snprintf(end, room, "%s", i ? "/" : "");
+        end = text_end(buf, n, len, &room);
+        len += (size_t)format_number(end, room, e);
     }
     return (int)len;
 }
@@ -255,28 +265,27 @@ int sci_curves_setting_text(const json_t *settings, char *buf, size_t n)
 {
     const char *key;
     json_t *v;
-    size_t off = 0;
-    if (n)
-        buf[0] = 0;
-    if (!json_is_object(settings))
-        return -EINVAL;
-    json_object_foreach((json_t *)settings, key, v) {
-        if (!*key || strpbrk(key, "= ,") || strlen(key) >= 128)
-            return -EINVAL;
-        int klen = snprintf(buf + (off < n ? off : n), off < n ? n - off : 0, "%s%s=", off ? " " : "", key);
-        off += (size_t)klen;
-        int vlen = format_value(buf + (off < n ? off : n), off < n ? n - off : 0, v);
-        if (vlen < 0) {
-            if (n)
-                buf[0] = 0;
-            return vlen;
+    size_t off = 0, room;
+    int rc = json_is_object(settings) ? 0 : -EINVAL;
+    if (rc == 0)
+        json_object_foreach((json_t *)settings, key, v) {
+            if (!*key || strpbrk(key, "= ,") || strlen(key) >= 128) {
+                rc = -EINVAL;
+                break;
+            }
+            char *end = text_end(buf, n, off, &room);
+            off += (size_t)snprintf(end, room, "%s%s=", off ? " " : "", key);
+            end = text_end(buf, n, off, &room);
+            const int vlen = format_value(end, room, v);
+            if (vlen < 0) {
+                rc = vlen;
+                break;
+            }
+            off += (size_t)vlen;
         }
-        off += (size_t)vlen;
-    }
-    if (off >= n) {
-        if (n)
-            buf[0] = 0;
-        return -ENAMETOOLONG;
-    }
-    return 0;
+    if (rc == 0 && off >= n)
+        rc = -ENAMETOOLONG;
+    if (rc < 0 && n)
+        buf[0] = 0; /* nothing half-written */
+    return rc;
 }

@@ -73,7 +73,7 @@ typedef struct nerf_solve_shared {
 
 /* The shared settings' keys for the solver table (recon/solver.h), offsets within nerf_solve_shared: a method's
  * row lists them as its second field group with base = offsetof(params, shared). */
-#define NERF_SOLVE_FIELD_COUNT 24
+#define NERF_SOLVE_FIELD_COUNT 25
 extern const solver_field nerf_solve_fields[];
 
 /* A NeRF method: its network behind the shell. */

@@ -24,6 +24,8 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
     const char *m = c->method ? c->method : "nerf";
     if (c->iters < 1 || c->iters > 10000000)
         return sci_error_set(err, -EINVAL, "%s: iters must be in [1, 1e7] (got %d)", m, c->iters);
+    if (c->ema_steps < 0 || c->ema_steps > 1000000)
+        return sci_error_set(err, -EINVAL, "%s: ema_steps must be in [0, 1e6] (got %d)", m, c->ema_steps);
     if (c->group_w < 1 || c->group_h < 1 || c->group_w * c->group_h > 4096)
         return sci_error_set(err, -EINVAL, "%s: ray group %dx%d out of range", m, c->group_w, c->group_h);
     if (c->group_stride < 0 || c->group_stride > 64)
@@ -133,7 +135,7 @@ int nerf_train_prepare(const sci_problem *pb, nerf_train_config *c, sci_error *e
 static void pass_free(nerf_trainer_pass *p)
 {
     nerf_adam_free(p->adam);
-    void *b[] = {p->params, p->grad,  p->t,       p->pcam,    p->delta, p->pos,   p->sigma, p->rgb,
+    void *b[] = {p->params, p->ema, p->grad,  p->t,       p->pcam,    p->delta, p->pos,   p->sigma, p->rgb,
                  p->color,  p->grey,  p->dC,      p->d_color, p->d_sigma, p->d_rgb, p->d_pos, p->d_dir,
                  p->d_sigma_dist, p->tn, p->depth, p->d_depth};
     for (size_t i = 0; i < sizeof b / sizeof b[0]; i++)
@@ -166,6 +168,7 @@ static int pass_init(nerf_trainer_run_state *r, nerf_trainer_pass *p, const nerf
     const size_t rays = (size_t)r->G * r->R, pts = rays * L;
     p->params = malloc(m->n_params * sizeof(float));
     p->grad = malloc(m->n_params * sizeof(float));
+    p->ema = c->ema_steps > 0 ? malloc(m->n_params * sizeof(float)) : NULL;
     p->t = per_group ? malloc(pts * sizeof(float)) : NULL;
     p->pcam = malloc(pts * 3 * sizeof(float));
     p->delta = malloc(pts * sizeof(float));
@@ -187,6 +190,7 @@ static int pass_init(nerf_trainer_run_state *r, nerf_trainer_pass *p, const nerf
     p->depth = dtv ? malloc(rays * sizeof(float)) : NULL;
     p->d_depth = dtv ? malloc(rays * sizeof(float)) : NULL;
     if ((dist && !p->d_sigma_dist) || (dtv && (!p->tn || !p->depth || !p->d_depth)) || !p->params || !p->grad ||
+        (c->ema_steps > 0 && !p->ema) ||
         (per_group && !p->t) || !p->pcam || !p->delta || !p->pos || !p->sigma || !p->rgb || !p->color || !p->grey ||
         !p->dC || !p->d_color || !p->d_sigma || !p->d_rgb || (pose_grads && (!p->d_pos || !p->d_dir)))
         return sci_error_set(err, -ENOMEM, "%s: out of memory for a batch of %d groups × %d rays × %d samples",
@@ -666,7 +670,72 @@ static int emit_checkpoint(nerf_trainer_run_state *r, const sci_tracer *tr, int 
     return 0;
 }
 
+/* ------------------------------------------------------------------ the weights' moving average */
+
+/* Fold step `it`'s weights into the average once it is within the last 4H steps (H = ema_steps): the first such
+ * step starts it as a copy (so does the first after resuming from a checkpoint taken without one). */
+static void ema_update(nerf_trainer_run_state *r, int it)
+{
+    const nerf_train_config *c = r->c;
+    if (c->ema_steps <= 0 || it <= c->iters - 4 * c->ema_steps)
+        return;
+    const float a = 1.0f / (float)c->ema_steps;
+    for (int k = 0; k < r->n_pass; k++) {
+        nerf_trainer_pass *p = &r->ps[k];
+        const long n = (long)p->m->n_params;
+        float *e = p->ema;
+        const float *w = p->params;
+        if (!r->ema_live) {
+            memcpy(e, w, (size_t)n * sizeof *e);
+            continue;
+        }
+#pragma omp parallel for schedule(static)
+        for (long j = 0; j < n; j++)
+            e[j] += a * (w[j] - e[j]);
+    }
+    r->ema_live = 1;
+}
+
+/* Exchange each pass's weights with their average once it has begun: a render between two swaps sees it. */
+static void ema_swap(nerf_trainer_run_state *r)
+{
+    for (int k = 0; k < r->n_pass && r->ema_live; k++) {
+        float *t = r->ps[k].params;
+        r->ps[k].params = r->ps[k].ema;
+        r->ps[k].ema = t;
+    }
+}
+
 /* ------------------------------------------------------------------ the loop */
+
+/* render_all with the weights' average once it runs (trace points and the final frames show it). */
+static int render_frames(nerf_trainer_run_state *r, sci_cube *x, double *max_weight)
+{
+    ema_swap(r);
+    int rc = render_all(r, x, max_weight);
+    ema_swap(r);
+    return rc;
+}
+
+/* The frames of a trace point or of the last step into x, with their measurement residual and mean largest ray
+ * weight; the render counts as method time only at the last step, the residual never (a diagnostic). */
+static int render_point(nerf_trainer_run_state *r, sci_tracer *tr, sci_cube *x, int last, double *meas_res,
+                        double *wmax)
+{
+    int64_t t0 = sci_clock_mono_ns(), c0 = sci_clock_cpu_ns();
+    int rc = render_frames(r, x, wmax);
+    if (rc < 0)
+        return rc;
+    if (!last) {
+        tr->skip_ns += sci_clock_mono_ns() - t0;
+        tr->skip_cpu_ns += sci_clock_cpu_ns() - c0;
+    }
+    int64_t t1 = sci_clock_mono_ns(), c1 = sci_clock_cpu_ns();
+    *meas_res = sci_op_residual(r->pb->mask, x, r->pb->meas);
+    tr->skip_ns += sci_clock_mono_ns() - t1;
+    tr->skip_cpu_ns += sci_clock_cpu_ns() - c1;
+    return 0;
+}
 
 int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf_model *coarse,
                    const nerf_model *fine, sci_result *result, sci_progress_fn progress, void *user,
@@ -726,25 +795,14 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
             sci_error_set(err, rc, "%s: step %d failed (%s)", c->method, it, sci_strerror(rc));
             goto out;
         }
+        ema_update(&r, it);
         int last = it == c->iters;
         int metrics = pb->truth && c->metrics_every > 0 && it % c->metrics_every == 0;
-        rendered = 0;
+        rendered = last || metrics;
         double meas_res = NAN, wmax = NAN;
-        if (last || metrics) {
-            int64_t t0 = sci_clock_mono_ns(), c0 = sci_clock_cpu_ns();
-            if ((rc = render_all(&r, x, &wmax)) < 0) {
-                sci_error_set(err, rc, "%s: render failed (%s)", c->method, sci_strerror(rc));
-                goto out;
-            }
-            rendered = 1;
-            if (!last) { /* intermediate renders are trace metrics, not method time */
-                tr.skip_ns += sci_clock_mono_ns() - t0;
-                tr.skip_cpu_ns += sci_clock_cpu_ns() - c0;
-            }
-            int64_t t1 = sci_clock_mono_ns(), c1 = sci_clock_cpu_ns();
-            meas_res = sci_op_residual(pb->mask, x, pb->meas);
-            tr.skip_ns += sci_clock_mono_ns() - t1; /* a diagnostic, not method time */
-            tr.skip_cpu_ns += sci_clock_cpu_ns() - c1;
+        if (rendered && (rc = render_point(&r, &tr, x, last, &meas_res, &wmax)) < 0) {
+            sci_error_set(err, rc, "%s: render failed (%s)", c->method, sci_strerror(rc));
+            goto out;
         }
         if ((rc = sci_tracer_record_ex(&tr, it, rendered ? x : NULL, res, loss, meas_res, wmax)) != 0)
             break;
@@ -766,7 +824,7 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
         }
         *err = saved;
         if (!rendered) {
-            int rc3 = render_all(&r, x, NULL);
+            int rc3 = render_frames(&r, x, NULL);
             if (rc3 < 0) {
                 rc = sci_error_set(err, rc3, "%s: render failed (%s)", c->method, sci_strerror(rc3));
                 goto out;

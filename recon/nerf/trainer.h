@@ -19,6 +19,9 @@
  * Inference renders every frame window-wise (non-overlapping gw×gh windows; the last row and column shifted
  * inside the image; with render_tilings 4 the mean of four tilings) at sample midpoints (deterministic importance
  * samples).
+ * With ema_steps H > 0 the last 4H steps also keep an exponential moving average of the weights (decay 1 − 1/H,
+ * started as a copy; one pass over the weights a step); the renders from then on — the trace's and the final
+ * frames — use the average, training never does (instant-ngp reimplementations keep one, JNeRF at decay 0.95).
  *
  * Gauge (pose optimisation): a scene and camera poses fitted together from one snapshot are defined only up to
  * a rigid motion (and scale) of everything; `pose_hold_first` pins pose 1 (its twist gets no update), which fixes
@@ -31,10 +34,11 @@
  * run. The blob is validated (magic, version, method, sizes, checksum, finite values) before use. A checkpoint of
  * a run with known poses may also start a run that optimises them (the scene first, then the poses): the poses
  * then start as configured.
- * Layout (little-endian, native float/double): header {magic "SCINERF\0", u32 version, u32 reserved,
+ * Layout (little-endian, native float/double): header {magic "SCINERF\0", u32 version, u32 flags,
  * char method[NERF_CKPT_METHOD_MAX], i32 w, h, n, iter, u64 n_params[2], u64 n_pose_params, u64 rng[4], f64 wall_s, cpu_s,
  * f32 box[6]},
- * then for each model: params (f32), Adam m, s (f32), steps (u32); pose twists, pose Adam m, v, grad (f64),
+ * then for each model: params (f32), Adam m, s (f32), steps (u32), with flags bit 0 (a moving average of the
+ * weights has begun, ema_steps) its average (f32); pose twists, pose Adam m, v, grad (f64),
  * pose step (i64); then a u64 FNV-1a checksum of everything before it.
  *
  * Errors: 0, SCI_ECANCELED (frames = the model rendered at that point), SCI_EDIVERGED (no frames),
@@ -116,6 +120,8 @@ typedef struct nerf_train_config {
                                      also pulled toward GAP-TV's reconstruction, with a weight falling linearly
                                      from prior_weight to 0 (0: off) */
     double prior_weight;
+    int ema_steps;                /* H > 0: evaluate an exponential moving average of the weights (decay 1 − 1/H)
+                                     kept over the last 4H steps (instant-ngp's EMA of the parameters); 0: off */
     nerf_poses_mode pose_mode;    /* KNOWN: problem->camera poses; LINEAR / PER_FRAME: optimised */
     int pose_init_identity;       /* start from the identity (SCINeRF) rather than the camera's poses */
     double pose_perturb_rot_rad;  /* U(±a) added to each rotation component of the initial twists */
@@ -151,6 +157,7 @@ typedef struct nerf_recipe {
     int prior_steps;           /* GAP-TV warm start length, 0: off */
     double prior_weight;       /* its starting weight */
     double density_bias;       /* added before the density activation: ln σ at initialisation (trunc_exp) */
+    int ema_steps;             /* evaluate a moving average of the weights over about this many steps, 0: off */
 } nerf_recipe;
 
 /* -EINVAL naming the field and its value. */

@@ -10,10 +10,12 @@
 /* Checkpoint header (trainer.h); the arrays follow it. */
 #define CKPT_MAGIC "SCINERF"
 #define CKPT_VERSION 1u
+/* flags: each model's weights' moving average follows its Adam step counts (a run with ema_steps, once begun) */
+#define CKPT_EMA 1u
 
 typedef struct ckpt_header {
     char magic[8];
-    uint32_t version, reserved;
+    uint32_t version, flags; /* CKPT_EMA */
     char method[NERF_CKPT_METHOD_MAX];
     int32_t w, h, n, iter;
     uint64_t n_params[2], n_pose_params;
@@ -35,7 +37,7 @@ static size_t ckpt_bytes(const nerf_trainer_run_state *r)
 {
     size_t b = sizeof(ckpt_header);
     for (int k = 0; k < r->n_pass; k++)
-        b += r->ps[k].m->n_params * (3 * sizeof(float) + sizeof(uint32_t));
+        b += r->ps[k].m->n_params * ((r->ema_live ? 4 : 3) * sizeof(float) + sizeof(uint32_t));
     size_t np = (size_t)nerf_poses_param_count(r->poses);
     return b + np * 4 * sizeof(double) + sizeof(int64_t) + sizeof(uint64_t);
 }
@@ -53,7 +55,8 @@ int nerf_trainer_ckpt_save(nerf_trainer_run_state *r, int iter, double wall_s, d
     unsigned char *buf = malloc(n), *o = buf;
     if (!buf)
         return -ENOMEM;
-    ckpt_header h = {.magic = CKPT_MAGIC, .version = CKPT_VERSION, .w = r->w, .h = r->h, .n = r->n, .iter = iter,
+    ckpt_header h = {.magic = CKPT_MAGIC, .version = CKPT_VERSION, .flags = r->ema_live ? CKPT_EMA : 0,
+                     .w = r->w, .h = r->h, .n = r->n, .iter = iter,
                      .n_pose_params = (uint64_t)nerf_poses_param_count(r->poses), .wall_s = wall_s, .cpu_s = cpu_s};
     snprintf(h.method, sizeof h.method, "%s", r->c->method);
     memcpy(h.box, r->c->box_lo, sizeof r->c->box_lo);
@@ -72,6 +75,8 @@ int nerf_trainer_ckpt_save(nerf_trainer_run_state *r, int iter, double wall_s, d
         o = put(o, m, np * sizeof(float));
         o = put(o, s, np * sizeof(float));
         o = put(o, t, np * sizeof(uint32_t));
+        if (r->ema_live)
+            o = put(o, p->ema, np * sizeof(float));
     }
     size_t npp = (size_t)nerf_poses_param_count(r->poses);
     long *step;
@@ -150,6 +155,12 @@ int nerf_trainer_ckpt_load(nerf_trainer_run_state *r, const void *blob, size_t b
     }
     /* A checkpoint of a run with known poses may start a run that optimises them (scene first, poses after): the
      * poses then start as configured. Otherwise the pose parametrisation must be the same. */
+    if (h.flags & ~CKPT_EMA)
+        return sci_error_set(err, SCI_EFORMAT, "checkpoint: unknown flags 0x%x", (unsigned)h.flags);
+    if ((h.flags & CKPT_EMA) && r->c->ema_steps <= 0)
+        return sci_error_set(err, -EINVAL, "checkpoint: holds a moving average of the weights; resume with the "
+                             "ema_steps it was written with");
+    r->ema_live = (h.flags & CKPT_EMA) != 0;
     const int skip_poses = h.n_pose_params == 0 && nerf_poses_param_count(r->poses) > 0;
     if (!skip_poses && h.n_pose_params != (uint64_t)nerf_poses_param_count(r->poses))
         return sci_error_set(err, SCI_ESHAPE, "checkpoint: %llu pose parameters, this pose mode has %d",
@@ -170,7 +181,10 @@ int nerf_trainer_ckpt_load(nerf_trainer_run_state *r, const void *blob, size_t b
         memcpy(mm, in, np * sizeof(float)), in += np * sizeof(float);
         memcpy(s, in, np * sizeof(float)), in += np * sizeof(float);
         memcpy(t, in, np * sizeof(uint32_t)), in += np * sizeof(uint32_t);
-        if (!all_finite_f(p->params, np) || !all_finite_f(mm, np) || !all_finite_f(s, np))
+        if (r->ema_live)
+            memcpy(p->ema, in, np * sizeof(float)), in += np * sizeof(float);
+        if (!all_finite_f(p->params, np) || !all_finite_f(mm, np) || !all_finite_f(s, np) ||
+            (r->ema_live && !all_finite_f(p->ema, np)))
             return sci_error_set(err, SCI_ENONFINITE, "checkpoint: non-finite %s model parameters or moments",
                                  k ? "fine" : "coarse");
     }

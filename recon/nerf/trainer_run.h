@@ -18,6 +18,7 @@ typedef struct nerf_trainer_pass {
     const nerf_model *m;
     nerf_adam *adam;
     float *params, *grad;
+    float *ema;                           /* n_params: the weights' moving average (ema_steps > 0), or NULL */
     int L, per_group;
     float *t, *pcam, *delta;              /* camera frame: G·R·L (t: fine only) */
     float *pos, *sigma, *rgb;             /* G·R·L */
@@ -44,6 +45,7 @@ typedef struct nerf_trainer_run_state {
     float *imp_tc, *imp_tf;
     sci_rng rng;
     int64_t wall0_ns, cpu0_ns; /* elapsed time carried over from a checkpoint */
+    int ema_live;              /* the passes' ema arrays hold the weights' moving average (it has begun) */
 } nerf_trainer_run_state;
 
 /* Blob of the run's whole state after step `iter` (malloc'd into *out, the caller frees). 0 or -ENOMEM. */

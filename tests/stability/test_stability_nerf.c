@@ -162,10 +162,11 @@ static void test_huge_learning_rate(void **state)
     sci_problem_free(p);
 }
 
-/* The issue-15 recipe with every knob on (disparity and log spacing, distortion loss, depth TV, GAP-TV warm start,
+/* The recipe with every knob on (disparity and log spacing, distortion loss, depth TV, GAP-TV warm start,
  * coarse-to-fine levels, zero-initialised gates, a window's rays sharing their depth jitter, the inter-ray gate on
- * two spacings of three and off on the third) on the hard scenes: all-black (weights → 0, the distortion and depth
- * terms see empty rays), all-white (opaque at the first sample), and a learning rate of 9. */
+ * two spacings of three and off on the third, a moving average of the weights over the whole run) on the hard
+ * scenes: all-black (weights → 0, the distortion and depth terms see empty rays), all-white (opaque at the first
+ * sample), and a learning rate of 9. */
 static void test_recipe_hard_cases(void **state)
 {
     sci_problem *black = scene(16, 16, 3, 0.02, 0.05, 0.0, 0.0);
@@ -180,7 +181,8 @@ static void test_recipe_hard_cases(void **state)
         q.window_jitter = 1;
         q.inter_gate = sp != NERF_SPACING_DISPARITY; /* the gated inter-ray path (the default), and the bare one */
         q.recipe = (nerf_recipe){.spacing = (nerf_spacing)sp, .distortion_weight = 0.5, .depth_tv_weight = 5,
-                                 .prior_steps = 10, .prior_weight = 10, .density_bias = -3, .c2f_steps = 15};
+                                 .prior_steps = 10, .prior_weight = 10, .density_bias = -3, .c2f_steps = 15,
+                                 .ema_steps = 5};
         char what[64];
         snprintf(what, sizeof what, "recipe, spacing %d, all-black", sp);
         expect_finite_or_clear_error(black, &q, what);

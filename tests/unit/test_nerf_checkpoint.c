@@ -1,6 +1,7 @@
 /* Checkpoints of the NeRF trainer (trainer.h) at tiny sizes: a run canceled (or checkpointed) half-way and resumed
  * from its checkpoint ends bitwise equal to an uninterrupted run — frames, losses and poses — for RayFormer with
- * optimised poses and for SCINeRF's two networks; damaged or mismatched checkpoints are refused with a message. */
+ * optimised poses, for SCINeRF's two networks and with a moving average of the weights under way; damaged or
+ * mismatched checkpoints are refused with a message. */
 #include <errno.h>
 #include <math.h>
 #include <setjmp.h>
@@ -60,6 +61,18 @@ static void small_rf(sci_rayformer_params *p, unsigned long long seed)
     p->pose_perturb_trans = 0.02;
 }
 
+/* The tiny problem of the RayFormer cases, their settings and room for two runs' poses (the caller frees). */
+static sci_problem *rf_setup(sci_rayformer_params *prm, double (**pa)[12], double (**pb)[12])
+{
+    unsigned long long seed = test_seed_env(7);
+    sci_problem *p = nerf_tiny_problem(16, seed);
+    *pa = malloc((size_t)p->mask->n * sizeof **pa);
+    *pb = malloc((size_t)p->mask->n * sizeof **pb);
+    assert_true(*pa && *pb);
+    small_rf(prm, seed);
+    return p;
+}
+
 /* The resumed run b (its solver returned rc) from the checkpoint of step `from` equals the uninterrupted run a, poses
  * pb and pa (n each) included; frees both results and both pose arrays. */
 static void expect_same_run(int rc, sci_result *a, sci_result *b, int from, double (*pa)[12], double (*pb)[12], int n,
@@ -90,12 +103,10 @@ static void expect_same_run(int rc, sci_result *a, sci_result *b, int from, doub
 static void test_rayformer_cancel_resume(void **state)
 {
     (void)state;
-    unsigned long long seed = test_seed_env(7);
-    sci_problem *p = nerf_tiny_problem(16, seed);
-    const int n = p->mask->n;
-    double(*poses_a)[12] = malloc((size_t)n * sizeof *poses_a), (*poses_b)[12] = malloc((size_t)n * sizeof *poses_b);
     sci_rayformer_params prm;
-    small_rf(&prm, seed);
+    double(*poses_a)[12], (*poses_b)[12];
+    sci_problem *p = rf_setup(&prm, &poses_a, &poses_b);
+    const int n = p->mask->n;
     sci_result a = {0}, half = {0}, b = {0};
     assert_int_equal(sci_rayformer_solve_ex(p, &prm, &a, NULL, NULL, poses_a), 0);
 
@@ -147,6 +158,47 @@ static void test_scinerf_periodic_resume(void **state)
     prm.resume_bytes = st.bytes;
     int rc = sci_scinerf_solve_ex(p, &prm, &b, NULL, NULL, poses_b);
     expect_same_run(rc, &a, &b, 5, poses_a, poses_b, n, st.bytes);
+    free(st.blob);
+    sci_problem_free(p);
+}
+
+/* A moving average of the weights (ema_steps 2 over 14 steps: it begins at step 7) renders the frames but never
+ * steers training: the losses equal a run without it bit for bit, the frames do not. A checkpoint taken while it
+ * runs (step 10) holds it: the resumed run equals the uninterrupted one, and a run without ema_steps refuses it. */
+static void test_ema_resume(void **state)
+{
+    (void)state;
+    sci_rayformer_params prm;
+    double(*poses_a)[12], (*poses_b)[12];
+    sci_problem *p = rf_setup(&prm, &poses_a, &poses_b);
+    const int n = p->mask->n;
+    sci_result plain = {0}, a = {0}, b = {0}, refused = {0};
+    assert_int_equal(sci_rayformer_solve(p, &prm, &plain, NULL, NULL), 0);
+    prm.recipe.ema_steps = 2;
+    store st = {.want = 10};
+    prm.checkpoint_every = 5;
+    prm.checkpoint_fn = keep;
+    prm.checkpoint_user = &st;
+    assert_int_equal(sci_rayformer_solve_ex(p, &prm, &a, NULL, NULL, poses_a), 0);
+    assert_int_equal((int)a.trace.len, (int)plain.trace.len);
+    for (size_t i = 0; i < a.trace.len; i++)
+        assert_true(memcmp(&a.trace.e[i].loss, &plain.trace.e[i].loss, sizeof(double)) == 0);
+    const size_t bytes = sci_cube_count(a.frames) * sizeof(float);
+    assert_true(memcmp(a.frames->data, plain.frames->data, bytes) != 0);
+    sci_result_free_contents(&plain);
+    assert_int_equal(st.iter, 10);
+
+    prm.checkpoint_fn = NULL;
+    prm.resume = st.blob;
+    prm.resume_bytes = st.bytes;
+    int rc = sci_rayformer_solve_ex(p, &prm, &b, NULL, NULL, poses_b);
+    expect_same_run(rc, &a, &b, 10, poses_a, poses_b, n, st.bytes);
+    prm.recipe.ema_steps = 0;
+    assert_int_equal(sci_rayformer_solve(p, &prm, &refused, NULL, NULL), -EINVAL);
+    printf("without ema_steps: %s\n", refused.error.msg);
+    assert_non_null(strstr(refused.error.msg, "ema_steps"));
+    assert_null(refused.frames);
+    sci_result_free_contents(&refused);
     free(st.blob);
     sci_problem_free(p);
 }
@@ -237,6 +289,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rayformer_cancel_resume),
         cmocka_unit_test(test_scinerf_periodic_resume),
+        cmocka_unit_test(test_ema_resume),
         cmocka_unit_test(test_bad_checkpoints),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
