@@ -673,12 +673,15 @@ static int emit_checkpoint(nerf_trainer_run_state *r, const sci_tracer *tr, int 
 /* ------------------------------------------------------------------ the weights' moving average */
 
 /* Fold step `it`'s weights into the average once it is within the last 4H steps (H = ema_steps): the first such
- * step starts it as a copy (so does the first after resuming from a checkpoint taken without one). */
+ * step starts it as a copy (so does the first after resuming from a checkpoint taken without one). Before then
+ * there is none (a checkpoint's average from a run whose window began earlier is dropped). */
 static void ema_update(nerf_trainer_run_state *r, int it)
 {
     const nerf_train_config *c = r->c;
-    if (c->ema_steps <= 0 || it <= c->iters - 4 * c->ema_steps)
+    if (c->ema_steps <= 0 || it <= c->iters - 4 * c->ema_steps) {
+        r->ema_live = 0;
         return;
+    }
     const float a = 1.0f / (float)c->ema_steps;
     for (int k = 0; k < r->n_pass; k++) {
         nerf_trainer_pass *p = &r->ps[k];

@@ -120,8 +120,8 @@ typedef struct nerf_train_config {
                                      also pulled toward GAP-TV's reconstruction, with a weight falling linearly
                                      from prior_weight to 0 (0: off) */
     double prior_weight;
-    int ema_steps;                /* H > 0: evaluate an exponential moving average of the weights (decay 1 − 1/H)
-                                     kept over the last 4H steps (instant-ngp's EMA of the parameters); 0: off */
+    int ema_steps;                /* H > 0: render with an exponential moving average of the weights (decay
+                                     1 − 1/H) kept over the last 4H steps; 0: off */
     nerf_poses_mode pose_mode;    /* KNOWN: problem->camera poses; LINEAR / PER_FRAME: optimised */
     int pose_init_identity;       /* start from the identity (SCINeRF) rather than the camera's poses */
     double pose_perturb_rot_rad;  /* U(±a) added to each rotation component of the initial twists */

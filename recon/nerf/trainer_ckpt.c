@@ -153,14 +153,14 @@ int nerf_trainer_ckpt_load(nerf_trainer_run_state *r, const void *blob, size_t b
                                  "blocks or hash table)",
                                  k ? "fine" : "coarse", (unsigned long long)h.n_params[k], (unsigned long long)want);
     }
-    /* A checkpoint of a run with known poses may start a run that optimises them (scene first, poses after): the
-     * poses then start as configured. Otherwise the pose parametrisation must be the same. */
     if (h.flags & ~CKPT_EMA)
         return sci_error_set(err, SCI_EFORMAT, "checkpoint: unknown flags 0x%x", (unsigned)h.flags);
     if ((h.flags & CKPT_EMA) && r->c->ema_steps <= 0)
         return sci_error_set(err, -EINVAL, "checkpoint: holds a moving average of the weights; resume with the "
                              "ema_steps it was written with");
     r->ema_live = (h.flags & CKPT_EMA) != 0;
+    /* A checkpoint of a run with known poses may start a run that optimises them (scene first, poses after): the
+     * poses then start as configured. Otherwise the pose parametrisation must be the same. */
     const int skip_poses = h.n_pose_params == 0 && nerf_poses_param_count(r->poses) > 0;
     if (!skip_poses && h.n_pose_params != (uint64_t)nerf_poses_param_count(r->poses))
         return sci_error_set(err, SCI_ESHAPE, "checkpoint: %llu pose parameters, this pose mode has %d",
