@@ -24,7 +24,7 @@ PKG_LIBS   := $(shell pkg-config --libs $(PKGS) 2>/dev/null)
 GPIOD_MAJOR := $(shell pkg-config --modversion libgpiod 2>/dev/null | cut -d. -f1)
 # SANITIZE=1 (make check-asan): AddressSanitizer and UndefinedBehaviorSanitizer in every object and program; any
 # report fails the test that triggered it (UBSan does not recover).
-# GCC's object-size warnings misfire under ASan at -O1 (a strstr after a checked strstr in test_cli_help.c:186):
+# GCC's object-size warnings misfire under ASan (a strstr after a checked strstr in tests/integration/test_cli_help.c):
 # they stay warnings there, every other warning is still an error.
 comma := ,
 SAN_FLAGS := $(if $(SANITIZE),-fsanitize=address$(comma)undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer \
@@ -75,7 +75,7 @@ help:
 	@echo "make demo      build and run the main job on its embedded default"
 	@echo "make check     build and run every test (C tests, then the Python module's pytest tests)"
 	@echo "make python    the Python module in BUILD/python (PYTHONPATH=BUILD/python python3 -c 'import scicap')"
-	@echo "make check-asan  every test again under ASan + UBSan at -O1 (build-asan/)"
+	@echo "make check-asan  every test again under ASan + UBSan at -O2 (build-asan/)"
 	@echo "make check-slurm  scicap batch --slurm on a single-node Slurm started in a temporary folder"
 	@echo "make check-gv  the GenICam (Aravis) backend against a fake GigE Vision camera on loopback"
 	@echo "make check-vm  run the device tests against real kernel drivers under qemu"
@@ -247,11 +247,12 @@ check-python: python python-extra-method $(BINS)
 	@BUILD=$(BUILD) SCICAP_DATA="$(SCICAP_DATA)" PYTHONPATH=$(abspath $(BUILD)/python) \
 	  $(PYTHON) -m pytest -q -p no:cacheprovider --durations=5 tests/python
 
-# Every test again with ASan + UBSan at -O1, in its own build folder (build-asan), programs the tests start
-# (scicap, scicapd) included. Leak checking is off: the goal is memory errors and undefined behaviour.
+# Every test again with ASan + UBSan at -O2, in its own build folder (build-asan), programs the tests start
+# (scicap, scicapd) included. Leak checking is off: the goal is memory errors and undefined behaviour. -O2, not -O1:
+# the numerical tests run 20-30 % less CPU time (test_gaptv 59 s against 73, test_nerf_scinerf 36 against 51).
 ASAN_BUILD ?= build-asan
 check-asan: deps
-	@$(MAKE) --no-print-directory $(JOBS) BUILD=$(ASAN_BUILD) OPT=-O1 SANITIZE=1 tests
+	@$(MAKE) --no-print-directory $(JOBS) BUILD=$(ASAN_BUILD) OPT=-O2 SANITIZE=1 tests
 	@ASAN_OPTIONS=detect_leaks=0:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=0 \
 	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 BUILD=$(ASAN_BUILD) SCICAP_DATA="$(SCICAP_DATA)" \
 	  tests/run $(TEST_BIN:$(BUILD)/%=$(ASAN_BUILD)/%) $(XM_TEST_BIN:$(BUILD)/%=$(ASAN_BUILD)/%)

@@ -40,7 +40,8 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
      * −0.09 / −0.03, the orbit's −0.06 at 2; fast preset, docs/benchmarks.md); each window's stride drawn from
      * 1 … 4 (patch_stride_max 4, two seeds: the + patch rung −0.05 dB on the photo scenes' mean, + intra −0.04, the
      * full method −0.07 against adjacent windows); a moving average of the weights (ema_steps 50, shared with
-     * SCINeRF: + 0.05 dB for the full method on the photo scenes' mean, the + patch step unchanged) */
+     * SCINeRF: + 0.05 dB for the full method on the photo scenes' mean, the + patch step unchanged); Adam's ε at
+     * 1e-8 (adam_eps; photo_llff, one seed: baseline + 0.12 dB, + patch + 0.17; docs/benchmarks.md) */
     *p = (sci_rayformer_params){.iters = 3400, /* the balanced preset's */
                                 .patch = 2,
                                 .patch_stride = 1,
@@ -71,6 +72,8 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
                                 /* the attention blocks at the hash table's 1e-2 collapsed on two scenes of three
                                  * (noisy, +inter: 15.3 dB; at 0.1× the same run reaches 24.9 dB by step 1050) */
                                 .net_lr_scale = 0.1,
+                                /* instant-ngp's: a hash entry's step does not shrink with its gradient */
+                                .adam_eps = 1e-15,
                                 .tv_weight = 0.01,
                                 .tv_eps = 0,
                                 .patch_sampling = 1,
@@ -145,7 +148,7 @@ static void rf_config(const void *params, nerf_train_config *c)
     c->fine_samples = 0;
     c->net_lr_scale = p->net_lr_scale;
     c->adam_beta2 = 0.99;
-    c->adam_eps = 1e-15;
+    c->adam_eps = p->adam_eps;
     c->tv_weight = p->tv_weight;
     c->tv_eps = p->tv_eps;
     /* without inter-ray attention every tiling renders the same image: one, at a quarter of the cost */
@@ -179,6 +182,8 @@ static int rf_check(const void *params, sci_error *err)
         return sci_error_set(err, -EINVAL, "rayformer: intra-slope must be in [0, 100] (got %g)", p->intra_slope);
     if (!(p->inter_slope >= 0 && p->inter_slope <= 100))
         return sci_error_set(err, -EINVAL, "rayformer: inter-slope must be in [0, 100] (got %g)", p->inter_slope);
+    if (!(p->adam_eps >= 1e-30 && p->adam_eps <= 1))
+        return sci_error_set(err, -EINVAL, "rayformer: adam-eps must be in [1e-30, 1] (got %g)", p->adam_eps);
     return 0;
 }
 
@@ -319,6 +324,7 @@ static const solver_field rf_fields[] = {
     RF("sh_degree", SOLVER_FIELD_INT, sh_degree, 1, 4, "view-direction encoding degree"),
     RF("net_lr_scale", SOLVER_FIELD_DOUBLE, net_lr_scale, 0, 1e3, "the transformer learns at lr × this (0: 1)"),
     RF("heads_full_lr", SOLVER_FIELD_BOOL, heads_full_lr, 0, 1, "the heads learn at lr"),
+    RF("adam_eps", SOLVER_FIELD_DOUBLE, adam_eps, 1e-30, 1, "Adam's ε, every parameter (1e-15: steps ignore scale)"),
     RF("tv_weight", SOLVER_FIELD_DOUBLE, tv_weight, 0, 1e6, "TV weight over the rendered patches"),
     RF("tv_eps", SOLVER_FIELD_DOUBLE, tv_eps, 0, 1e6, "Charbonnier ε of the TV term"),
     RF("patch_sampling", SOLVER_FIELD_BOOL, patch_sampling, 0, 1, "patches (1) or scattered rays (0)"),

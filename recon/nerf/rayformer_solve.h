@@ -44,6 +44,8 @@ typedef struct sci_rayformer_params {
     double net_lr_scale;         /* the transformer learns at lr × this, the hash table at lr (0: 1) */
     int heads_full_lr;           /* 1: only the transformer blocks are scaled, the final LN and the density and colour
                                     heads learn at lr; 0: the heads are scaled too */
+    double adam_eps;             /* Adam's ε for every parameter, 1e-30 … 1 (1e-15, instant-ngp's: a parameter's step
+                                    is lr-sized however small its gradient; adam.h) */
     double tv_weight;            /* λ of the TV term (0: off) */
     double tv_eps;               /* Charbonnier ε of the TV term (0: plain |d|) */
     int patch_sampling;          /* 1: patches; 0: scattered random rays in groups of patch² (ablation baseline) */

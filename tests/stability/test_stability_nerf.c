@@ -192,6 +192,11 @@ static void test_recipe_hard_cases(void **state)
         q.recipe.density_bias = 8; /* e^8 ≈ 3000: opaque everywhere at the start */
         snprintf(what, sizeof what, "recipe, spacing %d, lr 9, density bias 8", sp);
         expect_finite_or_clear_error(tex, &q, what);
+        /* Adam's ε at its ends: 1 turns a step into momentum SGD at lr (gradients are far below ε), 1e-30 makes a
+         * grazing touch of a hash entry a full lr-sized step */
+        q.adam_eps = sp == NERF_SPACING_LOG ? 1.0 : 1e-30;
+        snprintf(what, sizeof what, "recipe, spacing %d, lr 9, adam_eps %g", sp, q.adam_eps);
+        expect_finite_or_clear_error(tex, &q, what);
     }
     sci_problem_free(black);
     sci_problem_free(white);

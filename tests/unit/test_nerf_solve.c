@@ -47,6 +47,17 @@ static void test_params_check(void **state)
     sci_rayformer_params_default(&p);
     p.lr = NAN;
     assert_int_equal(sci_rayformer_params_check(&p, &err), -EINVAL);
+    /* Adam's ε: 0 would divide a never-touched entry's zero moment by zero, NaN passes every comparison */
+    const double bad_eps[] = {0.0, -1e-8, NAN, INFINITY, 2.0};
+    for (size_t i = 0; i < sizeof bad_eps / sizeof bad_eps[0]; i++) {
+        sci_rayformer_params_default(&p);
+        p.adam_eps = bad_eps[i];
+        err.msg[0] = 0;
+        assert_int_equal(sci_rayformer_params_check(&p, &err), -EINVAL);
+        assert_non_null(strstr(err.msg, "adam-eps"));
+    }
+    p.adam_eps = 1e-8;
+    assert_int_equal(sci_rayformer_params_check(&p, &err), 0);
 }
 
 static void test_needs_camera(void **state)
