@@ -47,7 +47,7 @@ static void test_params_check(void **state)
     sci_rayformer_params_default(&p);
     p.lr = NAN;
     assert_int_equal(sci_rayformer_params_check(&p, &err), -EINVAL);
-    /* Adam's ε: 0 would divide a never-touched entry's zero moment by zero, NaN passes every comparison */
+    /* Adam's ε: at 0 a parameter whose moments are still 0 steps by 0/0; NaN, ∞ and the range's outside refused */
     const double bad_eps[] = {0.0, -1e-8, NAN, INFINITY, 2.0};
     for (size_t i = 0; i < sizeof bad_eps / sizeof bad_eps[0]; i++) {
         sci_rayformer_params_default(&p);
