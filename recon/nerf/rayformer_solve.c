@@ -41,7 +41,7 @@ void sci_rayformer_params_default(sci_rayformer_params *p)
      * 1 … 4 (patch_stride_max 4, two seeds: the + patch rung −0.05 dB on the photo scenes' mean, + intra −0.04, the
      * full method −0.07 against adjacent windows); a moving average of the weights (ema_steps 50, shared with
      * SCINeRF: + 0.05 dB for the full method on the photo scenes' mean, the + patch step unchanged); Adam's ε at
-     * 1e-8 (adam_eps; photo_llff, two seeds: baseline + 0.06 dB, + patch + 0.14, the full method − 0.10) */
+     * 1e-8 (adam_eps; photo_llff, two seeds: baseline + 0.06 dB, + patch + 0.13, the full method − 0.10) */
     *p = (sci_rayformer_params){.iters = 3400, /* the balanced preset's */
                                 .patch = 2,
                                 .patch_stride = 1,
