@@ -51,6 +51,15 @@ void nerf_windows_pick(int B, int w, int h, int pw, int ph, int d0, int d1, int 
     }
 }
 
+int nerf_stride_at(int d_end, int d_start, int it, int iters)
+{
+    if (d_start <= d_end || iters < 1)
+        return d_end;
+    const double f = (double)(it - 1) / iters;
+    const int d = (int)lround(d_start - (d_start - d_end) * f);
+    return d < d_end ? d_end : d > d_start ? d_start : d;
+}
+
 int nerf_tile_count(int w, int h, int pw, int ph, int d, int ox, int oy)
 {
     const int bw = pw * d, bh = ph * d;

@@ -48,6 +48,12 @@ void nerf_patch_pixels(int x0, int y0, int pw, int ph, int d, int *px, int *py);
  * rng: the corners (two uniforms or nerf_strata_pick's draws each), then one bounded draw a window when d1 > d0. */
 void nerf_windows_pick(int B, int w, int h, int pw, int ph, int d0, int d1, int stratify, sci_rng *rng, int *px,
                        int *py);
+/* The windows' stride at training step it of 1 … iters when they start at d_start and narrow to d_end
+ * (coarse-to-fine: wide windows cover more of the image while the field takes its coarse shape, adjacent ones
+ * give the attention and TV their neighbours at the end): d_start − (d_start − d_end)·(it − 1)/iters, rounded. With
+ * k = d_start − d_end the run's first 1/(2k) is at d_start, its last 1/(2k) at d_end, 1/k at each stride between.
+ * d_start <= d_end: d_end throughout. */
+int nerf_stride_at(int d_end, int d_start, int it, int iters);
 /* Pixels a patch of side p with stride d spans along one axis: (p − 1)·d + 1. */
 static inline int nerf_patch_span(int p, int d) { return (p - 1) * d + 1; }
 /* Window t of the inference tiling of a w × h image by pw × ph windows of stride d, shifted (ox, oy) pixels up and

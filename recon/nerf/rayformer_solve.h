@@ -69,6 +69,9 @@ typedef struct sci_rayformer_params {
     int patch_stride_max;        /* training: > patch_stride draws each window's stride from patch_stride … this, at
                                     most 8 (GRAF's random patch scale, nerf_windows_pick); 0: every window
                                     patch_stride. Inference keeps patch_stride */
+    int patch_stride_start;      /* training: > patch_stride starts every window at this stride, at most 8, and
+                                    narrows it to patch_stride over the run (coarse-to-fine, nerf_stride_at); 0:
+                                    off. Not with patch_stride_max */
     int stratify;                /* 1: a training step's windows (scattered rays without patch sampling) one per cell of
                                     a grid over the image; 0: each uniform (trainer.h) */
     int window_jitter;           /* with inter-ray attention: 1 = in training the rays of a window share their depth

@@ -34,6 +34,13 @@ int nerf_train_config_check(const nerf_train_config *c, sci_error *err)
     if (c->group_stride_max < 0 || c->group_stride_max > 64)
         return sci_error_set(err, -EINVAL, "%s: largest window stride must be in [0, 64] (0: the stride) (got %d)",
                              m, c->group_stride_max);
+    if (c->group_stride_start < 0 || c->group_stride_start > 64)
+        return sci_error_set(err, -EINVAL, "%s: starting window stride must be in [0, 64] (0: off) (got %d)", m,
+                             c->group_stride_start);
+    const int d = c->group_stride > 1 ? c->group_stride : 1;
+    if (c->group_stride_start > d && c->group_stride_max > d)
+        return sci_error_set(err, -EINVAL, "%s: a starting window stride and strides drawn per window exclude each "
+                             "other", m);
     if (c->groups_per_step < 1 || c->groups_per_step > 4096)
         return sci_error_set(err, -EINVAL, "%s: groups per step must be in [1, 4096] (got %d)", m,
                              c->groups_per_step);
@@ -473,14 +480,24 @@ static int stride_of(const nerf_train_config *c)
     return c->patch_sampling && c->group_stride > 1 ? c->group_stride : 1;
 }
 
-/* This step's pixels: B windows of R rays (patch sampling) or B·R scattered pixels, each uniform or stratified. */
-static void sample_pixels(nerf_trainer_run_state *r)
+/* The widest stride a training window takes in the run (the image must hold it). */
+static int widest_stride(const nerf_train_config *c)
+{
+    const int d = stride_of(c), wide = c->group_stride_max > c->group_stride_start ? c->group_stride_max
+                                                                                     : c->group_stride_start;
+    return c->patch_sampling && wide > d ? wide : d;
+}
+
+/* This step's pixels (step it of 1 … iters): B windows of R rays (patch sampling) or B·R scattered pixels, each
+ * uniform or stratified. */
+static void sample_pixels(nerf_trainer_run_state *r, int it)
 {
     const nerf_train_config *c = r->c;
     const int R = r->R, B = r->B, w = r->w;
     if (c->patch_sampling) {
-        nerf_windows_pick(B, w, r->h, c->group_w, c->group_h, stride_of(c), c->group_stride_max, c->stratify,
-                          &r->rng, r->px, r->py);
+        const int d = nerf_stride_at(stride_of(c), c->group_stride_start, it, c->iters);
+        nerf_windows_pick(B, w, r->h, c->group_w, c->group_h, d, c->group_stride_max, c->stratify, &r->rng, r->px,
+                          r->py);
         return;
     }
     if (c->stratify) {
@@ -498,7 +515,7 @@ static int train_step(nerf_trainer_run_state *r, int it, double *loss_out, doubl
     const nerf_train_config *c = r->c;
     const int R = r->R, B = r->B, N = r->n, w = r->w;
     const size_t P = (size_t)B * R, fs = (size_t)w * r->h;
-    sample_pixels(r);
+    sample_pixels(r, it);
     nerf_trainer_pass *pc = &r->ps[0], *pf = &r->ps[1], *last = &r->ps[r->n_pass - 1];
     nerf_rays_camera(r->pb->camera, (int)P, r->px, r->py, pc->L, r->near, r->far, c->spacing, &r->rng,
                      c->window_jitter && c->patch_sampling ? R : 1, pc->pcam, r->dcam, pc->delta);
@@ -753,7 +770,7 @@ int nerf_train_run(const sci_problem *pb, const nerf_train_config *c, const nerf
     const sci_camera *cam = pb->camera;
     if (!cam || cam->n != pb->mask->n)
         return sci_error_set(err, -EINVAL, "%s: %s: needs a camera with one pose per frame", c->method, pb->name);
-    const int d = stride_of(c), dmax = c->patch_sampling && c->group_stride_max > d ? c->group_stride_max : d;
+    const int d = stride_of(c), dmax = widest_stride(c);
     if (pb->mask->w < c->group_w * d || pb->mask->h < c->group_h * d)
         return sci_error_set(err, SCI_ESHAPE, "%s: %s: image %dx%d is smaller than the %dx%d window (stride %d: its "
                              "tiling needs %dx%d)", c->method, pb->name, pb->mask->w, pb->mask->h, c->group_w,

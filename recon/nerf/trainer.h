@@ -97,6 +97,9 @@ typedef struct nerf_train_config {
                                      at inference (patch_sampler.h; 0 or 1: adjacent) */
     int group_stride_max;         /* patch sampling, training: > group_stride draws each window's stride from
                                      group_stride … this (nerf_windows_pick); 0 or less: every window group_stride */
+    int group_stride_start;       /* patch sampling, training: > group_stride starts every window at this stride and
+                                     narrows it to group_stride over the run (coarse-to-fine, nerf_stride_at); 0 or
+                                     less: off. Not with group_stride_max */
     int groups_per_step;          /* B, each seen from all N poses */
     int patch_sampling;           /* 1: overlapping windows; 0: scattered random pixels */
     int stratify;                 /* 1: a step's windows (or pixels) one per cell of a grid over the image

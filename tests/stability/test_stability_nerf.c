@@ -76,8 +76,9 @@ static void expect_finite_or_clear_error(const sci_problem *p, const sci_rayform
 
 /* Sizes that are not a multiple of the patch, the patch's own size (one place for a window: the stratified grid
  * is a single cell that every window of a step shares) and smaller than it: windows must be clipped or shifted
- * inside the image, never read past it, with uniform or stratified window positions, and stratified scattered rays
- * on an image with fewer pixels than rays a step. */
+ * inside the image, never read past it, with uniform or stratified window positions, windows narrowing from stride
+ * 3 (refused where the widest does not fit), and stratified scattered rays on an image with fewer pixels than rays
+ * a step. */
 static void test_sizes_not_multiple_of_patch(void **state)
 {
     const int sz[][2] = {{13, 11}, {4, 4}, {5, 3}, {1, 1}};
@@ -90,6 +91,12 @@ static void test_sizes_not_multiple_of_patch(void **state)
             char what[64];
             snprintf(what, sizeof what, "%dx%d, patch 4%s", sz[i][0], sz[i][1], stratify ? ", stratified" : "");
             expect_finite_or_clear_error(p, &q, what);
+            /* windows narrowing from stride 3 (10 pixels a side at the start): they fit 13x11 only */
+            q.patch_stride_start = 3;
+            snprintf(what, sizeof what, "%dx%d, patch 4, strides 3 to 1%s", sz[i][0], sz[i][1],
+                     stratify ? ", stratified" : "");
+            expect_finite_or_clear_error(p, &q, what);
+            q.patch_stride_start = 0;
             q.patch_sampling = 0;
             snprintf(what, sizeof what, "%dx%d, 32 rays%s", sz[i][0], sz[i][1], stratify ? ", stratified" : "");
             expect_finite_or_clear_error(p, &q, what);

@@ -2,7 +2,7 @@
  * the shared jitter of a window (share = R: sample s of every ray of a run at one depth, a fresh depth per run, the
  * stream advanced by L draws per run; share = 1 the former per-ray draws), stratified window positions, and the
  * pixels of strided windows and of their inference tiling (every pixel in some window, every window inside), and
- * training windows of one stride or of strides drawn per window. */
+ * training windows of one stride or of strides drawn per window, and the stride narrowing over a run. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -157,6 +157,30 @@ static void test_strided_window(void **state)
     assert_int_equal(nerf_patch_span(2, 1), 2);
 }
 
+/* The coarse-to-fine stride (nerf_stride_at): from 3 to 1 over 1600 steps a quarter of the run at 3, half at 2,
+ * the last quarter at 1, never widening; a start at or under the end stride is the end stride throughout. */
+static void test_stride_schedule(void **state)
+{
+    (void)state;
+    enum { ITERS = 1600 };
+    int count[4] = {0}, prev = 3;
+    for (int it = 1; it <= ITERS; it++) {
+        const int d = nerf_stride_at(1, 3, it, ITERS);
+        assert_true(d >= 1 && d <= prev);
+        count[d]++, prev = d;
+    }
+    assert_int_equal(nerf_stride_at(1, 3, 1, ITERS), 3);
+    assert_int_equal(nerf_stride_at(1, 3, ITERS, ITERS), 1);
+    /* the boundary steps round half away from zero: one step either way */
+    assert_in_range(count[3], ITERS / 4 - 1, ITERS / 4 + 1);
+    assert_in_range(count[2], ITERS / 2 - 1, ITERS / 2 + 1);
+    assert_in_range(count[1], ITERS / 4 - 1, ITERS / 4 + 1);
+    for (int it = 1; it <= 10; it++) {
+        assert_int_equal(nerf_stride_at(2, 2, it, 10), 2);
+        assert_int_equal(nerf_stride_at(2, 0, it, 10), 2);
+    }
+}
+
 /* Training windows (nerf_windows_pick): with one stride they are nerf_strata_pick's corners (or two uniforms each)
  * and nerf_patch_pixels' pixels, draw for draw; with strides 1 … 4 every window lies inside the image, is a grid of
  * one stride centred in the widest window's span, and every stride turns up about equally often (each 25 % of
@@ -263,6 +287,7 @@ int main(void)
         cmocka_unit_test(test_strata),
         cmocka_unit_test(test_strided_window),
         cmocka_unit_test(test_windows_pick),
+        cmocka_unit_test(test_stride_schedule),
         cmocka_unit_test(test_tiling_covers),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

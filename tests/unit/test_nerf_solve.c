@@ -343,10 +343,48 @@ static void test_stratify(void **state)
     sci_problem_free(p);
 }
 
+/* Wider training windows, each window's stride drawn from 1 … 4 (patch_stride_max, coarse 0) or every window
+ * narrowing from 3 to 1 over the run (patch_stride_start, coarse 1): other pixels than adjacent windows' from the
+ * first step, a finite field, every pixel rendered by the one adjacent tiling; a value under the stride or over 8
+ * is refused, as is one whose window outgrows the image, and the two settings together. */
+static void wide_window_cases(const sci_problem *p, int coarse)
+{
+    sci_rayformer_params prm;
+    int *wide = coarse ? &prm.patch_stride_start : &prm.patch_stride_max;
+    sci_result rs[2];
+    for (int k = 0; k < 2; k++) {
+        tiny_params(&prm);
+        *wide = k ? 4 - coarse : 0;
+        solve_finite(p, &prm, &rs[k]);
+    }
+    assert_true(rs[0].trace.e[0].loss != rs[1].trace.e[0].loss);
+    for (size_t i = 0; i < (size_t)rs[1].frames->w * rs[1].frames->h * rs[1].frames->n; i++)
+        assert_true(rs[1].frames->data[i] != 0.0f);
+    sci_result_free_contents(&rs[0]);
+    sci_result_free_contents(&rs[1]);
+    tiny_params(&prm);
+    prm.patch_stride = 2, *wide = 1;
+    assert_int_equal(sci_rayformer_params_check(&prm, NULL), -EINVAL);
+    *wide = 9;
+    assert_int_equal(sci_rayformer_params_check(&prm, NULL), -EINVAL);
+    prm.patch_stride = 1, prm.patch_stride_start = 3, prm.patch_stride_max = 3;
+    sci_error err = {0};
+    assert_int_equal(sci_rayformer_params_check(&prm, &err), -EINVAL);
+    assert_non_null(strstr(err.msg, "exclude each other"));
+    small_params(&prm, 3);
+    prm.patch = 8;
+    *wide = 5; /* a 36-pixel window on a 32-pixel image (at the first step, narrowing) */
+    prm.iters = 2;
+    sci_result rb = {0};
+    assert_true(sci_rayformer_solve(p, &prm, &rb, NULL, NULL) < 0);
+    assert_non_null(strstr(rb.error.msg, "window of stride 5"));
+    sci_result_free_contents(&rb);
+}
+
 /* Strided windows: scattered rays ignore the stride (bitwise the run without it); windows of stride 3 train on
  * other pixels from the first step and their one tiling renders every pixel (the frames start at 0, a rendered pixel
  * has the field's colour); four tilings stay finite; a stride whose tiling block outgrows the image is refused with
- * a message naming it, as are strides outside 1 … 8; the same for strides drawn per window (patch_stride_max). */
+ * a message naming it, as are strides outside 1 … 8; the same for wider training windows (wide_window_cases). */
 static void test_patch_stride(void **state)
 {
     (void)state;
@@ -391,33 +429,8 @@ static void test_patch_stride(void **state)
     assert_int_equal(sci_rayformer_params_check(&prm, NULL), -EINVAL);
     prm.patch_stride = 0;
     assert_int_equal(sci_rayformer_params_check(&prm, NULL), -EINVAL);
-    /* strides drawn per window: other pixels from the first step, a finite field, every pixel rendered by the one
-     * adjacent tiling; a largest stride under the stride or over 8 is refused, as is one whose window outgrows the
-     * image */
-    sci_result rs[2];
-    for (int k = 0; k < 2; k++) {
-        tiny_params(&prm);
-        prm.patch_stride_max = k ? 4 : 0;
-        solve_finite(p, &prm, &rs[k]);
-    }
-    assert_true(rs[0].trace.e[0].loss != rs[1].trace.e[0].loss);
-    for (size_t i = 0; i < (size_t)rs[1].frames->w * rs[1].frames->h * rs[1].frames->n; i++)
-        assert_true(rs[1].frames->data[i] != 0.0f);
-    sci_result_free_contents(&rs[0]);
-    sci_result_free_contents(&rs[1]);
-    tiny_params(&prm);
-    prm.patch_stride = 2, prm.patch_stride_max = 1;
-    assert_int_equal(sci_rayformer_params_check(&prm, NULL), -EINVAL);
-    prm.patch_stride_max = 9;
-    assert_int_equal(sci_rayformer_params_check(&prm, NULL), -EINVAL);
-    small_params(&prm, 3);
-    prm.patch = 8;
-    prm.patch_stride_max = 5; /* a 36-pixel window on a 32-pixel image */
-    prm.iters = 2;
-    sci_result rb = {0};
-    assert_true(sci_rayformer_solve(p, &prm, &rb, NULL, NULL) < 0);
-    assert_non_null(strstr(rb.error.msg, "window of stride 5"));
-    sci_result_free_contents(&rb);
+    wide_window_cases(p, 0);
+    wide_window_cases(p, 1);
     sci_problem_free(p);
 }
 
